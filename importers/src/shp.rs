@@ -1,0 +1,8 @@
+//! (to be written)
+use crate::{ImportError, Layer};
+use std::path::Path;
+
+/// Reads a layer.
+pub fn read(path: &Path) -> Result<Layer, ImportError> {
+    Err(ImportError::Unsupported { file: path.to_path_buf(), message: "not yet".into() })
+}

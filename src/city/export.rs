@@ -1,0 +1,1 @@
+//! Export: glTF binary and GeoJSON.

@@ -1,0 +1,23 @@
+//! Triangle meshes in the local frame (f32).
+
+use glam::Vec3;
+
+/// An indexed triangle mesh in local-frame coordinates. Triangles are counter-clockwise seen
+/// from outside (outward normals).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Mesh {
+    /// Vertex positions, local frame, metres.
+    pub positions: Vec<Vec3>,
+    /// Unit vertex normals (flat shading: vertices are not shared between faces of different
+    /// orientation).
+    pub normals: Vec<Vec3>,
+    /// Three indices per triangle.
+    pub indices: Vec<u32>,
+}
+
+impl Mesh {
+    /// Number of triangles.
+    pub fn triangle_count(&self) -> usize {
+        self.indices.len() / 3
+    }
+}

@@ -1,0 +1,19 @@
+//! The city model: buildings, streets and parcels in metric world coordinates (f64), a local
+//! frame for everything that goes to f32, extrusion into watertight prisms, export, and a
+//! procedural city generator.
+//!
+//! - [`model`]: [`City`], [`Building`], [`Street`], [`Parcel`], [`LocalFrame`].
+//! - [`build`]: layers → city (CRS to metric, heights, repair; the [`CityReport`]).
+//! - [`extrude`]: footprint + heights → closed, outward-oriented [`Mesh`] (seed 003 §3).
+//! - [`export`]: glTF binary and GeoJSON.
+//! - [`generate`]: deterministic procedural cities, written as Shapefiles.
+
+pub mod build;
+pub mod export;
+pub mod extrude;
+pub mod generate;
+pub mod mesh;
+pub mod model;
+
+pub use mesh::Mesh;
+pub use model::{Building, BuildingId, City, CityReport, HeightSource, LocalFrame, Parcel, Street};

@@ -1,0 +1,147 @@
+//! City model types.
+
+use blockwalk_importers::{Attributes, MetricTransform};
+use geo_types::{LineString, Polygon};
+use glam::{DVec3, Vec3};
+use serde::Serialize;
+
+/// Index of a building in [`City::buildings`].
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash, Serialize)]
+pub struct BuildingId(pub u32);
+
+/// Where a building's height came from.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum HeightSource {
+    /// A height attribute in metres.
+    Height,
+    /// A levels attribute × storey height.
+    Levels,
+    /// The documented default rule.
+    Default,
+}
+
+/// A building: a footprint prism from `min_height_m` to `height_m` above the ground.
+#[derive(Clone, Debug)]
+pub struct Building {
+    /// Index in [`City::buildings`].
+    pub id: BuildingId,
+    /// The feature's id in its source (`layer:fid`, or the OSM id).
+    pub source_id: String,
+    /// Footprint in metric world coordinates: exterior counter-clockwise, holes clockwise, rings
+    /// closed, valid (repaired on import).
+    pub footprint: Polygon<f64>,
+    /// Top of the prism above ground, metres.
+    pub height_m: f64,
+    /// Bottom of the prism above ground, metres (0 for most buildings).
+    pub min_height_m: f64,
+    /// Where `height_m` came from.
+    pub height_source: HeightSource,
+    /// The source attributes.
+    pub attributes: Attributes,
+}
+
+/// A street centre line in metric world coordinates.
+#[derive(Clone, Debug)]
+pub struct Street {
+    /// The feature's id in its source.
+    pub source_id: String,
+    /// Centre line, metric world coordinates.
+    pub line: LineString<f64>,
+    /// True for bridges and tunnels, which do not cut blocks.
+    pub grade_separated: bool,
+    /// The source attributes.
+    pub attributes: Attributes,
+}
+
+/// A cadastral parcel in metric world coordinates.
+#[derive(Clone, Debug)]
+pub struct Parcel {
+    /// The feature's id in its source.
+    pub source_id: String,
+    /// Parcel polygon, metric world coordinates (exterior CCW, holes CW).
+    pub polygon: Polygon<f64>,
+    /// The source attributes.
+    pub attributes: Attributes,
+}
+
+/// The local frame: world coordinates (f64) minus `origin` are what goes to f32 and the GPU.
+///
+/// Near 6e6 m an f32 keeps only about 0.5 m; relative to an origin inside the city it keeps
+/// millimetres.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct LocalFrame {
+    /// World coordinates of the local origin (x, y metric; z = 0 is the ground).
+    pub origin: DVec3,
+}
+
+impl LocalFrame {
+    /// World (f64) → local (f32). The one place where world coordinates become f32.
+    pub fn to_local(&self, world: DVec3) -> Vec3 {
+        (world - self.origin).as_vec3()
+    }
+    /// World (f64) → local (f64), for culling and anything that stays in f64.
+    pub fn to_local_f64(&self, world: DVec3) -> DVec3 {
+        world - self.origin
+    }
+    /// Local (f64) → world (f64).
+    pub fn to_world(&self, local: DVec3) -> DVec3 {
+        local + self.origin
+    }
+}
+
+/// What building the city did with every input feature.
+#[derive(Clone, Debug, Default, Serialize)]
+pub struct CityReport {
+    /// Footprint features read from the files.
+    pub buildings_read: usize,
+    /// Footprints imported as they were.
+    pub buildings_imported: usize,
+    /// Footprints imported after repair, with what was done.
+    pub buildings_repaired: Vec<RepairNote>,
+    /// Footprints refused, with the reason.
+    pub buildings_refused: Vec<RefusalNote>,
+    /// Buildings per height source.
+    pub height_sources: std::collections::BTreeMap<String, usize>,
+    /// The CRS found and what was done with it.
+    pub crs: String,
+    /// Other notes (per layer).
+    pub notes: Vec<String>,
+}
+
+/// A repaired feature.
+#[derive(Clone, Debug, Serialize)]
+pub struct RepairNote {
+    /// Source id.
+    pub id: String,
+    /// What was done.
+    pub what: String,
+}
+
+/// A refused feature.
+#[derive(Clone, Debug, Serialize)]
+pub struct RefusalNote {
+    /// Source id.
+    pub id: String,
+    /// Why.
+    pub reason: String,
+}
+
+/// A city: buildings, streets and parcels in metric world coordinates.
+#[derive(Clone, Debug)]
+pub struct City {
+    /// Name (from the footprint file).
+    pub name: String,
+    /// Maps the input's own coordinates to the metric world coordinates used here, and back.
+    pub transform: MetricTransform,
+    /// The local frame for f32 geometry (origin at the centre of the footprints' bounding box).
+    pub frame: LocalFrame,
+    /// Buildings; `buildings[i].id == BuildingId(i)`.
+    pub buildings: Vec<Building>,
+    /// Street centre lines (empty when no street layer was given).
+    pub streets: Vec<Street>,
+    /// Cadastral parcels (empty when none were given).
+    pub parcels: Vec<Parcel>,
+    /// The import account.
+    pub report: CityReport,
+}

@@ -1,0 +1,9 @@
+//! (to be written)
+
+/// Arguments.
+#[derive(clap::Args, Debug)]
+pub struct Args {}
+
+pub fn run(_args: Args) -> anyhow::Result<()> {
+    anyhow::bail!("not yet implemented")
+}

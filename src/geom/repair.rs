@@ -1,0 +1,1 @@
+//! Validation and repair of footprint rings and polygons.

@@ -1,0 +1,30 @@
+//! blockwalk: cadastral maps to navigable 3D cities, and fast walks and flights through them.
+//!
+//! The pipeline, one module per stage; data flows one way:
+//!
+//! | stage | module | seed |
+//! |---|---|---|
+//! | read files into layers | crate `blockwalk_importers` | |
+//! | geometric primitives, robust predicates, ring repair, frustum | [`geom`] | |
+//! | city model, local frame, extrusion, glTF/GeoJSON export, generator | [`city`] | 003 §3 |
+//! | street graph, urban blocks, building assignment | [`blocks`] | 003 §3 |
+//! | spatial structures (BqR-tree, VAMSplit R-tree, flat, none, rstar) | [`index`] | 003 §4 |
+//! | occlusion culling (occluder shadows, cull map) and the visibility oracle | [`visibility`] | 004 §3.2 |
+//! | camera routes | [`route`] | 003 §5 |
+//! | rendering (wgpu, feature `render`) | `render` | 000 |
+//! | tables, plots, reports | [`report`] | |
+
+#![forbid(unsafe_code)]
+#![warn(missing_docs)]
+
+pub use blockwalk_importers as importers;
+
+pub mod blocks;
+pub mod city;
+pub mod geom;
+pub mod index;
+#[cfg(feature = "render")]
+pub mod render;
+pub mod report;
+pub mod route;
+pub mod visibility;

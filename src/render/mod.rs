@@ -1,0 +1,1 @@
+//! GPU rendering with wgpu (feature `render`).

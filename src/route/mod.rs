@@ -1,0 +1,1 @@
+//! Scripted camera routes (seed 003 §5).
