@@ -4,5 +4,8 @@ use std::path::Path;
 
 /// Reads a layer.
 pub fn read(path: &Path) -> Result<Layer, ImportError> {
-    Err(ImportError::Unsupported { file: path.to_path_buf(), message: "not yet".into() })
+    Err(ImportError::Unsupported {
+        file: path.to_path_buf(),
+        message: "not yet".into(),
+    })
 }

@@ -213,8 +213,7 @@ pub fn read_layer(path: &Path, theme: &Theme) -> Result<Layer, ImportError> {
     } else {
         Err(ImportError::Unsupported {
             file: path.to_path_buf(),
-            message: "unknown extension (expected .shp, .geojson, .json, .gpkg or .osm.pbf)"
-                .into(),
+            message: "unknown extension (expected .shp, .geojson, .json, .gpkg or .osm.pbf)".into(),
         })
     }
 }

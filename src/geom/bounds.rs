@@ -125,8 +125,14 @@ mod tests {
 
     #[test]
     fn merged_sphere_holds_both() {
-        let a = BoundingSphere { center: DVec3::ZERO, radius: 1.0 };
-        let b = BoundingSphere { center: DVec3::new(5.0, 0.0, 0.0), radius: 2.0 };
+        let a = BoundingSphere {
+            center: DVec3::ZERO,
+            radius: 1.0,
+        };
+        let b = BoundingSphere {
+            center: DVec3::new(5.0, 0.0, 0.0),
+            radius: 2.0,
+        };
         let m = a.merge(b);
         assert!(m.contains_point(DVec3::new(-1.0, 0.0, 0.0)));
         assert!(m.contains_point(DVec3::new(7.0, 0.0, 0.0)));

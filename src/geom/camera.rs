@@ -51,16 +51,24 @@ impl Camera {
 
     /// Unit viewing direction.
     pub fn forward(&self) -> DVec3 {
-        let p = self.pitch.clamp(-std::f64::consts::FRAC_PI_2, std::f64::consts::FRAC_PI_2);
+        let p = self
+            .pitch
+            .clamp(-std::f64::consts::FRAC_PI_2, std::f64::consts::FRAC_PI_2);
         DVec3::new(p.cos() * self.yaw.cos(), p.cos() * self.yaw.sin(), p.sin())
     }
 
     /// Unit image-up direction, perpendicular to [`Self::forward`]; follows the yaw when the
     /// camera looks straight down or up, so the frame never flips.
     pub fn up(&self) -> DVec3 {
-        let p = self.pitch.clamp(-std::f64::consts::FRAC_PI_2, std::f64::consts::FRAC_PI_2);
+        let p = self
+            .pitch
+            .clamp(-std::f64::consts::FRAC_PI_2, std::f64::consts::FRAC_PI_2);
         // d(forward)/d(pitch): always unit length and perpendicular to forward.
-        DVec3::new(-p.sin() * self.yaw.cos(), -p.sin() * self.yaw.sin(), p.cos())
+        DVec3::new(
+            -p.sin() * self.yaw.cos(),
+            -p.sin() * self.yaw.sin(),
+            p.cos(),
+        )
     }
 
     /// View matrix (right-handed, camera looks down −z in view space).
@@ -108,7 +116,11 @@ mod tests {
     #[test]
     fn straight_down_is_finite_and_orthonormal() {
         for yaw in [0.0, 1.0, 3.0, -2.0] {
-            let c = Camera::new(DVec3::new(1e3, 2e3, 300.0), yaw, -std::f64::consts::FRAC_PI_2);
+            let c = Camera::new(
+                DVec3::new(1e3, 2e3, 300.0),
+                yaw,
+                -std::f64::consts::FRAC_PI_2,
+            );
             let m = c.clip_from_world();
             assert!(m.to_cols_array().iter().all(|v| v.is_finite()));
             assert!(c.forward().dot(c.up()).abs() < 1e-12);

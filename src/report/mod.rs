@@ -1,1 +1,3 @@
-//! Tables, plots and reports.
+//! Tables, plots and reports a person would rather look at than read.
+
+pub mod plot;
