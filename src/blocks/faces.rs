@@ -262,14 +262,21 @@ impl FaceSet {
         let f = &self.faces[i];
         Polygon::new(
             close(&f.ring),
-            f.holes.iter().map(|&h| close(&self.faces[h].ring)).collect(),
+            f.holes
+                .iter()
+                .map(|&h| close(&self.faces[h].ring))
+                .collect(),
         )
     }
 
     /// Net area of a bounded face (ring minus holes).
     pub fn area(&self, i: usize) -> f64 {
         let f = &self.faces[i];
-        f.ring_area + f.holes.iter().map(|&h| self.faces[h].ring_area).sum::<f64>()
+        f.ring_area
+            + f.holes
+                .iter()
+                .map(|&h| self.faces[h].ring_area)
+                .sum::<f64>()
     }
 }
 

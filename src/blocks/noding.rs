@@ -68,7 +68,10 @@ impl Snapper {
     }
     fn key(&self, c: Coord<f64>) -> (i64, i64) {
         if self.tol > 0.0 {
-            ((c.x / self.tol).floor() as i64, (c.y / self.tol).floor() as i64)
+            (
+                (c.x / self.tol).floor() as i64,
+                (c.y / self.tol).floor() as i64,
+            )
         } else {
             (c.x.to_bits() as i64, c.y.to_bits() as i64)
         }
@@ -164,8 +167,12 @@ fn node_once(segs: &[[Coord<f64>; 2]], tol: f64) -> (PlanarGraph, bool) {
                 splits[j].push((u, p));
             }
             // Ends touching or near the other segment (T-junctions, overlaps, near misses).
-            for (p, target, other) in [(c, i, [a, b]), (d, i, [a, b]), (a, j, [c, d]), (b, j, [c, d])]
-            {
+            for (p, target, other) in [
+                (c, i, [a, b]),
+                (d, i, [a, b]),
+                (a, j, [c, d]),
+                (b, j, [c, d]),
+            ] {
                 let (dist, t) = point_segment(p, other[0], other[1]);
                 if dist <= tol && t > 0.0 && t < 1.0 {
                     splits[target].push((t, p));

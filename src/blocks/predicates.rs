@@ -198,13 +198,31 @@ mod tests {
             Coord { x: 2.0, y: 2.0 },
             Coord { x: 0.0, y: 2.0 },
         ];
-        assert_eq!(locate_in_ring(Coord { x: 1.0, y: 1.0 }, &sq), Location::Inside);
+        assert_eq!(
+            locate_in_ring(Coord { x: 1.0, y: 1.0 }, &sq),
+            Location::Inside
+        );
         // Ray through vertex (2,2)'s height and along the top edge.
-        assert_eq!(locate_in_ring(Coord { x: 1.0, y: 2.0 }, &sq), Location::Boundary);
-        assert_eq!(locate_in_ring(Coord { x: -1.0, y: 2.0 }, &sq), Location::Outside);
-        assert_eq!(locate_in_ring(Coord { x: -1.0, y: 0.0 }, &sq), Location::Outside);
-        assert_eq!(locate_in_ring(Coord { x: 2.0, y: 1.0 }, &sq), Location::Boundary);
-        assert_eq!(locate_in_ring(Coord { x: 3.0, y: 1.0 }, &sq), Location::Outside);
+        assert_eq!(
+            locate_in_ring(Coord { x: 1.0, y: 2.0 }, &sq),
+            Location::Boundary
+        );
+        assert_eq!(
+            locate_in_ring(Coord { x: -1.0, y: 2.0 }, &sq),
+            Location::Outside
+        );
+        assert_eq!(
+            locate_in_ring(Coord { x: -1.0, y: 0.0 }, &sq),
+            Location::Outside
+        );
+        assert_eq!(
+            locate_in_ring(Coord { x: 2.0, y: 1.0 }, &sq),
+            Location::Boundary
+        );
+        assert_eq!(
+            locate_in_ring(Coord { x: 3.0, y: 1.0 }, &sq),
+            Location::Outside
+        );
         // Diamond: the ray passes exactly through the left and right vertices.
         let d = [
             Coord { x: 0.0, y: -1.0 },
@@ -212,8 +230,14 @@ mod tests {
             Coord { x: 0.0, y: 1.0 },
             Coord { x: -1.0, y: 0.0 },
         ];
-        assert_eq!(locate_in_ring(Coord { x: 0.0, y: 0.0 }, &d), Location::Inside);
-        assert_eq!(locate_in_ring(Coord { x: -2.0, y: 0.0 }, &d), Location::Outside);
+        assert_eq!(
+            locate_in_ring(Coord { x: 0.0, y: 0.0 }, &d),
+            Location::Inside
+        );
+        assert_eq!(
+            locate_in_ring(Coord { x: -2.0, y: 0.0 }, &d),
+            Location::Outside
+        );
     }
 
     #[test]
