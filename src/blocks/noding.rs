@@ -167,14 +167,15 @@ fn node_once(segs: &[[Coord<f64>; 2]], tol: f64) -> (PlanarGraph, bool) {
                 splits[j].push((u, p));
             }
             // Ends touching or near the other segment (T-junctions, overlaps, near misses).
-            for (p, target, other) in [
-                (c, i, [a, b]),
-                (d, i, [a, b]),
-                (a, j, [c, d]),
-                (b, j, [c, d]),
+            // An exactly collinear end counts as distance 0 whatever the rounding of the distance.
+            for (p, target, other, o) in [
+                (c, i, [a, b], o1),
+                (d, i, [a, b], o2),
+                (a, j, [c, d], o3),
+                (b, j, [c, d], o4),
             ] {
                 let (dist, t) = point_segment(p, other[0], other[1]);
-                if dist <= tol && t > 0.0 && t < 1.0 {
+                if (dist <= tol || o == 0.0) && t > 0.0 && t < 1.0 {
                     splits[target].push((t, p));
                 }
             }
