@@ -21,6 +21,8 @@ pub mod osm;
 pub mod report;
 mod rings;
 pub mod shp;
+#[cfg(feature = "gpkg")]
+mod wkb;
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
