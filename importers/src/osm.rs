@@ -9,6 +9,8 @@
 //!   `type=building`) → `Polygon` when they make one polygon, else `MultiPolygon`. Member ways with
 //!   role `outer` (or no role) and `inner` are joined end to end into rings (reversing ways as
 //!   needed); each inner ring goes into the outer ring that contains it.
+//!   A building way that is also an outer member of a building relation is read only as part of
+//!   the relation (a note counts them), so a building is not counted twice.
 //! - [`Theme::Streets`]: ways tagged `highway=*` → `LineString`.
 //! - Attributes: every tag as text, plus `osm_id` (integer) and `osm_type` (`way`/`relation`).
 //!   [`Feature::fid`] is the OSM id.
@@ -121,6 +123,11 @@ pub fn read(path: &Path, theme: &Theme) -> Result<Layer, ImportError> {
         .iter()
         .flat_map(|r| r.members.iter().map(|m| m.0))
         .collect();
+    let outer_members: HashSet<i64> = relations
+        .iter()
+        .flat_map(|r| r.members.iter().filter(|m| !m.1).map(|m| m.0))
+        .collect();
+    let mut skipped_outer = 0usize;
 
     // Pass 2: nodes and ways.
     let mut nodes: HashMap<i64, (f64, f64)> = HashMap::new();
@@ -143,6 +150,14 @@ pub fn read(path: &Path, theme: &Theme) -> Result<Layer, ImportError> {
                     } else {
                         t.any(|(k, _)| k == "highway")
                     }
+                };
+                // A building way that is an outer ring of a building relation is that
+                // relation's building, read with it: not a second building.
+                let wanted = if wanted && buildings && outer_members.contains(&id) {
+                    skipped_outer += 1;
+                    false
+                } else {
+                    wanted
                 };
                 if wanted {
                     ways.push(Way {
@@ -185,6 +200,12 @@ pub fn read(path: &Path, theme: &Theme) -> Result<Layer, ImportError> {
         }
     }
     report.imported = features.len();
+    if skipped_outer > 0 {
+        report.notes.push(format!(
+            "{skipped_outer} building ways are outer rings of building relations and were read \
+             as part of those relations, not as separate buildings"
+        ));
+    }
     report.notes.push(format!(
         "OSM {}: {} ways and {} relations selected, {} nodes in the extract; WGS84 lon/lat",
         if buildings { "buildings" } else { "streets" },
