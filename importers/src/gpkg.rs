@@ -5,7 +5,7 @@
 //!   `Buildings` → a name containing "build", `Streets` → "street" or "road", `Parcels` →
 //!   "plot" or "parcel", `Table(name)` → that exact name, `Any` → the first table. No match is an
 //!   error that lists the tables there are.
-//! - Geometry blobs are decoded by [`crate::wkb`]: the `GP` header (envelope, byte order, empty
+//! - Geometry blobs are decoded by the crate's WKB decoder: the `GP` header (envelope, byte order, empty
 //!   flag), then WKB of any of the seven simple-feature types, Z/M dropped.
 //! - The CRS comes from `gpkg_spatial_ref_sys`: an `EPSG` organisation code gives
 //!   [`Crs::from_epsg`] (with the name from the WKT definition), otherwise the definition is
