@@ -119,7 +119,8 @@ impl Reader<'_> {
         let n = self.u32(le)? as usize;
         if n.saturating_mul(min_size) > self.remaining() {
             return Err(format!(
-                "WKB count {n} exceeds the {} bytes left",
+                "WKB truncated or corrupt: a count of {n} needs at least {} bytes, {} are left",
+                n.saturating_mul(min_size),
                 self.remaining()
             ));
         }
@@ -332,7 +333,7 @@ mod tests {
         let mut h = vec![1u8];
         h.extend(2u32.to_le_bytes());
         h.extend(u32::MAX.to_le_bytes());
-        assert!(decode_wkb(&h).unwrap_err().contains("exceeds"));
+        assert!(decode_wkb(&h).unwrap_err().contains("truncated"));
         // Empty flag.
         let g = decode_gpkg(&[b'G', b'P', 0, 0x11, 0, 0, 0, 0]).unwrap();
         assert!(g.geometry.is_none());
