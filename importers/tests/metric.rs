@@ -48,6 +48,9 @@ fn bubenec_areas_match_the_utm_copy() {
         total_metric += am;
         total_utm += au;
     }
+    println!(
+        "areas: mercator {total_merc:.1}, local TM {total_metric:.1} m², UTM {total_utm:.1} m²"
+    );
     // data/README.md: 104,843 in Mercator units, 43,151 m² in UTM.
     assert!((total_merc - 104_843.0).abs() < 1.0, "{total_merc}");
     assert!((total_utm - 43_151.0).abs() < 1.0, "{total_utm}");
