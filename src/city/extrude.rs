@@ -219,7 +219,7 @@ pub fn try_extrude_city(city: &City) -> (Vec<Mesh>, Vec<ExtrudeError>) {
 /// # Errors
 /// A description of the first defect found.
 pub fn check_closed(m: &Mesh) -> Result<(), String> {
-    if m.indices.len() % 3 != 0 {
+    if !m.indices.chunks_exact(3).remainder().is_empty() {
         return Err("index count is not a multiple of 3".into());
     }
     let mut weld: HashMap<[u32; 3], u32> = HashMap::new();

@@ -122,6 +122,8 @@ fn poly(ext: Vec<Coord<f64>>, holes: Vec<Vec<Coord<f64>>>) -> Polygon<f64> {
     )
 }
 
+type Ring = Vec<(f64, f64)>;
+
 /// A building inside the axis-aligned box `[x0,x1]×[y0,y1]`; `front` is the side facing the
 /// street (0 south, 1 east, 2 north, 3 west), where an L or U stays closed.
 fn building_shape(rng: &mut ChaCha8Rng, b: [f64; 4], front: u8) -> Polygon<f64> {
@@ -129,8 +131,8 @@ fn building_shape(rng: &mut ChaCha8Rng, b: [f64; 4], front: u8) -> Polygon<f64> 
     let (w, h) = (x1 - x0, y1 - y0);
     let r: f64 = rng.random();
     // Work in a frame where the front is south, then rotate the result back into the box.
-    let (fw, fd) = if front % 2 == 0 { (w, h) } else { (h, w) };
-    let local: (Vec<(f64, f64)>, Option<Vec<(f64, f64)>>) = if r < 0.1 && fw >= 22.0 && fd >= 22.0 {
+    let (fw, fd) = if front & 1 == 0 { (w, h) } else { (h, w) };
+    let local: (Ring, Option<Ring>) = if r < 0.1 && fw >= 22.0 && fd >= 22.0 {
         // Rectangle with a courtyard.
         let t = rng.random_range(6.0..9.0f64).min(fw / 3.0).min(fd / 3.0);
         (
@@ -243,7 +245,12 @@ fn cuts(rng: &mut ChaCha8Rng, a: f64, b: f64, range: (f64, f64)) -> Vec<(f64, f6
 /// [`GenerateError::Params`] for empty or inverted ranges.
 pub fn generate_city(p: &GenerateParams) -> Result<GeneratedCity, GenerateError> {
     let ok = |r: (f64, f64)| r.0.is_finite() && r.1.is_finite() && 0.0 < r.0 && r.0 < r.1;
-    if !ok(p.block_m) || !ok(p.street_m) || !ok(p.frontage_m) || !(p.storey_m > 0.0) {
+    if !ok(p.block_m)
+        || !ok(p.street_m)
+        || !ok(p.frontage_m)
+        || p.storey_m.is_nan()
+        || p.storey_m <= 0.0
+    {
         return Err(GenerateError::Params(format!("{p:?}")));
     }
     if p.block_m.0 < 40.0 {

@@ -376,7 +376,7 @@ mod tests {
             let p = coord! {x: px + off, y: py + off};
             let n = r.len();
             let os: Vec<_> = (0..n).map(|i| orient2d(r[i], r[(i + 1) % n], p)).collect();
-            let truth = if os.iter().any(|o| *o == Orientation::Clockwise) {
+            let truth = if os.contains(&Orientation::Clockwise) {
                 Location::Outside
             } else if os.iter().all(|o| *o == Orientation::CounterClockwise) {
                 Location::Inside

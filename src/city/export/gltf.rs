@@ -41,7 +41,7 @@ fn y_up(v: Vec3) -> [f32; 3] {
 }
 
 fn pad4(buf: &mut Vec<u8>, byte: u8) {
-    while buf.len() % 4 != 0 {
+    while buf.len() & 3 != 0 {
         buf.push(byte);
     }
 }
