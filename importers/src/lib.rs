@@ -7,6 +7,17 @@
 //! model's job; this crate refuses only what cannot be read at all (NaN, empty geometry, truncated
 //! records) and says why.
 //!
+//! | reader | reads | CRS from |
+//! |---|---|---|
+//! | [`shp::read`] | `.shp` + `.shx` + `.dbf` (attributes) | `.prj` WKT |
+//! | [`geojson_reader::read`] | FeatureCollection, Feature or bare geometry | legacy `crs` member, else WGS84 |
+//! | `gpkg::read` (feature `gpkg`) | one feature table of a GeoPackage, chosen by [`Theme`] | `gpkg_spatial_ref_sys` |
+//! | `osm::read` (feature `osm`) | OSM PBF buildings (ways and multipolygon relations) or streets | WGS84 |
+//!
+//! [`read_layer`] picks the reader by extension. [`Crs::metric_transform`] maps a layer's
+//! coordinates to ground metres (identity for projected data; a local transverse Mercator for
+//! Web Mercator and geographic data).
+//!
 //! This crate knows nothing of `blockwalk`: it can be used alone to read cadastral data.
 
 #![forbid(unsafe_code)]
@@ -21,6 +32,8 @@ pub mod osm;
 pub mod report;
 mod rings;
 pub mod shp;
+#[cfg(feature = "gpkg")]
+mod wkb;
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};

@@ -358,9 +358,9 @@ fn truncated_and_garbage_files() {
 }
 
 #[test]
-fn nan_and_null_records_are_refused() {
+fn nan_and_infinite_coordinates_are_refused() {
     use shapefile::dbase::{FieldValue, Record, TableWriterBuilder};
-    use shapefile::{Point, Polyline, Shape};
+    use shapefile::{Point, Polyline};
     let dir = tempfile::tempdir().unwrap();
     let p = dir.path().join("nan.shp");
     {
@@ -401,7 +401,59 @@ fn nan_and_null_records_are_refused() {
         l.report.refused
     );
     assert_eq!(l.report.refused[1].fid, 2);
-    let _ = Shape::NullShape;
+}
+
+#[test]
+fn null_shape_is_refused_and_holes_find_their_outer_ring() {
+    use shapefile::dbase::{FieldValue, Record, TableWriterBuilder};
+    use shapefile::{Point, Polygon, PolygonRing};
+    let dir = tempfile::tempdir().unwrap();
+    let p = dir.path().join("poly.shp");
+    let sq = |x0: f64, y0: f64, s: f64| {
+        vec![
+            Point::new(x0, y0),
+            Point::new(x0, y0 + s),
+            Point::new(x0 + s, y0 + s),
+            Point::new(x0 + s, y0),
+            Point::new(x0, y0),
+        ]
+    };
+    {
+        let table = TableWriterBuilder::new().add_numeric_field("id".try_into().unwrap(), 10, 0);
+        let mut w = shapefile::Writer::from_path(&p, table).unwrap();
+        // The hole comes first, before both outer rings, and lies in the second one.
+        let poly = Polygon::with_rings(vec![
+            PolygonRing::Inner(sq(22.0, 2.0, 6.0)),
+            PolygonRing::Outer(sq(0.0, 0.0, 10.0)),
+            PolygonRing::Outer(sq(20.0, 0.0, 10.0)),
+        ]);
+        for id in 0..2 {
+            let mut r = Record::default();
+            r.insert("id".into(), FieldValue::Numeric(Some(id as f64)));
+            w.write_shape_and_record(&poly, &r).unwrap();
+        }
+    }
+    // Make the last record a null shape: its shape type (after the 8-byte record header) → 0.
+    let shx = std::fs::read(dir.path().join("poly.shx")).unwrap();
+    let off = 2 * i32::from_be_bytes(shx[108..112].try_into().unwrap()) as usize;
+    let mut shp_bytes = std::fs::read(&p).unwrap();
+    shp_bytes[off + 8..off + 12].copy_from_slice(&0i32.to_le_bytes());
+    std::fs::write(&p, shp_bytes).unwrap();
+
+    let l = shp::read(&p).unwrap();
+    accounted(&l);
+    assert_eq!(l.report.read, 2);
+    assert_eq!(l.report.refused.len(), 1);
+    assert_eq!(l.report.refused[0].fid, 1);
+    assert!(l.report.refused[0].reason.contains("null shape"));
+    let Geometry::MultiPolygon(m) = &l.features[0].geometry else {
+        panic!("{:?}", l.features[0].geometry)
+    };
+    assert_eq!(m.0.len(), 2);
+    assert!(m.0[0].interiors().is_empty());
+    assert_eq!(m.0[1].interiors().len(), 1);
+    assert_eq!(m.0[1].exterior().0[0].x, 20.0);
+    assert_eq!(m.0[1].interiors()[0].0[0].x, 22.0);
 }
 
 mod fuzz {
