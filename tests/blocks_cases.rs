@@ -204,9 +204,9 @@ proptest! {
             .map(|row| row.into_iter().map(|c| Coord { x: c.x + offset, y: c.y + offset }).collect())
             .collect();
         let mut lines = Vec::new();
-        for i in 0..n {
-            lines.push(LineString((0..n).map(|k| g[i][k]).collect()));
-            lines.push(LineString((0..n).map(|k| g[k][i]).collect()));
+        for (i, row) in g.iter().enumerate() {
+            lines.push(LineString(row.clone()));
+            lines.push(LineString(g.iter().map(|r| r[i]).collect()));
         }
         // Dangling spurs from random nodes, and the grid drawn in pieces that overlap.
         for &s in &spurs {

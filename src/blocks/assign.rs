@@ -131,13 +131,13 @@ pub fn outskirts_groups(
     }
     let mut groups: Vec<Vec<usize>> = Vec::new();
     let mut slot = vec![usize::MAX; polys.len()];
-    for i in 0..polys.len() {
+    for (i, &b) in which.iter().enumerate() {
         let r = find(&mut parent, i);
         if slot[r] == usize::MAX {
             slot[r] = groups.len();
             groups.push(Vec::new());
         }
-        groups[slot[r]].push(which[i]);
+        groups[slot[r]].push(b);
     }
     groups
         .into_iter()

@@ -83,7 +83,7 @@ fn walk(nodes: &[Coord<f64>], edges: &[[u32; 2]]) -> (Vec<usize>, Vec<Vec<u32>>)
     }
     let head = |h: u32| -> u32 {
         let e = edges[(h / 2) as usize];
-        if h % 2 == 0 {
+        if h & 1 == 0 {
             e[1]
         } else {
             e[0]

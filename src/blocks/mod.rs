@@ -5,6 +5,34 @@
 //! counter-clockwise walk ([`faces`]), or infer blocks from parcels or footprints when there is no
 //! street layer ([`infer`]), then assign every building to one block ([`assign`]); [`detect`] does
 //! it all. [`export`] writes GeoJSON in the input's own coordinates and an SVG/PNG map.
+//!
+//! # Parameters ([`BlockOptions`])
+//!
+//! | option | default | meaning |
+//! |---|---|---|
+//! | `snap_tolerance` | 0.05 m | points closer than this are one node; a line end this close to another line joins it (a T-junction that misses by 1 mm joins) |
+//! | `grade_separated_cut` | `false` | bridges and tunnels do not cut blocks |
+//! | `outskirts_link` | 30 m | outskirts buildings closer than this form one group (outline: convex hull) |
+//! | `street_width` | 20 m | blocks from footprints: buildings closer than this are in one block |
+//! | `force_source` | none | else streets → parcels → footprints, the first layer present |
+//!
+//! # Results on the bundled data (`tests/blocks_real.rs`)
+//!
+//! - Bubeneč, streets: the 7 faces of momepy's `enclosures` (GEOS `polygonize(union_all)`), each
+//!   with IoU 1.000000, total 204,834.6 EPSG:3857 units² (84,371 m² on the ground); 96 buildings
+//!   in faces, 48 in one outskirts group; 89 street edges and 11 dead ends (node degree 1; the
+//!   data README's "14 dangles" counts differently: the graph is the same at snap tolerances 0,
+//!   0.05 and 1).
+//! - Helsinki, `streets_blockclass`: with `grade_separated_cut` the 70 reference faces, each IoU
+//!   1.00000, 893,374 m². By default bridges do not cut, so one bridge no longer splits a face: 69
+//!   faces, 892,494 m². The reference made no exception for bridges.
+//! - Bubeneč without streets. Parcel blocks: 33, and each street face with buildings holds its
+//!   buildings in exactly one parcel block, which lies inside the face, at IoU 0.67–0.76.
+//!   Footprint blocks (20 m, UTM copy): 8, grouped the same way, at IoU 0.30–0.59. IoU is lower
+//!   because a street face reaches the street centre lines, while the parcels stop at the street
+//!   parcels and the footprint blocks stop at the walls.
+//! - A generated city of 80,000 buildings: 5,396 faces, 10,939 street edges, every building
+//!   assigned, in about 0.33 s for `detect` (`blockwalk blocks --json`, `ms`).
 
 pub mod assign;
 pub mod detect;

@@ -1,13 +1,9 @@
 //! `blockwalk blocks`: streets and urban blocks (seed 003 §3), GeoJSON in the input's own
 //! coordinates, an SVG/PNG map, a summary.
 
-use super::common::CityArgs;
-use anyhow::Context;
+use super::common::{load_city, spinner, CityArgs};
 use blockwalk::blocks::export::{summary, write_geojson, write_map};
 use blockwalk::blocks::{detect, BlockOptions, BlockSource};
-use blockwalk::city::build::{build_city, BuildOptions};
-use blockwalk::city::City;
-use blockwalk::importers::{read_layer, Theme};
 use std::path::PathBuf;
 use std::time::Instant;
 
@@ -57,50 +53,10 @@ pub struct Args {
     pub json: bool,
 }
 
-fn parse_tags(tags: &[String]) -> anyhow::Result<Vec<(String, String)>> {
-    tags.iter()
-        .map(|t| {
-            t.split_once('=')
-                .map(|(k, v)| (k.to_string(), v.to_string()))
-                .with_context(|| format!("--exclude-tag {t:?}: expected key=value"))
-        })
-        .collect()
-}
-
-/// Reads the layers and builds the city.
-fn load(args: &CityArgs) -> anyhow::Result<City> {
-    anyhow::ensure!(
-        args.inputs.len() == 1,
-        "blocks takes one footprint file ({} given)",
-        args.inputs.len()
-    );
-    let fp = read_layer(&args.inputs[0], &Theme::Buildings)
-        .with_context(|| format!("reading footprints {}", args.inputs[0].display()))?;
-    let streets = match &args.streets {
-        Some(p) => Some(
-            read_layer(p, &Theme::Streets)
-                .with_context(|| format!("reading streets {}", p.display()))?,
-        ),
-        None => None,
-    };
-    let parcels = match &args.parcels {
-        Some(p) => Some(
-            read_layer(p, &Theme::Parcels)
-                .with_context(|| format!("reading parcels {}", p.display()))?,
-        ),
-        None => None,
-    };
-    let opts = BuildOptions {
-        exclude_street_tags: parse_tags(&args.exclude_tag)?,
-        ..BuildOptions::default()
-    };
-    Ok(build_city(&fp, streets.as_ref(), parcels.as_ref(), &opts)?)
-}
-
 /// Runs the command.
 pub fn run(args: Args) -> anyhow::Result<()> {
     let t0 = Instant::now();
-    let city = load(&args.city)?;
+    let city = load_city(&args.city)?;
     let opts = BlockOptions {
         snap_tolerance: args.snap,
         force_source: args.source.map(|s| match s {
@@ -112,9 +68,12 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         outskirts_link: args.outskirts_link,
         street_width: args.street_width,
     };
+    let pb = spinner(format!("blocks of {} buildings", city.buildings.len()));
     let t1 = Instant::now();
-    let layout = detect(&city, &opts)?;
+    let layout = detect(&city, &opts);
     let ms = t1.elapsed().as_secs_f64() * 1e3;
+    pb.finish_and_clear();
+    let layout = layout?;
     if let Some(o) = &args.output {
         write_geojson(o, &layout, &city.transform)?;
     }
