@@ -1,8 +1,8 @@
 //! Hard cases for the street graph and the face walk, and grid properties (proptest).
 
 use blockwalk::blocks::noding::node_lines;
-use blockwalk::blocks::predicates::{locate_in_polygon, polygon_area, signed_ring_area, Location};
 use blockwalk::blocks::{detect_geometry, BlockKind, BlockLayout, BlockOptions, BlockSource};
+use blockwalk::geom::predicates::{point_in_polygon, polygon_area, ring_signed_area, Location};
 use geo_types::{line_string, polygon, Coord, LineString, Polygon};
 use proptest::prelude::*;
 
@@ -133,7 +133,7 @@ fn street_loop_inside_a_block_is_a_hole() {
     assert_eq!(ids, vec![1, 2]);
     let hole = &ring.polygon.interiors()[0];
     assert!(
-        signed_ring_area(&hole.0[..hole.0.len() - 1]) < 0.0,
+        ring_signed_area(&hole.0[..hole.0.len() - 1]) < 0.0,
         "holes are clockwise"
     );
     assert!(once_each(&l, 3));
@@ -236,14 +236,14 @@ proptest! {
         ring.extend((1..n).map(|i| g[i][n - 1]));
         ring.extend((0..n - 1).rev().map(|k| g[n - 1][k]));
         ring.extend((1..n - 1).rev().map(|i| g[i][0]));
-        let enclosed = signed_ring_area(&ring);
+        let enclosed = ring_signed_area(&ring);
         let total: f64 = areas.iter().sum();
         prop_assert!((total - enclosed).abs() < 1e-6 * enclosed, "{} vs {}", total, enclosed);
         prop_assert!(once_each(&l, buildings.len()));
         for (b, c) in centres.iter().enumerate() {
             let block = l.blocks.iter().find(|x| x.buildings.iter().any(|id| id.0 as usize == b)).unwrap();
             prop_assert_eq!(block.kind, BlockKind::Block);
-            prop_assert_eq!(locate_in_polygon(*c, &block.polygon), Location::Inside);
+            prop_assert_eq!(point_in_polygon(*c, &block.polygon), Location::Inside);
         }
         let last = l.blocks.iter().find(|x| x.buildings.iter().any(|id| id.0 as usize == buildings.len() - 1)).unwrap();
         prop_assert_eq!(last.kind, BlockKind::Outskirts);

@@ -1,8 +1,8 @@
 //! Block detection on the bundled real data, against the reference faces in `data/*/reference/`
 //! (computed with shapely/GEOS `polygonize(union_all(lines))`, see `data/README.md`).
 
-use blockwalk::blocks::predicates::polygon_area;
 use blockwalk::blocks::{detect_geometry, BlockKind, BlockLayout, BlockOptions, BlockSource};
+use blockwalk::geom::predicates::polygon_area;
 use geo::BooleanOps;
 use geo_types::{LineString, MultiLineString, MultiPolygon, Polygon};
 use std::path::PathBuf;

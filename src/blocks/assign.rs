@@ -7,7 +7,7 @@
 //! scanline's point is taken, as the paper retries "another point of the polygon".
 //! Buildings in no block are grouped into outskirts by proximity.
 
-use super::predicates::{interior_point, locate_in_polygon, Location};
+use crate::geom::predicates::{interior_point, point_in_polygon, Location};
 use geo::{ConvexHull, Distance, Euclidean};
 use geo_types::{Coord, MultiPoint, Point, Polygon};
 use rayon::prelude::*;
@@ -53,8 +53,8 @@ fn block_at(
     let mut found: Option<usize> = None;
     for cand in tree.locate_all_at_point(&[p.x, p.y]) {
         let j = cand.data;
-        match locate_in_polygon(p, &blocks[j]) {
-            Location::Boundary => return Err(()),
+        match point_in_polygon(p, &blocks[j]) {
+            Location::OnBoundary => return Err(()),
             Location::Inside => {
                 if found.is_none_or(|f| (areas[j], j) < (areas[f], f)) {
                     found = Some(j);
@@ -69,7 +69,10 @@ fn block_at(
 /// Assigns every footprint to at most one block: `result[i]` is the block of `buildings[i]`.
 pub fn assign(buildings: &[Polygon<f64>], blocks: &[Polygon<f64>]) -> Vec<Option<usize>> {
     let tree = tree_of(blocks, 0.0);
-    let areas: Vec<f64> = blocks.iter().map(super::predicates::polygon_area).collect();
+    let areas: Vec<f64> = blocks
+        .iter()
+        .map(crate::geom::predicates::polygon_area)
+        .collect();
     buildings
         .par_iter()
         .map(|b| {
@@ -77,7 +80,7 @@ pub fn assign(buildings: &[Polygon<f64>], blocks: &[Polygon<f64>]) -> Vec<Option
             let mut last = None;
             for k in 0..n {
                 let Some(p) = interior_point(b, k) else { break };
-                if locate_in_polygon(p, b) != Location::Inside && k + 1 < n {
+                if point_in_polygon(p, b) != Location::Inside && k + 1 < n {
                     continue;
                 }
                 match block_at(p, blocks, &areas, &tree) {

@@ -1,8 +1,8 @@
 //! Block layout output: GeoJSON in the input's own coordinates, a one-object summary, and a map
 //! picture (SVG, or PNG through an RGB raster).
 
-use super::predicates::polygon_area;
 use super::types::{BlockKind, BlockLayout, BlockSource};
+use crate::geom::predicates::polygon_area;
 use blockwalk_importers::{Crs, MetricTransform};
 use geo_types::{Coord, LineString, Polygon};
 use plotters::prelude::*;

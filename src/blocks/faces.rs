@@ -15,7 +15,7 @@
 //! zero-area spikes from the face rings, and keeps every ring simple.
 
 use super::noding::PlanarGraph;
-use super::predicates::{locate_in_ring, orient, signed_ring_area, Location};
+use crate::geom::predicates::{orient2d_det, point_in_ring, ring_signed_area, Location};
 use geo_types::{Coord, LineString, Polygon};
 use rstar::{primitives::GeomWithData, primitives::Rectangle, RTree};
 use std::cmp::Ordering;
@@ -59,7 +59,7 @@ fn angle_cmp(o: Coord<f64>, a: Coord<f64>, b: Coord<f64>) -> Ordering {
     let ha = half_plane(a.y > o.y, a.y == o.y, a.x > o.x);
     let hb = half_plane(b.y > o.y, b.y == o.y, b.x > o.x);
     ha.cmp(&hb).then_with(|| {
-        let s = orient(o, a, b);
+        let s = orient2d_det(o, a, b);
         if s > 0.0 {
             Ordering::Less
         } else if s < 0.0 {
@@ -147,7 +147,7 @@ pub fn faces(graph: &PlanarGraph) -> FaceSet {
     let mut faces: Vec<Face> = rings
         .into_iter()
         .map(|ring| {
-            let ring_area = signed_ring_area(&ring_coords(nodes, &ring));
+            let ring_area = ring_signed_area(&ring_coords(nodes, &ring));
             Face {
                 ring,
                 ring_area,
@@ -198,7 +198,7 @@ pub fn faces(graph: &PlanarGraph) -> FaceSet {
                 if best.is_some_and(|(a, _)| a <= f.ring_area) {
                     continue;
                 }
-                if locate_in_ring(p, &ring_coords(nodes, &f.ring)) == Location::Inside {
+                if point_in_ring(p, &ring_coords(nodes, &f.ring)) == Location::Inside {
                     best = Some((f.ring_area, j));
                 }
             }

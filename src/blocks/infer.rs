@@ -14,7 +14,7 @@
 
 use super::faces::faces;
 use super::noding::{node_lines, PlanarGraph};
-use super::predicates::{locate_in_polygon, robust_interior_point, Location};
+use crate::geom::predicates::{point_in_polygon, robust_interior_point, Location};
 use geo_types::{Coord, LineString, Polygon};
 use rayon::prelude::*;
 use rstar::{primitives::GeomWithData, primitives::Rectangle, RTree};
@@ -87,7 +87,7 @@ fn poly_tree(polys: &[Polygon<f64>]) -> RTree<Env> {
 
 fn inside_any(tree: &RTree<Env>, polys: &[Polygon<f64>], p: Coord<f64>) -> bool {
     tree.locate_all_at_point(&[p.x, p.y])
-        .any(|c| locate_in_polygon(p, &polys[c.data]) == Location::Inside)
+        .any(|c| point_in_polygon(p, &polys[c.data]) == Location::Inside)
 }
 
 fn rings(polys: &[Polygon<f64>]) -> Vec<LineString<f64>> {

@@ -40,7 +40,6 @@ pub mod export;
 pub mod faces;
 pub mod infer;
 pub mod noding;
-pub mod predicates;
 pub mod types;
 
 pub use detect::{detect, detect_geometry, BlockError, BlockOptions};

@@ -7,7 +7,7 @@
 //! become one edge; zero-length pieces are dropped. Candidate pairs come from an R-tree of the
 //! segments' envelopes (O(n log n) for street networks), the crossing tests use exact orientation.
 
-use super::predicates::orient;
+use crate::geom::predicates::orient2d_det;
 use geo_types::{Coord, LineString};
 use rstar::{primitives::GeomWithData, primitives::Rectangle, RTree, AABB};
 use std::collections::HashMap;
@@ -147,10 +147,10 @@ fn node_once(segs: &[[Coord<f64>; 2]], tol: f64) -> (PlanarGraph, bool) {
             }
             let [a, b] = *s;
             let [c, d] = segs[j];
-            let o1 = orient(a, b, c);
-            let o2 = orient(a, b, d);
-            let o3 = orient(c, d, a);
-            let o4 = orient(c, d, b);
+            let o1 = orient2d_det(a, b, c);
+            let o2 = orient2d_det(a, b, d);
+            let o3 = orient2d_det(c, d, a);
+            let o4 = orient2d_det(c, d, b);
             if o1 * o2 < 0.0 && o3 * o4 < 0.0 {
                 // Proper crossing: the point, computed relative to `a` for precision.
                 let r = b - a;

@@ -20,6 +20,17 @@ pub enum Orientation {
     Collinear,
 }
 
+/// The exact orientation determinant of `a, b, c` (Shewchuk's adaptive `orient2d`): its sign is
+/// exact (`> 0` counter-clockwise, `< 0` clockwise, `0` collinear); its magnitude is twice the
+/// triangle's signed area, correct to the last bit only in sign.
+pub fn orient2d_det(a: Coord<f64>, b: Coord<f64>, c: Coord<f64>) -> f64 {
+    robust::orient2d(
+        robust::Coord { x: a.x, y: a.y },
+        robust::Coord { x: b.x, y: b.y },
+        robust::Coord { x: c.x, y: c.y },
+    )
+}
+
 /// Exact orientation of `c` relative to the directed line `a → b`.
 pub fn orient2d(a: Coord<f64>, b: Coord<f64>, c: Coord<f64>) -> Orientation {
     let d = robust::orient2d(
@@ -215,6 +226,70 @@ pub fn point_in_linestring(p: Coord<f64>, ring: &LineString<f64>) -> Location {
     point_in_ring(p, &ring.0)
 }
 
+/// A point strictly inside a polygon (not the centroid, which can fall outside a concave or
+/// holed footprint), or `None` for a degenerate polygon.
+///
+/// A horizontal scanline is placed halfway between two consecutive distinct vertex heights, so it
+/// passes through no vertex; its crossings with every ring are sorted and the midpoint of the widest
+/// inside interval is returned. `attempt` picks other scanlines (0 = the one nearest the middle,
+/// then alternating outwards), for the rare case where rounding puts the point on the boundary.
+pub fn interior_point(poly: &Polygon<f64>, attempt: usize) -> Option<Coord<f64>> {
+    let mut ys: Vec<f64> = std::iter::once(poly.exterior())
+        .chain(poly.interiors())
+        .flat_map(|r| r.0.iter().map(|c| c.y))
+        .collect();
+    ys.sort_by(f64::total_cmp);
+    ys.dedup();
+    if ys.len() < 2 {
+        return None;
+    }
+    let gaps = ys.len() - 1;
+    // Order the gaps from the middle outwards; prefer wide gaps near the middle.
+    let mid = gaps / 2;
+    let mut order: Vec<usize> = (0..gaps).collect();
+    order.sort_by_key(|&g| (g as isize - mid as isize).unsigned_abs());
+    let g = *order.get(attempt % gaps.max(1))?;
+    let y = 0.5 * (ys[g] + ys[g + 1]);
+    let mut xs = Vec::new();
+    for r in std::iter::once(poly.exterior()).chain(poly.interiors()) {
+        let ring = open_ring(&r.0);
+        let n = ring.len();
+        for i in 0..n {
+            let a = ring[i];
+            let b = ring[(i + 1) % n];
+            if (a.y > y) != (b.y > y) {
+                let t = (y - a.y) / (b.y - a.y);
+                xs.push(a.x + t * (b.x - a.x));
+            }
+        }
+    }
+    xs.sort_by(f64::total_cmp);
+    let mut best: Option<(f64, f64)> = None;
+    for pair in xs.chunks_exact(2) {
+        let w = pair[1] - pair[0];
+        if w > 0.0 && best.is_none_or(|(bw, _)| w > bw) {
+            best = Some((w, 0.5 * (pair[0] + pair[1])));
+        }
+    }
+    best.map(|(_, x)| Coord { x, y })
+}
+
+/// A point strictly inside `poly` by the exact test, trying several scanlines.
+pub fn robust_interior_point(poly: &Polygon<f64>) -> Option<Coord<f64>> {
+    let n = poly.exterior().0.len() + poly.interiors().iter().map(|h| h.0.len()).sum::<usize>();
+    let tries = n.clamp(1, 16);
+    let mut fallback = None;
+    for k in 0..tries {
+        if let Some(p) = interior_point(poly, k) {
+            if point_in_polygon(p, poly) == Location::Inside {
+                return Some(p);
+            }
+            fallback.get_or_insert(p);
+        }
+    }
+    fallback
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -385,5 +460,21 @@ mod tests {
             };
             proptest::prop_assert_eq!(point_in_ring(p, &r), truth);
         }
+    }
+
+    #[test]
+    fn interior_point_of_concave_and_holed() {
+        // U shape: centroid of the bbox is in the notch.
+        let u = polygon![(x: 0., y: 0.), (x: 3., y: 0.), (x: 3., y: 3.), (x: 2., y: 3.),
+            (x: 2., y: 1.), (x: 1., y: 1.), (x: 1., y: 3.), (x: 0., y: 3.)];
+        let p = robust_interior_point(&u).unwrap();
+        assert_eq!(point_in_polygon(p, &u), Location::Inside);
+        let holed = polygon!(
+            exterior: [(x: 0., y: 0.), (x: 4., y: 0.), (x: 4., y: 4.), (x: 0., y: 4.)],
+            interiors: [[(x: 1., y: 1.), (x: 1., y: 3.), (x: 3., y: 3.), (x: 3., y: 1.)]],
+        );
+        let p = robust_interior_point(&holed).unwrap();
+        assert_eq!(point_in_polygon(p, &holed), Location::Inside);
+        assert!((polygon_area(&holed) - 12.0).abs() < 1e-12);
     }
 }
