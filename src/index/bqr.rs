@@ -431,6 +431,20 @@ impl BqrTree {
         }
     }
 
+    fn single_child_copy(&self, i: usize) -> Option<usize> {
+        let n = &self.nodes[i];
+        if n.kind != BqrNodeKind::Inner || !self.node_objects[i].is_empty() {
+            return None;
+        }
+        let mut kids = n.children.iter().filter(|&&c| c != NONE);
+        let c = *kids.next()?;
+        if kids.next().is_some() {
+            return None;
+        }
+        let cn = &self.nodes[c as usize];
+        (cn.sphere == n.sphere && cn.aabb == n.aabb).then_some(c as usize)
+    }
+
     fn place(&self, aabb: &Aabb3) -> u32 {
         let (lo, hi) = (aabb.min.truncate(), aabb.max.truncate());
         let mut n = 0u32;
@@ -650,6 +664,13 @@ struct Traversal<'t, 'q, 'o, 'c> {
 impl Traversal<'_, '_, '_, '_> {
     fn visit(&mut self, i: usize, mask: PlaneMask, sink: &mut Sink<'_, '_>) {
         let tree = self.tree;
+        let mut i = i;
+        // An inner node with one child and no object of its own has exactly its child's
+        // sphere and box (copied, not merged, at build): pass through to the child without a
+        // test. The structure is the paper's; only redundant tests are skipped.
+        while let Some(c) = tree.single_child_copy(i) {
+            i = c;
+        }
         let n = &tree.nodes[i];
         sink.stats.nodes_visited += 1;
         let mut m = mask;
