@@ -6,6 +6,24 @@
 //! VAMSplit R-tree and BqR-tree; BqR/VAMSplit = 0.638) for the culling part only: the paper's
 //! frame time includes drawing the accepted geometry, here we report the culling work and the
 //! accepted triangles separately.
+//!
+//! # Against Table 1
+//! On seeded jittered block grids (`synthetic::block_grid`, 100 random views, half at street
+//! level with a 2 km far plane, half flying), the counts are independent of the machine:
+//!
+//! | blocks | BqR/VAMSplit nodes visited | plane tests | triangles accepted |
+//! |---|---|---|---|
+//! | 2 000 | 1.31 | 1.40 | 1.000 |
+//! | 10 000 | 1.27 | 1.40 | 1.000 |
+//! | 100 000 | 1.30 | 1.46 | 1.000 |
+//!
+//! So the paper's 0.638 (BqR frame time / VAMSplit frame time) is not reproduced for the
+//! culling itself: the BqR-tree's fan-out of at most 4 (and single-child quadrants) makes it
+//! visit about 30 % more volumes than a VAMSplit R-tree of capacity 8, and both accept exactly
+//! the same blocks because both end with a per-block box test (box ∩ circumscribed sphere is
+//! the box). The paper's gain is in frame time, which is dominated by drawing: a scene-graph
+//! VAMSplit leaf drawn as a whole (up to `node_capacity` blocks) accepts more triangles than
+//! one block per leaf; our VAMSplit tests the blocks of a partially visible leaf one by one.
 
 use super::{build_by_name, BlockBounds, CityIndex, CullQuery, IndexError};
 use crate::blocks::BlockId;
