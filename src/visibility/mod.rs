@@ -1,2 +1,30 @@
 //! Occlusion culling with occluder shadows and a cull map (seed 004 §3.2), and the visibility
 //! oracle that checks it.
+//!
+//! - [`shadow`]: [`Occluder`] (a facade's top edge) and its [`OccluderShadow`] from a viewpoint.
+//! - [`cullmap`]: [`CullMap`], conservative rasterisation of shadows, and its [`cullmap::MinPyramid`].
+
+pub mod cullmap;
+pub mod shadow;
+
+pub use cullmap::{CullMap, Resolution};
+pub use shadow::{NoShadow, Occluder, OccluderShadow};
+
+/// What went wrong in occlusion culling or the oracle.
+#[derive(Debug, thiserror::Error)]
+pub enum VisibilityError {
+    /// The cull map's bounds are not a finite box.
+    #[error("cull map bounds are not a finite box: min {min:?}, max {max:?}")]
+    BadBounds {
+        /// Lower corner.
+        min: [f64; 2],
+        /// Upper corner.
+        max: [f64; 2],
+    },
+    /// The resolution is out of range.
+    #[error("cull map resolution out of range: {0}")]
+    BadResolution(String),
+    /// A parameter is out of range.
+    #[error("bad parameter: {0}")]
+    BadParameter(String),
+}
