@@ -3,11 +3,20 @@
 //!
 //! - [`shadow`]: [`Occluder`] (a facade's top edge) and its [`OccluderShadow`] from a viewpoint.
 //! - [`cullmap`]: [`CullMap`], conservative rasterisation of shadows, and its [`cullmap::MinPyramid`].
+//! - [`occluders`]: facade edges per block, collinear runs merged along block fronts.
+//! - [`oracle`]: CPU z-buffer id renderer, the ground truth; [`oracle::shade`] fallback images.
+//! - [`culler`]: [`OcclusionCuller`], per-frame occluder selection and culling through a
+//!   [`crate::index::CityIndex`].
 
+pub mod culler;
 pub mod cullmap;
+pub mod occluders;
+pub mod oracle;
 pub mod shadow;
 
+pub use culler::{CullerOptions, OcclusionCuller, OcclusionStats, SkipReason};
 pub use cullmap::{CullMap, Resolution};
+pub use occluders::{BlockOccluders, OccluderOptions};
 pub use shadow::{NoShadow, Occluder, OccluderShadow};
 
 /// What went wrong in occlusion culling or the oracle.
