@@ -5,9 +5,11 @@
 //! - [`cullmap`]: [`CullMap`], conservative rasterisation of shadows, and its [`cullmap::MinPyramid`].
 //! - [`occluders`]: facade edges per block, collinear runs merged along block fronts.
 //! - [`oracle`]: CPU z-buffer id renderer, the ground truth; [`oracle::shade`] fallback images.
+//! - [`bench`]: culler against oracle over random views; a synthetic test city; a list index.
 //! - [`culler`]: [`OcclusionCuller`], per-frame occluder selection and culling through a
 //!   [`crate::index::CityIndex`].
 
+pub mod bench;
 pub mod culler;
 pub mod cullmap;
 pub mod occluders;
