@@ -184,7 +184,10 @@ fn the_viewers_own_surroundings_are_never_culled() {
         let cam = Camera::new(eye.extend(1.7), yaw, 0.0);
         let mut out = Vec::new();
         s.cullers[2].cull(&s.index, &cam, &mut out);
-        assert!(out.contains(&bo.block), "block {k} culled from 3 m in front of its facade");
+        assert!(
+            out.contains(&bo.block),
+            "block {k} culled from 3 m in front of its facade"
+        );
         check_view(&cam);
     }
 }

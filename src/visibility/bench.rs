@@ -695,10 +695,7 @@ impl SyntheticCity {
         }
         let city = City {
             name: format!("synthetic {cols}x{rows} seed {seed}"),
-            transform: blockwalk_importers::MetricTransform {
-                crs: blockwalk_importers::Crs::Unknown,
-                center_lonlat: None,
-            },
+            transform: blockwalk_importers::Crs::Unknown.metric_transform([origin.x, origin.y]),
             frame,
             buildings,
             streets: Vec::new(),
