@@ -8,7 +8,7 @@ use blockwalk::visibility::bench::{
     block_bounds, run_occlusion_bench, BenchOptions, BenchScene, ListIndex, SyntheticCity,
 };
 use blockwalk::visibility::oracle::visible_blocks;
-use blockwalk::visibility::{CullerOptions, OcclusionCuller, Resolution};
+use blockwalk::visibility::{CullerOptions, OcclusionCuller, Resolution, SkipReason};
 use glam::{DVec2, DVec3};
 use proptest::prelude::*;
 use std::collections::BTreeSet;
@@ -219,4 +219,40 @@ fn bench_finds_no_false_culls_and_culls_something() {
     // At street level a street grid of 5–40 m buildings hides most blocks: something is culled.
     assert!(r.resolutions[1].mean_culled > 0.0, "{r:?}");
     assert!(r.resolutions[1].effectiveness_street > 0.0, "{r:?}");
+}
+
+#[test]
+fn skips_are_reported_and_keep_everything() {
+    let s = &*SCENE;
+    let c = &s.cullers[1];
+    let center = s.bounds.center();
+    let cases = [
+        (DVec3::new(center.x, center.y, 2000.0), SkipReason::TooHigh),
+        (
+            DVec3::new(center.x, center.y, -5.0),
+            SkipReason::BelowGround,
+        ),
+        (
+            DVec3::new(s.bounds.max.x + 4000.0, center.y, 1.7),
+            SkipReason::NoOccluders,
+        ),
+    ];
+    for (eye, why) in cases {
+        let cam = Camera::looking_at(eye, DVec3::new(center.x, center.y, 0.0));
+        let mut out = Vec::new();
+        let st = c.cull(&s.index, &cam, &mut out);
+        assert_eq!(st.skipped, Some(why), "{eye}");
+        assert_eq!(st.volumes_hidden, 0);
+        let mut plain = Vec::new();
+        s.index.cull(&cam.frustum(), &mut plain);
+        assert_eq!(out, plain, "a skipped frame is plain frustum culling");
+    }
+    // A street view is not skipped and reports its work.
+    let lo = s.bounds.min;
+    let cam = Camera::new(DVec3::new(lo.x - 8.0, lo.y + 30.0, 1.7), 0.0, 0.0);
+    let mut out = Vec::new();
+    let st = c.cull(&s.index, &cam, &mut out);
+    assert_eq!(st.skipped, None);
+    assert!(st.occluders_used > 0 && st.shadows_drawn > 0 && st.cells_covered > 0);
+    assert_eq!(st.blocks_out as usize, out.len());
 }

@@ -65,7 +65,9 @@ fn parse_size(s: &str) -> anyhow::Result<(u32, u32)> {
 }
 
 /// The city, its blocks and one mesh per block.
-fn load(args: &Args) -> anyhow::Result<(City, BlockLayout, Vec<(BlockId, Mesh)>)> {
+type Scene = (City, BlockLayout, Vec<(BlockId, Mesh)>);
+
+fn load(args: &Args) -> anyhow::Result<Scene> {
     let c = &args.city;
     let first = c.inputs[0].to_string_lossy().to_string();
     if let Some(spec) = first.strip_prefix("synthetic:") {

@@ -140,7 +140,8 @@ impl OcclusionCuller {
         max: DVec2,
         opts: CullerOptions,
     ) -> Result<Self, VisibilityError> {
-        if !(opts.local_radius > 0.0) || !(opts.skip_height_factor > 0.0) {
+        let positive = |v: f64| v > 0.0; // false for NaN
+        if !positive(opts.local_radius) || !positive(opts.skip_height_factor) {
             return Err(VisibilityError::BadParameter(format!(
                 "local radius {} and skip height factor {} must be > 0",
                 opts.local_radius, opts.skip_height_factor

@@ -42,7 +42,7 @@ impl Grid {
     /// A grid over `[min, max]` at `resolution`.
     pub fn new(min: DVec2, max: DVec2, resolution: Resolution) -> Result<Self, VisibilityError> {
         let ext = max - min;
-        if !(min.is_finite() && max.is_finite()) || !(ext.x >= 0.0 && ext.y >= 0.0) {
+        if !(min.is_finite() && max.is_finite()) || ext.x < 0.0 || ext.y < 0.0 {
             return Err(VisibilityError::BadBounds {
                 min: min.to_array(),
                 max: max.to_array(),

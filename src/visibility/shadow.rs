@@ -68,7 +68,7 @@ impl HalfPlane {
     fn through(p: DVec2, q: DVec2, inside: DVec2) -> Option<Self> {
         let d = q - p;
         let len = d.length();
-        if !(len > 0.0) || !len.is_finite() {
+        if len <= 0.0 || !len.is_finite() {
             return None;
         }
         let mut n = DVec2::new(-d.y, d.x) / len;
@@ -144,7 +144,7 @@ impl OccluderShadow {
             return Err(NoShadow::ViewerBelowGround);
         }
         let len = occ.length();
-        if !(len > 0.0) || !(occ.height > 0.0) {
+        if len.is_nan() || len <= 0.0 || occ.height <= 0.0 {
             return Err(NoShadow::DegenerateEdge);
         }
         let v = viewer.truncate();
@@ -229,7 +229,7 @@ impl OccluderShadow {
             } else {
                 hi = hi.min(x);
             }
-            if !(lo <= hi) {
+            if lo > hi || lo.is_nan() || hi.is_nan() {
                 return None;
             }
         }
