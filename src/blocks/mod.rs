@@ -8,6 +8,7 @@
 
 pub mod assign;
 pub mod detect;
+pub mod export;
 pub mod faces;
 pub mod infer;
 pub mod noding;
