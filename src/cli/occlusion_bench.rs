@@ -3,13 +3,11 @@
 //! §3.2): ms per frame, occluders, blocks culled, false culls, effectiveness, and a plot of
 //! effectiveness against time.
 
-use super::common::CityArgs;
+use super::common::{spinner, CityArgs};
 use anyhow::{bail, Context};
 use blockwalk::blocks::{detect, BlockId, BlockLayout, BlockOptions};
-use blockwalk::city::build::{build_city, BuildOptions};
 use blockwalk::city::extrude::extrude_building;
 use blockwalk::city::{City, Mesh};
-use blockwalk::importers::{read_layer, Theme};
 use blockwalk::report::plot::{write_plot, PlotKind, Series};
 use blockwalk::visibility::bench::{
     block_bounds, run_occlusion_bench, BenchOptions, BenchScene, ListIndex, SyntheticCity,
@@ -86,31 +84,11 @@ fn load(args: &Args) -> anyhow::Result<Scene> {
         );
         return Ok((s.city, s.layout, s.meshes));
     }
-    if c.inputs.len() > 1 {
-        bail!("one footprint file at a time ({} given)", c.inputs.len());
-    }
-    let fp = read_layer(&c.inputs[0], &Theme::Buildings)
-        .with_context(|| format!("reading {}", c.inputs[0].display()))?;
-    let st = c
-        .streets
-        .as_ref()
-        .map(|p| read_layer(p, &Theme::Streets).with_context(|| format!("reading {}", p.display())))
-        .transpose()?;
-    let pa = c
-        .parcels
-        .as_ref()
-        .map(|p| read_layer(p, &Theme::Parcels).with_context(|| format!("reading {}", p.display())))
-        .transpose()?;
-    let mut opts = BuildOptions::default();
-    for t in &c.exclude_tag {
-        let (k, v) = t
-            .split_once('=')
-            .with_context(|| format!("--exclude-tag {t}: expected k=v"))?;
-        opts.exclude_street_tags
-            .push((k.to_string(), v.to_string()));
-    }
-    let city = build_city(&fp, st.as_ref(), pa.as_ref(), &opts)
-        .with_context(|| format!("building the city from {}", c.inputs[0].display()))?;
+    let city = super::common::load_city(c)?;
+    let pb = spinner(format!(
+        "blocks and meshes for {} buildings",
+        city.buildings.len()
+    ));
     let layout = detect(&city, &BlockOptions::default()).context("detecting blocks")?;
     let meshes = layout
         .blocks
@@ -127,6 +105,7 @@ fn load(args: &Args) -> anyhow::Result<Scene> {
             (block.id, m)
         })
         .collect();
+    pb.finish_and_clear();
     Ok((city, layout, meshes))
 }
 
