@@ -6,6 +6,7 @@ use blockwalk::city::build::{build_city, BuildOptions};
 use blockwalk::city::extrude::extrude_building;
 use blockwalk::city::Mesh;
 use blockwalk::importers::{read_layer, Theme};
+use blockwalk::index::{build_by_name, CityIndex};
 use blockwalk::visibility::bench::{
     block_bounds, run_occlusion_bench, BenchOptions, BenchScene, ListIndex,
 };
@@ -37,13 +38,8 @@ fn helsinki_no_false_culls() {
         meshes.push((block.id, m));
     }
     let refs: Vec<(BlockId, &Mesh)> = meshes.iter().map(|(id, m)| (*id, m)).collect();
-    let index = ListIndex::new(block_bounds(&city, &layout, &refs));
-    let scene = BenchScene {
-        city: &city,
-        layout: &layout,
-        meshes: &refs,
-        index: &index,
-    };
+    let list = ListIndex::new(block_bounds(&city, &layout, &refs));
+    let bqr = build_by_name("bqr", &blockwalk::index::block_bounds(&city, &layout)).unwrap();
     let opts = BenchOptions {
         resolutions: vec![64, 256, 1024],
         views: 60,
@@ -52,12 +48,23 @@ fn helsinki_no_false_culls() {
         oracle_size: (480, 270),
         ..Default::default()
     };
-    let r = run_occlusion_bench(&scene, &opts, &mut |_, _| {}).unwrap();
-    eprintln!("{}", serde_json::to_string_pretty(&r).unwrap());
-    assert_eq!(r.views, 60);
-    for res in &r.resolutions {
-        assert_eq!(res.false_culls, 0, "{:?}", r.false_cull_examples);
+    for (name, index) in [("list", &list as &dyn CityIndex), ("bqr", bqr.as_ref())] {
+        let scene = BenchScene {
+            city: &city,
+            layout: &layout,
+            meshes: &refs,
+            index,
+        };
+        let r = run_occlusion_bench(&scene, &opts, &mut |_, _| {}).unwrap();
+        eprintln!(
+            "index {name}: {}",
+            serde_json::to_string_pretty(&r).unwrap()
+        );
+        assert_eq!(r.views, 60);
+        for res in &r.resolutions {
+            assert_eq!(res.false_culls, 0, "{name}: {:?}", r.false_cull_examples);
+        }
+        // The oracle sees something in most views (the views really are inside the city).
+        assert!(r.mean_visible > 1.0, "{r:?}");
     }
-    // The oracle sees something in most views (the views really are inside the city).
-    assert!(r.mean_visible > 1.0, "{r:?}");
 }

@@ -8,6 +8,7 @@ use anyhow::{bail, Context};
 use blockwalk::blocks::{detect, BlockId, BlockLayout, BlockOptions};
 use blockwalk::city::extrude::extrude_building;
 use blockwalk::city::{City, Mesh};
+use blockwalk::index::CityIndex;
 use blockwalk::report::plot::{write_plot, PlotKind, Series};
 use blockwalk::visibility::bench::{
     block_bounds, run_occlusion_bench, BenchOptions, BenchScene, ListIndex, SyntheticCity,
@@ -43,6 +44,10 @@ pub struct Args {
     /// At most this many occluders per frame.
     #[arg(long, default_value_t = 256)]
     pub max_occluders: usize,
+    /// Spatial structure frustum culling runs on (bqr, vamsplit, flat, none, rstar, or `list`:
+    /// every block tested on its own).
+    #[arg(long, default_value = "bqr")]
+    pub index: String,
     /// Print one JSON object instead of the summary.
     #[arg(long)]
     pub json: bool,
@@ -116,12 +121,18 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     }
     let (city, layout, meshes) = load(&args)?;
     let refs: Vec<(BlockId, &Mesh)> = meshes.iter().map(|(id, m)| (*id, m)).collect();
-    let index = ListIndex::new(block_bounds(&city, &layout, &refs));
+    let index: Box<dyn CityIndex> = if args.index == "list" {
+        Box::new(ListIndex::new(block_bounds(&city, &layout, &refs)))
+    } else {
+        let bounds = blockwalk::index::block_bounds(&city, &layout);
+        blockwalk::index::build_by_name(&args.index, &bounds)
+            .with_context(|| format!("building the {} index", args.index))?
+    };
     let scene = BenchScene {
         city: &city,
         layout: &layout,
         meshes: &refs,
-        index: &index,
+        index: index.as_ref(),
     };
     let opts = BenchOptions {
         resolutions: args.resolution.clone(),
@@ -144,7 +155,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     bar.finish_and_clear();
     if let Some(p) = &args.plot {
         let series = vec![Series {
-            name: format!("cull map ({} views, index {})", report.views, index_name()),
+            name: format!("cull map ({} views, index {})", report.views, args.index),
             points: report
                 .resolutions
                 .iter()
@@ -203,8 +214,4 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         bail!("the cull map removed blocks the oracle sees");
     }
     Ok(())
-}
-
-fn index_name() -> &'static str {
-    "list"
 }

@@ -166,6 +166,10 @@ impl CityIndex for ListIndex {
         "list"
     }
 
+    fn len(&self) -> usize {
+        self.blocks.len()
+    }
+
     fn cull_filtered(
         &self,
         frustum: &Frustum,
