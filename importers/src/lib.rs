@@ -19,6 +19,7 @@ pub mod gpkg;
 #[cfg(feature = "osm")]
 pub mod osm;
 pub mod report;
+mod rings;
 pub mod shp;
 
 use std::collections::BTreeMap;

@@ -1,11 +1,360 @@
-//! (to be written)
-use crate::{ImportError, Layer};
-use std::path::Path;
+//! ESRI Shapefile reader (`.shp` + `.shx` + `.dbf` + `.prj`).
+//!
+//! Geometry comes from the `.shp` (read with the `shapefile` crate, through the `.shx` index when
+//! there is one), attributes from the `.dbf` (the `dbase` crate re-exported by `shapefile`), and
+//! the CRS from the `.prj` WKT ([`Crs::from_wkt`]).
+//!
+//! - Points and multipoints → `Point` / `MultiPoint`; polylines → `LineString` (one part) or
+//!   `MultiLineString`; polygons → `Polygon` or `MultiPolygon`. Z and M values are dropped.
+//! - Polygon rings: clockwise rings are outer rings, counter-clockwise rings are holes (the
+//!   Shapefile convention). Each hole goes into the smallest outer ring that contains it, by an
+//!   exact point-in-ring test; ring order in the record is not trusted. A hole that lies in no
+//!   outer ring becomes a polygon of its own, with a note. Vertex order is kept as read.
+//! - DBF values: `Character` → text, `Numeric` → integer when the field has no decimals and the
+//!   value is integral, else float; `*****` and blanks → null; `Logical` → bool; `Date` → ISO text.
+//! - A missing `.dbf` is an error ([`ImportError::MissingCompanion`]): the attributes are part of
+//!   the data. A missing `.shx` is not: the records are read in sequence and a note says so.
+//! - A truncated or corrupt `.shp`/`.dbf` is an [`ImportError::Format`] naming the file and, when
+//!   known, the record. A null shape, an empty shape, a MultiPatch or a record with NaN/infinite
+//!   coordinates is refused in the report with its record number.
 
-/// Reads a layer.
+use crate::crs::{wkt_linear_unit, Crs};
+use crate::rings;
+use crate::{AttrValue, Attributes, Feature, ImportError, ImportReport, Layer};
+use geo_types::{Coord, Geometry, LineString, MultiLineString, MultiPoint, MultiPolygon, Point};
+use shapefile::dbase;
+use shapefile::{Shape, ShapeReader};
+use std::collections::HashMap;
+use std::io::Cursor;
+use std::path::{Path, PathBuf};
+
+/// Reads a Shapefile layer. `path` names the `.shp`; its companions are found beside it
+/// (`.shx`, `.dbf`, `.prj`, with lower- or upper-case extensions).
+///
+/// # Errors
+/// [`ImportError::Io`] when the `.shp` cannot be read, [`ImportError::MissingCompanion`] when
+/// the `.dbf` is missing, [`ImportError::Format`] for a file that is not a Shapefile or is
+/// truncated, or when the `.shp` and `.dbf` disagree on the number of records.
 pub fn read(path: &Path) -> Result<Layer, ImportError> {
-    Err(ImportError::Unsupported {
+    let io = |file: &Path| {
+        let file = file.to_path_buf();
+        move |source| ImportError::Io { file, source }
+    };
+    let format = |file: &Path, message: String| ImportError::Format {
+        file: file.to_path_buf(),
+        message,
+    };
+    let shp_bytes = std::fs::read(path).map_err(io(path))?;
+    let dbf_path = companion(path, "dbf").ok_or_else(|| ImportError::MissingCompanion {
         file: path.to_path_buf(),
-        message: "not yet".into(),
+        missing: path.with_extension("dbf"),
+        why: "the .dbf holds the attribute table of the features".into(),
+    })?;
+    let mut report = ImportReport::default();
+
+    // Geometry.
+    let shx_path = companion(path, "shx");
+    let mut reader = match &shx_path {
+        Some(shx) => {
+            let shx_bytes = std::fs::read(shx).map_err(io(shx))?;
+            ShapeReader::with_shx(Cursor::new(shp_bytes), Cursor::new(shx_bytes)).map_err(|e| {
+                format(
+                    path,
+                    format!(
+                        "not a readable Shapefile (header of .shp or {}): {e}",
+                        shx.display()
+                    ),
+                )
+            })?
+        }
+        None => {
+            report.notes.push(format!(
+                "no {} index: records were read in sequence from the .shp",
+                path.with_extension("shx").display()
+            ));
+            ShapeReader::new(Cursor::new(shp_bytes))
+                .map_err(|e| format(path, format!("not a readable Shapefile header: {e}")))?
+        }
+    };
+    let mut shapes = Vec::new();
+    for (i, s) in reader.iter_shapes().enumerate() {
+        let shape = s.map_err(|e| {
+            format(
+                path,
+                format!("record {i} cannot be read (truncated or corrupt file): {e}"),
+            )
+        })?;
+        shapes.push(shape);
+    }
+
+    // Attributes.
+    let dbf_bytes = std::fs::read(&dbf_path).map_err(io(&dbf_path))?;
+    let decimals = dbf_decimals(&dbf_bytes);
+    let mut dbf = dbase::Reader::new(Cursor::new(dbf_bytes))
+        .map_err(|e| format(&dbf_path, format!("not a readable dBase table: {e}")))?;
+    let mut records = Vec::new();
+    for (i, r) in dbf.iter_records().enumerate() {
+        let r = r.map_err(|e| format(&dbf_path, format!("record {i} cannot be read: {e}")))?;
+        records.push(r);
+    }
+    if records.len() != shapes.len() {
+        return Err(format(
+            path,
+            format!(
+                "{} shapes in the .shp but {} records in {}",
+                shapes.len(),
+                records.len(),
+                dbf_path.display()
+            ),
+        ));
+    }
+
+    // CRS.
+    let crs = read_prj(path, &mut report);
+
+    let mut features = Vec::with_capacity(shapes.len());
+    report.read = shapes.len();
+    for (i, (shape, record)) in shapes.into_iter().zip(records).enumerate() {
+        let fid = i as u64;
+        match convert_shape(shape, fid, &mut report) {
+            Ok(geometry) => features.push(Feature {
+                fid,
+                geometry,
+                attributes: convert_record(record, &decimals),
+            }),
+            Err(reason) => report.refuse(fid, reason),
+        }
+    }
+    report.imported = features.len();
+    Ok(Layer {
+        name: path
+            .file_stem()
+            .map(|s| s.to_string_lossy().into_owned())
+            .unwrap_or_default(),
+        source: path.to_path_buf(),
+        crs,
+        features,
+        report,
     })
+}
+
+/// The companion file with extension `ext` (lower or upper case), if it exists.
+fn companion(path: &Path, ext: &str) -> Option<PathBuf> {
+    [ext.to_ascii_lowercase(), ext.to_ascii_uppercase()]
+        .into_iter()
+        .map(|e| path.with_extension(e))
+        .find(|p| p.is_file())
+}
+
+fn read_prj(path: &Path, report: &mut ImportReport) -> Crs {
+    let Some(prj) = companion(path, "prj") else {
+        report.notes.push(format!(
+            "no {}: CRS unknown, coordinates taken as metres",
+            path.with_extension("prj").display()
+        ));
+        return Crs::Unknown;
+    };
+    let text = match std::fs::read(&prj) {
+        Ok(b) => String::from_utf8_lossy(&b).into_owned(),
+        Err(e) => {
+            report.notes.push(format!(
+                "{} cannot be read ({e}): CRS unknown, coordinates taken as metres",
+                prj.display()
+            ));
+            return Crs::Unknown;
+        }
+    };
+    match Crs::from_wkt(&text) {
+        Some(crs) => {
+            if let Crs::Projected { .. } = crs {
+                if let Some((unit, factor)) = wkt_linear_unit(&text) {
+                    if (factor - 1.0).abs() > 1e-9 {
+                        report.notes.push(format!(
+                            "{}: linear unit is {unit} ({factor} m), not metres; coordinates \
+                             are used as they are",
+                            prj.display()
+                        ));
+                    }
+                }
+            }
+            report
+                .notes
+                .push(format!("CRS from {}: {}", prj.display(), crs.describe()));
+            crs
+        }
+        None => {
+            report.notes.push(format!(
+                "{} is not a recognisable WKT: CRS unknown, coordinates taken as metres",
+                prj.display()
+            ));
+            Crs::Unknown
+        }
+    }
+}
+
+/// Decimal counts of the DBF fields, by name, read from the field descriptors of the header
+/// (the `dbase` crate does not expose them). Byte 17 of each 32-byte descriptor.
+fn dbf_decimals(bytes: &[u8]) -> HashMap<String, u8> {
+    let mut out = HashMap::new();
+    let mut off = 32;
+    while off + 32 <= bytes.len() && bytes[off] != 0x0D {
+        let name_bytes = &bytes[off..off + 11];
+        let end = name_bytes.iter().position(|&b| b == 0).unwrap_or(11);
+        let name = String::from_utf8_lossy(&name_bytes[..end])
+            .trim()
+            .to_string();
+        out.insert(name, bytes[off + 17]);
+        off += 32;
+    }
+    out
+}
+
+fn convert_record(record: dbase::Record, decimals: &HashMap<String, u8>) -> Attributes {
+    let map: HashMap<String, dbase::FieldValue> = record.into();
+    map.into_iter()
+        .map(|(name, v)| {
+            let dec = decimals.get(&name).copied().unwrap_or(0);
+            (name, field_value(v, dec))
+        })
+        .collect()
+}
+
+fn field_value(v: dbase::FieldValue, decimals: u8) -> AttrValue {
+    use dbase::FieldValue as F;
+    match v {
+        F::Character(Some(s)) => AttrValue::Text(s),
+        F::Memo(s) => AttrValue::Text(s),
+        F::Numeric(Some(x)) => {
+            if decimals == 0 && x.fract() == 0.0 && x.abs() < 9.0e15 {
+                AttrValue::Int(x as i64)
+            } else {
+                AttrValue::Float(x)
+            }
+        }
+        F::Float(Some(x)) => AttrValue::Float(x as f64),
+        F::Logical(Some(b)) => AttrValue::Bool(b),
+        F::Date(Some(d)) => {
+            AttrValue::Text(format!("{:04}-{:02}-{:02}", d.year(), d.month(), d.day()))
+        }
+        F::Integer(i) => AttrValue::Int(i as i64),
+        F::Double(x) | F::Currency(x) => AttrValue::Float(x),
+        F::DateTime(dt) => {
+            let (d, t) = (dt.date(), dt.time());
+            AttrValue::Text(format!(
+                "{:04}-{:02}-{:02}T{:02}:{:02}:{:02}",
+                d.year(),
+                d.month(),
+                d.day(),
+                t.hours(),
+                t.minutes(),
+                t.seconds()
+            ))
+        }
+        F::Character(None)
+        | F::Numeric(None)
+        | F::Float(None)
+        | F::Logical(None)
+        | F::Date(None) => AttrValue::Null,
+    }
+}
+
+fn check_finite(coords: &[Coord<f64>]) -> Result<(), String> {
+    match rings::first_non_finite(coords) {
+        Some(k) => Err(format!(
+            "non-finite coordinate (NaN or infinity) at vertex {k}"
+        )),
+        None => Ok(()),
+    }
+}
+
+fn xy<P: Copy>(points: &[P], f: impl Fn(P) -> (f64, f64)) -> Vec<Coord<f64>> {
+    points
+        .iter()
+        .map(|&p| {
+            let (x, y) = f(p);
+            Coord { x, y }
+        })
+        .collect()
+}
+
+/// A shape's kind (`P` point, `M` multipoint, `L` polyline, `A` polygon) and its parts in 2D.
+type ShapeParts = (char, Vec<Vec<Coord<f64>>>);
+
+/// The parts of a shape as 2D coordinates.
+fn shape_parts(shape: Shape) -> Result<ShapeParts, String> {
+    use shapefile::{PointM, PointZ};
+    let pm = |p: PointM| (p.x, p.y);
+    let pz = |p: PointZ| (p.x, p.y);
+    let p2 = |p: shapefile::Point| (p.x, p.y);
+    Ok(match shape {
+        Shape::NullShape => return Err("null shape (the record has no geometry)".into()),
+        Shape::Multipatch(_) => return Err("MultiPatch shapes are not supported".into()),
+        Shape::Point(p) => ('P', vec![xy(&[p], p2)]),
+        Shape::PointM(p) => ('P', vec![xy(&[p], pm)]),
+        Shape::PointZ(p) => ('P', vec![xy(&[p], pz)]),
+        Shape::Multipoint(m) => ('M', vec![xy(m.points(), p2)]),
+        Shape::MultipointM(m) => ('M', vec![xy(m.points(), pm)]),
+        Shape::MultipointZ(m) => ('M', vec![xy(m.points(), pz)]),
+        Shape::Polyline(l) => ('L', l.parts().iter().map(|p| xy(p, p2)).collect()),
+        Shape::PolylineM(l) => ('L', l.parts().iter().map(|p| xy(p, pm)).collect()),
+        Shape::PolylineZ(l) => ('L', l.parts().iter().map(|p| xy(p, pz)).collect()),
+        Shape::Polygon(g) => ('A', g.rings().iter().map(|r| xy(r.points(), p2)).collect()),
+        Shape::PolygonM(g) => ('A', g.rings().iter().map(|r| xy(r.points(), pm)).collect()),
+        Shape::PolygonZ(g) => ('A', g.rings().iter().map(|r| xy(r.points(), pz)).collect()),
+    })
+}
+
+fn convert_shape(shape: Shape, fid: u64, report: &mut ImportReport) -> Result<Geometry, String> {
+    let (kind, parts) = shape_parts(shape)?;
+    let parts: Vec<Vec<Coord<f64>>> = parts.into_iter().filter(|p| !p.is_empty()).collect();
+    if parts.is_empty() {
+        return Err("empty geometry (no vertices)".into());
+    }
+    for p in &parts {
+        check_finite(p)?;
+    }
+    match kind {
+        'P' => Ok(Geometry::Point(Point(parts[0][0]))),
+        'M' => Ok(Geometry::MultiPoint(MultiPoint(
+            parts[0].iter().map(|&c| Point(c)).collect(),
+        ))),
+        'L' => {
+            if let Some(k) = parts.iter().position(|p| p.len() < 2) {
+                return Err(format!("line part {k} has a single vertex"));
+            }
+            let mut lines: Vec<LineString<f64>> = parts.into_iter().map(LineString::new).collect();
+            if lines.len() == 1 {
+                Ok(Geometry::LineString(lines.pop().expect("one line")))
+            } else {
+                Ok(Geometry::MultiLineString(MultiLineString(lines)))
+            }
+        }
+        _ => {
+            // Shapefile convention: outer rings clockwise (negative signed area), holes
+            // counter-clockwise. A degenerate ring (zero area) is kept as an outer ring for the
+            // city model to judge.
+            let (mut outers, mut holes) = (Vec::new(), Vec::new());
+            for r in parts {
+                if rings::signed_area2(&r) > 0.0 {
+                    holes.push(r);
+                } else {
+                    outers.push(r);
+                }
+            }
+            let a = rings::assemble(outers, holes);
+            if !a.orphan_holes.is_empty() {
+                report.notes.push(format!(
+                    "record {fid}: {} counter-clockwise ring(s) lie in no clockwise ring; each \
+                     was kept as a polygon of its own",
+                    a.orphan_holes.len()
+                ));
+            }
+            let mut polys = a.polygons;
+            if polys.len() == 1 {
+                Ok(Geometry::Polygon(polys.pop().expect("one polygon")))
+            } else {
+                Ok(Geometry::MultiPolygon(MultiPolygon(polys)))
+            }
+        }
+    }
 }

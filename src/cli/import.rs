@@ -1,9 +1,174 @@
-//! (to be written)
+//! `blockwalk import`: footprints (+ streets, parcels) → city → extruded meshes → glTF /
+//! GeoJSON, with a report of what happened to every feature.
+
+use std::path::PathBuf;
+use std::time::Instant;
+
+use anyhow::Context;
+use blockwalk::city::build::{BuildOptions, HeightFields};
+use blockwalk::city::export::{write_geojson, write_glb};
+use blockwalk::city::extrude::try_extrude_city;
+use blockwalk::geom::predicates::polygon_area;
+use serde_json::json;
+
+use super::common::{load_city_with, peak_memory_bytes, spinner, CityArgs};
 
 /// Arguments.
 #[derive(clap::Args, Debug)]
-pub struct Args {}
+pub struct Args {
+    #[command(flatten)]
+    city: CityArgs,
+    /// Write the extruded city as glTF binary.
+    #[arg(short, long)]
+    output: Option<PathBuf>,
+    /// Write the footprints with their heights as GeoJSON (input coordinates).
+    #[arg(long)]
+    geojson: Option<PathBuf>,
+    /// Print one JSON object instead of the summary.
+    #[arg(long)]
+    json: bool,
+    /// Height field name(s) in metres, tried in order (replaces the defaults).
+    #[arg(long = "height-field")]
+    height_field: Vec<String>,
+    /// Levels field name(s), tried in order (replaces the defaults).
+    #[arg(long = "levels-field")]
+    levels_field: Vec<String>,
+    /// Metres per storey.
+    #[arg(long = "storey-height", default_value_t = 3.0)]
+    storey_height: f64,
+    /// Height of buildings with no usable height or levels, metres.
+    #[arg(long = "default-height", default_value_t = 9.0)]
+    default_height: f64,
+}
 
-pub fn run(_args: Args) -> anyhow::Result<()> {
-    anyhow::bail!("not yet implemented")
+pub fn run(args: Args) -> anyhow::Result<()> {
+    let mut heights = HeightFields::default();
+    if !args.height_field.is_empty() {
+        heights.height = args.height_field.clone();
+    }
+    if !args.levels_field.is_empty() {
+        heights.levels = args.levels_field.clone();
+    }
+    heights.storey_m = args.storey_height;
+    heights.default_height_m = args.default_height;
+    let opts = BuildOptions {
+        heights,
+        ..Default::default()
+    };
+
+    let t0 = Instant::now();
+    let city = load_city_with(&args.city, &opts)?;
+    let import_ms = t0.elapsed().as_secs_f64() * 1e3;
+
+    let t1 = Instant::now();
+    let pb = spinner(format!("extruding {} buildings", city.buildings.len()));
+    let (meshes, errors) = try_extrude_city(&city);
+    pb.finish_and_clear();
+    let extrude_ms = t1.elapsed().as_secs_f64() * 1e3;
+
+    let t2 = Instant::now();
+    let mut glb = None;
+    if let Some(out) = &args.output {
+        let pb = spinner(format!("writing {}", out.display()));
+        glb = Some(write_glb(&city, &meshes, out).context("writing glTF")?);
+        pb.finish_and_clear();
+    }
+    if let Some(out) = &args.geojson {
+        write_geojson(&city, out).context("writing GeoJSON")?;
+    }
+    let export_ms = t2.elapsed().as_secs_f64() * 1e3;
+
+    let r = &city.report;
+    let area: f64 = city
+        .buildings
+        .iter()
+        .map(|b| polygon_area(&b.footprint))
+        .sum();
+    let triangles: usize = meshes.iter().map(|m| m.triangle_count()).sum();
+    let peak = peak_memory_bytes();
+    if args.json {
+        let v = json!({
+            "name": city.name,
+            "buildings_read": r.buildings_read,
+            "buildings_imported": r.buildings_imported,
+            "buildings_repaired": r.buildings_repaired.len(),
+            "buildings_refused": r.buildings_refused,
+            "repaired": r.buildings_repaired,
+            "buildings": city.buildings.len(),
+            "streets": city.streets.len(),
+            "parcels": city.parcels.len(),
+            "footprint_area_m2": area,
+            "triangles": triangles,
+            "extrude_errors": errors.iter().map(|e| e.to_string()).collect::<Vec<_>>(),
+            "crs": r.crs,
+            "origin": [city.frame.origin.x, city.frame.origin.y, city.frame.origin.z],
+            "height_sources": r.height_sources,
+            "notes": r.notes,
+            "glb": glb,
+            "import_ms": import_ms,
+            "extrude_ms": extrude_ms,
+            "export_ms": export_ms,
+            "peak_memory_bytes": peak,
+        });
+        println!("{v}");
+    } else {
+        println!("{}: {}", city.name, r.crs);
+        println!(
+            "footprints: {} read, {} imported, {} repaired, {} refused → {} buildings, {:.0} m²",
+            r.buildings_read,
+            r.buildings_imported,
+            r.buildings_repaired.len(),
+            r.buildings_refused.len(),
+            city.buildings.len(),
+            area
+        );
+        for n in r.buildings_repaired.iter().take(5) {
+            println!("  repaired {}: {}", n.id, n.what);
+        }
+        for n in r.buildings_refused.iter().take(5) {
+            println!("  refused {}: {}", n.id, n.reason);
+        }
+        let hs: Vec<String> = r
+            .height_sources
+            .iter()
+            .map(|(k, v)| format!("{k} {v}"))
+            .collect();
+        println!("heights: {}", hs.join(", "));
+        if !city.streets.is_empty() || !city.parcels.is_empty() {
+            println!(
+                "streets: {} lines, parcels: {}",
+                city.streets.len(),
+                city.parcels.len()
+            );
+        }
+        println!(
+            "meshes: {} triangles{}",
+            triangles,
+            if errors.is_empty() {
+                String::new()
+            } else {
+                format!(", {} building(s) not extruded", errors.len())
+            }
+        );
+        for e in errors.iter().take(5) {
+            println!("  {e}");
+        }
+        if let (Some(out), Some(g)) = (&args.output, glb) {
+            println!(
+                "wrote {} ({} nodes, {} bytes)",
+                out.display(),
+                g.nodes,
+                g.bytes
+            );
+        }
+        if let Some(out) = &args.geojson {
+            println!("wrote {}", out.display());
+        }
+        println!(
+            "time: import {import_ms:.0} ms, extrude {extrude_ms:.0} ms, export {export_ms:.0} ms{}",
+            peak.map(|p| format!("; peak memory {:.0} MiB", p as f64 / 1048576.0))
+                .unwrap_or_default()
+        );
+    }
+    Ok(())
 }

@@ -13,4 +13,4 @@ pub mod repair;
 
 pub use bounds::{Aabb3, BoundingSphere};
 pub use camera::Camera;
-pub use frustum::{Containment, Frustum, Plane};
+pub use frustum::{CoherenceState, Containment, Frustum, Plane, PlaneMask, ALL_PLANES};

@@ -1,1 +1,738 @@
 //! Validation and repair of footprint rings and polygons.
+//!
+//! Cadastral and OSM footprints come with small defects: unclosed rings, repeated points,
+//! zero-width spikes, the wrong winding, holes outside their shell, rings cut by an extract's
+//! bounding box that cross themselves. [`repair_polygon`] turns one input polygon into zero or
+//! more valid polygons and says what it did ([`RepairAction`]) or why it could not
+//! ([`Refusal`]); it never changes geometry silently and never panics.
+//!
+//! A polygon is *valid* here when every ring has at least three distinct points, is simple (no
+//! two edges meet except consecutive edges at their shared vertex), has non-zero area, the
+//! exterior is counter-clockwise and every hole clockwise, the rings do not touch or cross each
+//! other, and every hole lies inside the exterior and outside every other hole. This is
+//! stricter than the OGC rules (which let rings touch at a point) because the extruded prism of
+//! such a footprint would not be a 2-manifold.
+//!
+//! Self-intersections and crossing rings are resolved with a polygon overlay (geo's
+//! `BooleanOps`, i.e. the `i_overlay` crate): the exterior is unioned with itself under the
+//! non-zero fill rule (a figure-eight becomes its two lobes, a ring that loops over itself is
+//! filled), each hole is treated the same way, and the holes are subtracted. The overlay may
+//! snap coordinates to its integer grid (sub-micrometre at building scale). Every resulting part
+//! is validated again; a part that is still invalid refuses the polygon.
+
+use std::fmt;
+
+use geo::algorithm::bool_ops::{BooleanOps, FillRule, OpType};
+use geo_types::{Coord, LineString, MultiPolygon, Polygon};
+
+use super::predicates::{
+    on_segment, orient2d, point_in_ring, ring_signed_area, segments_intersect, Location,
+    Orientation, SegmentIntersection,
+};
+
+/// One thing [`repair_polygon`] did. `ring` is 0 for the exterior and `k` for the k-th hole.
+#[derive(Clone, Debug, PartialEq)]
+pub enum RepairAction {
+    /// The ring's last point did not repeat its first; it was closed.
+    ClosedRing {
+        /// Ring index.
+        ring: usize,
+    },
+    /// Consecutive repeated points were dropped.
+    DroppedRepeatedPoints {
+        /// Ring index.
+        ring: usize,
+        /// How many points.
+        count: usize,
+    },
+    /// Zero-width spikes (a vertex where the boundary goes back along itself) were removed.
+    RemovedSpikes {
+        /// Ring index.
+        ring: usize,
+        /// How many vertices.
+        count: usize,
+    },
+    /// The ring was reversed (exterior to counter-clockwise, hole to clockwise). A normalisation,
+    /// not a repair: Shapefiles store exteriors clockwise by convention.
+    Rewound {
+        /// Ring index.
+        ring: usize,
+    },
+    /// A hole was dropped.
+    DroppedHole {
+        /// Ring index.
+        ring: usize,
+        /// Why.
+        why: String,
+    },
+    /// Self-intersecting or crossing rings were resolved by a polygon overlay into `parts`
+    /// polygons.
+    Overlay {
+        /// What was wrong.
+        why: String,
+        /// Number of polygons produced.
+        parts: usize,
+    },
+}
+
+impl RepairAction {
+    /// True for actions that only normalise the representation (winding), which do not count
+    /// as a repair in reports.
+    pub fn is_normalization(&self) -> bool {
+        matches!(self, RepairAction::Rewound { .. })
+    }
+}
+
+impl fmt::Display for RepairAction {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            RepairAction::ClosedRing { ring } => write!(f, "closed ring {ring}"),
+            RepairAction::DroppedRepeatedPoints { ring, count } => {
+                write!(f, "dropped {count} repeated point(s) in ring {ring}")
+            }
+            RepairAction::RemovedSpikes { ring, count } => {
+                write!(f, "removed {count} spike vertex(es) in ring {ring}")
+            }
+            RepairAction::Rewound { ring } => write!(f, "rewound ring {ring}"),
+            RepairAction::DroppedHole { ring, why } => write!(f, "dropped hole {ring}: {why}"),
+            RepairAction::Overlay { why, parts } => {
+                write!(f, "{why}: resolved by overlay into {parts} polygon(s)")
+            }
+        }
+    }
+}
+
+/// Why a polygon could not be repaired.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+pub enum Refusal {
+    /// A coordinate is NaN or infinite.
+    #[error("ring {ring}, point {index}: coordinate is not finite")]
+    NonFinite {
+        /// Ring index.
+        ring: usize,
+        /// Point index.
+        index: usize,
+    },
+    /// The exterior has fewer than three distinct points (after dropping repeats and spikes).
+    #[error("exterior has {n} distinct point(s) after cleaning, need 3")]
+    TooFewPoints {
+        /// Distinct points left.
+        n: usize,
+    },
+    /// The exterior encloses no area.
+    #[error("exterior has zero area")]
+    ZeroArea,
+    /// The overlay produced nothing, or parts that are still invalid.
+    #[error("could not repair: {why}")]
+    Unrepairable {
+        /// What remained wrong.
+        why: String,
+    },
+}
+
+/// A repaired polygon: valid parts (see the module doc) and what was done.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Repaired {
+    /// Valid polygons: exterior CCW, holes CW, rings closed. Usually one.
+    pub polygons: Vec<Polygon<f64>>,
+    /// What was done, in order. Empty when the input was already valid.
+    pub actions: Vec<RepairAction>,
+}
+
+impl Repaired {
+    /// True when something other than a normalisation was done.
+    pub fn was_repaired(&self) -> bool {
+        self.actions.iter().any(|a| !a.is_normalization())
+    }
+}
+
+/// Validates and repairs a polygon. See the module documentation for what is done.
+///
+/// # Errors
+/// [`Refusal`] when the polygon has non-finite coordinates, a degenerate exterior, or defects
+/// the overlay cannot resolve.
+pub fn repair_polygon(poly: &Polygon<f64>) -> Result<Repaired, Refusal> {
+    let holes: Vec<&[Coord<f64>]> = poly.interiors().iter().map(|h| &h.0[..]).collect();
+    repair_rings(&poly.exterior().0, &holes)
+}
+
+/// Validates and repairs a polygon given as raw rings, which may be open or closed.
+///
+/// # Errors
+/// As [`repair_polygon`].
+pub fn repair_rings(exterior: &[Coord<f64>], holes: &[&[Coord<f64>]]) -> Result<Repaired, Refusal> {
+    for (ring, pts) in std::iter::once(exterior)
+        .chain(holes.iter().copied())
+        .enumerate()
+    {
+        if let Some(index) = pts
+            .iter()
+            .position(|c| !c.x.is_finite() || !c.y.is_finite())
+        {
+            return Err(Refusal::NonFinite { ring, index });
+        }
+    }
+    let mut actions = Vec::new();
+    let ext = match clean_ring(exterior, 0, true, &mut actions) {
+        Ok(r) => r,
+        Err(RingProblem::TooFew(n)) => return Err(Refusal::TooFewPoints { n }),
+        Err(RingProblem::ZeroArea) => return Err(Refusal::ZeroArea),
+    };
+    let mut hs: Vec<(usize, Vec<Coord<f64>>)> = Vec::new();
+    for (k, h) in holes.iter().enumerate() {
+        match clean_ring(h, k + 1, true, &mut actions) {
+            Ok(r) => hs.push((k + 1, r)),
+            Err(p) => actions.push(RepairAction::DroppedHole {
+                ring: k + 1,
+                why: p.to_string(),
+            }),
+        }
+    }
+    let mut problems = Vec::new();
+    if !ring_is_simple(&ext) {
+        problems.push("exterior crosses itself".to_string());
+    }
+    for (k, h) in &hs {
+        if !ring_is_simple(h) {
+            problems.push(format!("hole {k} crosses itself"));
+        }
+    }
+    if problems.is_empty() {
+        let all: Vec<&[Coord<f64>]> = std::iter::once(&ext[..])
+            .chain(hs.iter().map(|(_, h)| &h[..]))
+            .collect();
+        if let Some((i, j)) = first_interacting_rings(&all) {
+            problems.push(format!("ring {i} touches or crosses ring {j}"));
+        }
+    }
+    if !problems.is_empty() {
+        return overlay_repair(ext, hs, problems.join("; "), actions);
+    }
+    // Simple, non-touching rings: orient, then check that holes lie inside the exterior and
+    // outside each other.
+    let mut ext = ext;
+    if ring_signed_area(&ext) < 0.0 {
+        ext.reverse();
+        actions.push(RepairAction::Rewound { ring: 0 });
+    }
+    let mut kept: Vec<(usize, Vec<Coord<f64>>)> = Vec::new();
+    for (k, mut h) in hs {
+        if point_in_ring(h[0], &ext) != Location::Inside {
+            actions.push(RepairAction::DroppedHole {
+                ring: k,
+                why: "outside the exterior".into(),
+            });
+            continue;
+        }
+        if ring_signed_area(&h) > 0.0 {
+            h.reverse();
+            actions.push(RepairAction::Rewound { ring: k });
+        }
+        kept.push((k, h));
+    }
+    // A hole inside another hole lies in the void: drop it.
+    let mut nested = vec![false; kept.len()];
+    for i in 0..kept.len() {
+        for j in 0..kept.len() {
+            if i != j && !nested[j] && point_in_ring(kept[i].1[0], &kept[j].1) == Location::Inside {
+                nested[i] = true;
+                break;
+            }
+        }
+    }
+    let mut interiors = Vec::new();
+    for ((k, h), n) in kept.into_iter().zip(nested) {
+        if n {
+            actions.push(RepairAction::DroppedHole {
+                ring: k,
+                why: "inside another hole".into(),
+            });
+        } else {
+            interiors.push(LineString::from(h));
+        }
+    }
+    Ok(Repaired {
+        polygons: vec![Polygon::new(LineString::from(ext), interiors)],
+        actions,
+    })
+}
+
+/// Checks a polygon against the validity rules of this module (see the module doc).
+///
+/// # Errors
+/// A description of the first rule broken.
+pub fn check_polygon(poly: &Polygon<f64>) -> Result<(), String> {
+    let mut rings: Vec<&[Coord<f64>]> = vec![&poly.exterior().0];
+    rings.extend(poly.interiors().iter().map(|h| &h.0[..]));
+    for (k, r) in rings.iter().enumerate() {
+        if r.len() < 4 || r[0] != r[r.len() - 1] {
+            return Err(format!("ring {k} is not closed or has fewer than 3 points"));
+        }
+        let open = &r[..r.len() - 1];
+        if open.iter().any(|c| !c.x.is_finite() || !c.y.is_finite()) {
+            return Err(format!("ring {k} has a non-finite coordinate"));
+        }
+        if !ring_is_simple(open) {
+            return Err(format!("ring {k} is not simple"));
+        }
+        let a = ring_signed_area(open);
+        if k == 0 && a <= 0.0 {
+            return Err("exterior is not counter-clockwise".into());
+        }
+        if k > 0 && a >= 0.0 {
+            return Err(format!("hole {k} is not clockwise"));
+        }
+    }
+    let open: Vec<&[Coord<f64>]> = rings.iter().map(|r| &r[..r.len() - 1]).collect();
+    if let Some((i, j)) = first_interacting_rings(&open) {
+        return Err(format!("ring {i} touches or crosses ring {j}"));
+    }
+    for k in 1..open.len() {
+        if point_in_ring(open[k][0], open[0]) != Location::Inside {
+            return Err(format!("hole {k} is outside the exterior"));
+        }
+        for j in 1..open.len() {
+            if j != k && point_in_ring(open[k][0], open[j]) == Location::Inside {
+                return Err(format!("hole {k} is inside hole {j}"));
+            }
+        }
+    }
+    Ok(())
+}
+
+#[derive(Debug)]
+enum RingProblem {
+    TooFew(usize),
+    ZeroArea,
+}
+
+impl fmt::Display for RingProblem {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            RingProblem::TooFew(n) => write!(f, "{n} distinct point(s) after cleaning, need 3"),
+            RingProblem::ZeroArea => write!(f, "zero area"),
+        }
+    }
+}
+
+/// Opens, de-duplicates and de-spikes a ring (no closing point in the result).
+fn clean_ring(
+    ring: &[Coord<f64>],
+    idx: usize,
+    report_closing: bool,
+    actions: &mut Vec<RepairAction>,
+) -> Result<Vec<Coord<f64>>, RingProblem> {
+    let mut pts: Vec<Coord<f64>> = ring.to_vec();
+    if pts.len() >= 2 && pts[0] == pts[pts.len() - 1] {
+        pts.pop();
+    } else if pts.len() >= 3 && report_closing {
+        actions.push(RepairAction::ClosedRing { ring: idx });
+    }
+    let dropped = dedupe_cyclic(&mut pts);
+    let mut spikes = 0;
+    let mut more_dupes = 0;
+    loop {
+        let n = pts.len();
+        if n < 3 {
+            break;
+        }
+        let found = (0..n).find(|&i| is_spike(pts[(i + n - 1) % n], pts[i], pts[(i + 1) % n]));
+        match found {
+            Some(i) => {
+                pts.remove(i);
+                spikes += 1;
+                more_dupes += dedupe_cyclic(&mut pts);
+            }
+            None => break,
+        }
+    }
+    if dropped + more_dupes > 0 {
+        actions.push(RepairAction::DroppedRepeatedPoints {
+            ring: idx,
+            count: dropped + more_dupes,
+        });
+    }
+    if spikes > 0 {
+        actions.push(RepairAction::RemovedSpikes {
+            ring: idx,
+            count: spikes,
+        });
+    }
+    if pts.len() < 3 {
+        return Err(RingProblem::TooFew(pts.len()));
+    }
+    if ring_is_simple(&pts) && ring_signed_area(&pts) == 0.0 {
+        return Err(RingProblem::ZeroArea);
+    }
+    Ok(pts)
+}
+
+/// Drops consecutive repeated points, cyclically. Returns how many were dropped.
+fn dedupe_cyclic(pts: &mut Vec<Coord<f64>>) -> usize {
+    let before = pts.len();
+    pts.dedup();
+    while pts.len() >= 2 && pts[0] == pts[pts.len() - 1] {
+        pts.pop();
+    }
+    before - pts.len()
+}
+
+/// `b` is the tip of a zero-width spike: the boundary goes from `a` to `b` and back along
+/// itself towards `c`.
+fn is_spike(a: Coord<f64>, b: Coord<f64>, c: Coord<f64>) -> bool {
+    if a == c {
+        return true;
+    }
+    orient2d(a, b, c) == Orientation::Collinear
+        && (b.x - a.x) * (c.x - b.x) + (b.y - a.y) * (c.y - b.y) < 0.0
+}
+
+/// True when the open ring `r` (≥ 3 points) is simple: consecutive edges meet only at their
+/// shared vertex, other edges do not meet at all. O(n²) with bounding-box rejection.
+pub fn ring_is_simple(r: &[Coord<f64>]) -> bool {
+    let n = r.len();
+    if n < 3 {
+        return false;
+    }
+    for i in 0..n {
+        let (a, b) = (r[i], r[(i + 1) % n]);
+        let c = r[(i + 2) % n];
+        // Consecutive edges a-b, b-c: must not fold back over each other.
+        if on_segment(a, b, c) || on_segment(b, c, a) {
+            return false;
+        }
+        for j in i + 2..n {
+            if i == 0 && j == n - 1 {
+                continue;
+            }
+            let (p, q) = (r[j], r[(j + 1) % n]);
+            if segments_intersect(a, b, p, q) != SegmentIntersection::None {
+                return false;
+            }
+        }
+    }
+    true
+}
+
+fn ring_bbox(r: &[Coord<f64>]) -> [f64; 4] {
+    let mut b = [
+        f64::INFINITY,
+        f64::INFINITY,
+        f64::NEG_INFINITY,
+        f64::NEG_INFINITY,
+    ];
+    for c in r {
+        b[0] = b[0].min(c.x);
+        b[1] = b[1].min(c.y);
+        b[2] = b[2].max(c.x);
+        b[3] = b[3].max(c.y);
+    }
+    b
+}
+
+/// The first pair of rings (indices) that touch or cross, if any.
+fn first_interacting_rings(rings: &[&[Coord<f64>]]) -> Option<(usize, usize)> {
+    let boxes: Vec<[f64; 4]> = rings.iter().map(|r| ring_bbox(r)).collect();
+    for i in 0..rings.len() {
+        for j in i + 1..rings.len() {
+            let (bi, bj) = (boxes[i], boxes[j]);
+            if bi[2] < bj[0] || bj[2] < bi[0] || bi[3] < bj[1] || bj[3] < bi[1] {
+                continue;
+            }
+            let (ri, rj) = (rings[i], rings[j]);
+            for s in 0..ri.len() {
+                let (a, b) = (ri[s], ri[(s + 1) % ri.len()]);
+                for t in 0..rj.len() {
+                    let (p, q) = (rj[t], rj[(t + 1) % rj.len()]);
+                    if segments_intersect(a, b, p, q) != SegmentIntersection::None {
+                        return Some((i, j));
+                    }
+                }
+            }
+        }
+    }
+    None
+}
+
+fn closed_polygon(r: &[Coord<f64>]) -> Polygon<f64> {
+    Polygon::new(LineString::from(r.to_vec()), vec![])
+}
+
+/// Resolves self-intersections and crossing rings with the overlay (see the module doc).
+fn overlay_repair(
+    ext: Vec<Coord<f64>>,
+    holes: Vec<(usize, Vec<Coord<f64>>)>,
+    why: String,
+    mut actions: Vec<RepairAction>,
+) -> Result<Repaired, Refusal> {
+    let empty = MultiPolygon::<f64>::new(vec![]);
+    let mut area =
+        closed_polygon(&ext).boolean_op_with_fill_rule(&empty, OpType::Union, FillRule::NonZero);
+    for (_, h) in &holes {
+        let hole =
+            closed_polygon(h).boolean_op_with_fill_rule(&empty, OpType::Union, FillRule::NonZero);
+        area = area.difference(&hole);
+    }
+    let mut polygons = Vec::new();
+    for part in area.0 {
+        let inner: Vec<&[Coord<f64>]> = part.interiors().iter().map(|h| &h.0[..]).collect();
+        let mut sub = Vec::new();
+        let mut cleaned = match clean_ring(&part.exterior().0, 0, false, &mut sub) {
+            Ok(r) => r,
+            // Slivers of zero area can come out of the overlay: they are not footprint.
+            Err(_) => continue,
+        };
+        if !ring_is_simple(&cleaned) {
+            return Err(Refusal::Unrepairable {
+                why: format!("{why}; the overlay left a non-simple ring"),
+            });
+        }
+        if ring_signed_area(&cleaned) < 0.0 {
+            cleaned.reverse();
+        }
+        let mut hs = Vec::new();
+        for h in inner {
+            let mut hc = match clean_ring(h, 1, false, &mut sub) {
+                Ok(r) => r,
+                Err(_) => continue,
+            };
+            if ring_signed_area(&hc) > 0.0 {
+                hc.reverse();
+            }
+            hs.push(LineString::from(hc));
+        }
+        let p = Polygon::new(LineString::from(cleaned), hs);
+        if let Err(e) = check_polygon(&p) {
+            return Err(Refusal::Unrepairable {
+                why: format!("{why}; after the overlay: {e}"),
+            });
+        }
+        polygons.push(p);
+    }
+    if polygons.is_empty() {
+        return Err(Refusal::Unrepairable {
+            why: format!("{why}; the overlay left no area"),
+        });
+    }
+    actions.push(RepairAction::Overlay {
+        why,
+        parts: polygons.len(),
+    });
+    Ok(Repaired { polygons, actions })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::geom::predicates::polygon_area;
+    use geo::Validation;
+    use geo_types::coord;
+    use proptest::prelude::*;
+
+    fn c(x: f64, y: f64) -> Coord<f64> {
+        coord! {x: x, y: y}
+    }
+
+    fn sq(x0: f64, y0: f64, s: f64) -> Vec<Coord<f64>> {
+        vec![c(x0, y0), c(x0 + s, y0), c(x0 + s, y0 + s), c(x0, y0 + s)]
+    }
+
+    #[test]
+    fn valid_square_is_untouched() {
+        let mut ring = sq(0., 0., 10.);
+        ring.push(ring[0]);
+        let r = repair_rings(&ring, &[]).unwrap();
+        assert!(r.actions.is_empty(), "{:?}", r.actions);
+        assert_eq!(r.polygons.len(), 1);
+        assert_eq!(polygon_area(&r.polygons[0]), 100.0);
+    }
+
+    #[test]
+    fn unclosed_ring_is_closed_and_reported() {
+        let r = repair_rings(&sq(0., 0., 1.), &[]).unwrap();
+        assert_eq!(r.actions, vec![RepairAction::ClosedRing { ring: 0 }]);
+        let mut closed = sq(0., 0., 1.);
+        closed.push(closed[0]);
+        let r2 = repair_rings(&closed, &[]).unwrap();
+        assert_eq!(r.polygons, r2.polygons);
+    }
+
+    #[test]
+    fn clockwise_exterior_is_rewound_not_repaired() {
+        let mut r = sq(0., 0., 2.);
+        r.reverse();
+        r.push(r[0]);
+        let out = repair_rings(&r, &[]).unwrap();
+        assert_eq!(out.actions, vec![RepairAction::Rewound { ring: 0 }]);
+        assert!(!out.was_repaired());
+        assert!(ring_signed_area(&out.polygons[0].exterior().0) > 0.0);
+    }
+
+    #[test]
+    fn repeated_points_and_spike_are_removed() {
+        let mut r = vec![
+            c(0., 0.),
+            c(0., 0.),
+            c(4., 0.),
+            c(4., 2.),
+            c(6., 2.), // spike out and back
+            c(4., 2.),
+            c(4., 4.),
+            c(0., 4.),
+        ];
+        r.push(r[0]);
+        let out = repair_rings(&r, &[]).unwrap();
+        assert!(out.was_repaired());
+        assert!(out
+            .actions
+            .iter()
+            .any(|a| matches!(a, RepairAction::RemovedSpikes { ring: 0, .. })));
+        assert_eq!(polygon_area(&out.polygons[0]), 16.0);
+        check_polygon(&out.polygons[0]).unwrap();
+    }
+
+    #[test]
+    fn degenerate_rings_are_refused() {
+        assert!(matches!(
+            repair_rings(&[c(0., 0.), c(1., 1.), c(0., 0.)], &[]),
+            Err(Refusal::TooFewPoints { .. })
+        ));
+        assert!(matches!(
+            repair_rings(&[c(0., 0.), c(1., 0.), c(2., 0.), c(0., 0.)], &[]),
+            Err(Refusal::TooFewPoints { .. })
+        ));
+        assert!(matches!(
+            repair_rings(&[c(0., 0.), c(f64::NAN, 0.), c(2., 1.)], &[]),
+            Err(Refusal::NonFinite { ring: 0, index: 1 })
+        ));
+    }
+
+    #[test]
+    fn bowtie_becomes_two_triangles() {
+        let r = [c(0., 0.), c(2., 2.), c(2., 0.), c(0., 2.), c(0., 0.)];
+        let out = repair_rings(&r, &[]).unwrap();
+        assert_eq!(out.polygons.len(), 2);
+        let a: f64 = out.polygons.iter().map(polygon_area).sum();
+        assert!((a - 2.0).abs() < 1e-9, "{a}");
+        for p in &out.polygons {
+            check_polygon(p).unwrap();
+        }
+    }
+
+    #[test]
+    fn holes_outside_or_degenerate_are_dropped_hole_kept() {
+        let ext = sq(0., 0., 10.);
+        let inside = sq(2., 2., 2.);
+        let outside = sq(20., 20., 1.);
+        let flat = vec![c(5., 5.), c(6., 5.), c(7., 5.)];
+        let out = repair_rings(&ext, &[&inside, &outside, &flat]).unwrap();
+        assert_eq!(out.polygons.len(), 1);
+        assert_eq!(out.polygons[0].interiors().len(), 1);
+        assert_eq!(polygon_area(&out.polygons[0]), 96.0);
+        let dropped = out
+            .actions
+            .iter()
+            .filter(|a| matches!(a, RepairAction::DroppedHole { .. }))
+            .count();
+        assert_eq!(dropped, 2);
+        check_polygon(&out.polygons[0]).unwrap();
+    }
+
+    #[test]
+    fn hole_crossing_exterior_is_cut_out() {
+        let ext = sq(0., 0., 10.);
+        let hole = sq(8., 4., 4.); // sticks out on the right
+        let out = repair_rings(&ext, &[&hole]).unwrap();
+        let a: f64 = out.polygons.iter().map(polygon_area).sum();
+        assert!((a - 92.0).abs() < 1e-6, "{a}");
+        for p in &out.polygons {
+            check_polygon(p).unwrap();
+        }
+    }
+
+    /// Random rings: mostly star-shaped (simple), some scrambled (self-intersecting), some with
+    /// repeated points and spikes, optionally far from the origin.
+    fn ring_strategy() -> impl Strategy<Value = (Vec<Coord<f64>>, bool)> {
+        (
+            3usize..14,
+            any::<u64>(),
+            prop_oneof![Just(0.0), Just(1.0e7)],
+            0u8..4,
+        )
+            .prop_map(|(n, seed, off, mode)| {
+                use rand::{Rng, SeedableRng};
+                let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
+                let mut angles: Vec<f64> = (0..n)
+                    .map(|_| rng.random_range(0.0..std::f64::consts::TAU))
+                    .collect();
+                angles.sort_by(f64::total_cmp);
+                let mut pts: Vec<Coord<f64>> = angles
+                    .iter()
+                    .map(|a| {
+                        let r = rng.random_range(1.0..50.0);
+                        c(off + r * a.cos(), off + r * a.sin())
+                    })
+                    .collect();
+                let simple_star = mode == 0;
+                match mode {
+                    1 => {
+                        // Scramble: usually self-intersecting.
+                        for i in (1..pts.len()).rev() {
+                            let j = rng.random_range(0..=i);
+                            pts.swap(i, j);
+                        }
+                    }
+                    2 => {
+                        // Repeated point and a spike.
+                        let i = rng.random_range(0..pts.len());
+                        pts.insert(i, pts[i]);
+                        let j = rng.random_range(1..pts.len());
+                        let (a, b) = (pts[j - 1], pts[j]);
+                        let tip = c(b.x + (b.x - a.x) * 0.5, b.y + (b.y - a.y) * 0.5);
+                        pts.insert(j + 1, tip);
+                        pts.insert(j + 2, b);
+                    }
+                    3 => {
+                        // Integer grid: many exact collinearities and touches.
+                        for p in &mut pts {
+                            *p = c((p.x - off).round() + off, (p.y - off).round() + off);
+                        }
+                    }
+                    _ => {}
+                }
+                (pts, simple_star)
+            })
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(400))]
+        #[test]
+        fn repair_output_is_valid((pts, simple_star) in ring_strategy(), reverse in any::<bool>()) {
+            let mut pts = pts;
+            if reverse { pts.reverse(); }
+            if simple_star { pts.push(pts[0]); }
+            match repair_rings(&pts, &[]) {
+                Ok(out) => {
+                    prop_assert!(!out.polygons.is_empty());
+                    for p in &out.polygons {
+                        prop_assert!(check_polygon(p).is_ok(), "{:?}: {:?}", check_polygon(p), p);
+                        prop_assert!(p.is_valid(), "geo says invalid: {:?}", p);
+                        let e = &p.exterior().0;
+                        prop_assert_eq!(e[0], e[e.len() - 1]);
+                    }
+                    if simple_star && ring_is_simple(&pts) {
+                        // Already valid: exactly one polygon with the same area.
+                        prop_assert!(!out.was_repaired());
+                        prop_assert_eq!(out.polygons.len(), 1);
+                        let a = polygon_area(&out.polygons[0]);
+                        prop_assert_eq!(a, ring_signed_area(&pts).abs());
+                    }
+                }
+                Err(e) => {
+                    // Refusal is fine for degenerate input, but a simple star is never refused.
+                    prop_assert!(!(simple_star && ring_is_simple(&pts) && ring_signed_area(&pts) != 0.0), "{e}");
+                }
+            }
+        }
+    }
+}

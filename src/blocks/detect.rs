@@ -1,0 +1,223 @@
+//! The block stage's entry point: [`detect`] on a [`City`], or [`detect_geometry`] on plain
+//! geometry.
+
+use super::assign::{assign, outskirts_groups, DEFAULT_OUTSKIRTS_LINK};
+use super::faces::faces;
+use super::infer::{
+    blocks_from_footprints, blocks_from_parcels, gap_centrelines, DEFAULT_STREET_WIDTH,
+};
+use super::noding::{node_lines, DEFAULT_SNAP_TOLERANCE};
+use super::types::{Block, BlockId, BlockKind, BlockLayout, BlockSource};
+use crate::city::{BuildingId, City};
+use geo_types::{LineString, Polygon};
+
+/// Parameters of block detection. Lengths in metres (the city's metric world units).
+#[derive(Clone, Debug, PartialEq)]
+pub struct BlockOptions {
+    /// Points closer than this are one node; a line end this close to another line joins it.
+    /// Default [`DEFAULT_SNAP_TOLERANCE`] (0.05 m).
+    pub snap_tolerance: f64,
+    /// Use this source instead of the first available of streets → parcels → footprints.
+    pub force_source: Option<BlockSource>,
+    /// Let bridges and tunnels (`Street::grade_separated`) cut blocks. Default `false`: a street
+    /// passing over or under a block does not bound it. (`true` reproduces a plain
+    /// `polygonize(union_all(lines))` of a layer that still holds its bridges.)
+    pub grade_separated_cut: bool,
+    /// Outskirts buildings within this distance of each other form one group. Default
+    /// [`DEFAULT_OUTSKIRTS_LINK`] (30 m).
+    pub outskirts_link: f64,
+    /// Blocks from footprints: buildings closer than this are in one block. Default
+    /// [`DEFAULT_STREET_WIDTH`] (20 m).
+    pub street_width: f64,
+}
+
+impl Default for BlockOptions {
+    fn default() -> Self {
+        Self {
+            snap_tolerance: DEFAULT_SNAP_TOLERANCE,
+            force_source: None,
+            grade_separated_cut: false,
+            outskirts_link: DEFAULT_OUTSKIRTS_LINK,
+            street_width: DEFAULT_STREET_WIDTH,
+        }
+    }
+}
+
+/// Why blocks could not be detected.
+#[derive(Debug, thiserror::Error)]
+pub enum BlockError {
+    /// A source was forced but the city has no such layer.
+    #[error("blocks from {wanted:?} were asked for, but the city has no {layer} layer")]
+    MissingLayer {
+        /// The forced source.
+        wanted: BlockSource,
+        /// The missing layer.
+        layer: &'static str,
+    },
+    /// A feature has a NaN or infinite coordinate.
+    #[error("{layer} feature {id}: non-finite coordinate")]
+    NonFinite {
+        /// Which layer.
+        layer: &'static str,
+        /// The feature's source id.
+        id: String,
+    },
+    /// An option is out of range.
+    #[error("option {name} = {value} is out of range ({why})")]
+    BadOption {
+        /// Option name.
+        name: &'static str,
+        /// Its value.
+        value: f64,
+        /// The valid range.
+        why: &'static str,
+    },
+}
+
+fn finite_line(l: &LineString<f64>) -> bool {
+    l.0.iter().all(|c| c.x.is_finite() && c.y.is_finite())
+}
+
+fn finite_poly(p: &Polygon<f64>) -> bool {
+    finite_line(p.exterior()) && p.interiors().iter().all(finite_line)
+}
+
+/// Detects the blocks of a city and assigns every building to exactly one block (seed 003 §3).
+///
+/// The source is the street layer when there is one, else the parcels, else the footprints (or
+/// [`BlockOptions::force_source`]). Blocks are in the city's metric world coordinates.
+///
+/// # Errors
+/// [`BlockError`] for a forced source without its layer, a non-finite coordinate, or a bad option.
+pub fn detect(city: &City, opts: &BlockOptions) -> Result<BlockLayout, BlockError> {
+    for b in &city.buildings {
+        if !finite_poly(&b.footprint) {
+            return Err(BlockError::NonFinite {
+                layer: "building",
+                id: b.source_id.clone(),
+            });
+        }
+    }
+    let source = match opts.force_source {
+        Some(s) => {
+            let missing = match s {
+                BlockSource::Streets if city.streets.is_empty() => Some("street"),
+                BlockSource::Parcels if city.parcels.is_empty() => Some("parcel"),
+                _ => None,
+            };
+            if let Some(layer) = missing {
+                return Err(BlockError::MissingLayer { wanted: s, layer });
+            }
+            s
+        }
+        None if !city.streets.is_empty() => BlockSource::Streets,
+        None if !city.parcels.is_empty() => BlockSource::Parcels,
+        None => BlockSource::Footprints,
+    };
+    let mut lines = Vec::new();
+    for s in &city.streets {
+        if !finite_line(&s.line) {
+            return Err(BlockError::NonFinite {
+                layer: "street",
+                id: s.source_id.clone(),
+            });
+        }
+        if opts.grade_separated_cut || !s.grade_separated {
+            lines.push(s.line.clone());
+        }
+    }
+    let mut parcels = Vec::new();
+    for p in &city.parcels {
+        if !finite_poly(&p.polygon) {
+            return Err(BlockError::NonFinite {
+                layer: "parcel",
+                id: p.source_id.clone(),
+            });
+        }
+        parcels.push(p.polygon.clone());
+    }
+    let footprints: Vec<Polygon<f64>> =
+        city.buildings.iter().map(|b| b.footprint.clone()).collect();
+    detect_geometry(source, &lines, &parcels, &footprints, opts)
+}
+
+/// [`detect`] on plain geometry in any planar units (lengths in the options are in those units):
+/// `lines` for [`BlockSource::Streets`], `parcels` for [`BlockSource::Parcels`]; `footprints` are
+/// the buildings, `BuildingId(i)` for `footprints[i]`.
+///
+/// # Errors
+/// [`BlockError::BadOption`] for a negative or non-finite length.
+pub fn detect_geometry(
+    source: BlockSource,
+    lines: &[LineString<f64>],
+    parcels: &[Polygon<f64>],
+    footprints: &[Polygon<f64>],
+    opts: &BlockOptions,
+) -> Result<BlockLayout, BlockError> {
+    for (name, value) in [
+        ("snap_tolerance", opts.snap_tolerance),
+        ("outskirts_link", opts.outskirts_link),
+        ("street_width", opts.street_width),
+    ] {
+        if !(value.is_finite() && value >= 0.0) {
+            return Err(BlockError::BadOption {
+                name,
+                value,
+                why: "a finite length >= 0",
+            });
+        }
+    }
+    let tol = opts.snap_tolerance;
+    let (polys, street_edges, dangles) = match source {
+        BlockSource::Streets => {
+            let graph = node_lines(lines, tol);
+            let fs = faces(&graph);
+            let polys: Vec<Polygon<f64>> = fs.bounded().map(|i| fs.polygon(i)).collect();
+            (polys, graph.edge_lines(), graph.dangles())
+        }
+        BlockSource::Parcels | BlockSource::Footprints => {
+            let polys = if source == BlockSource::Parcels {
+                blocks_from_parcels(parcels, tol)
+            } else {
+                blocks_from_footprints(footprints, opts.street_width, tol)
+            };
+            let step = 0.5 * opts.street_width.max(1.0);
+            let centre = gap_centrelines(&polys, step, 3.0 * opts.street_width.max(1.0));
+            let graph = node_lines(&centre, tol);
+            (polys, graph.edge_lines(), graph.dangles())
+        }
+    };
+    let which = assign(footprints, &polys);
+    let mut blocks: Vec<Block> = polys
+        .into_iter()
+        .enumerate()
+        .map(|(i, polygon)| Block {
+            id: BlockId(i as u32),
+            kind: BlockKind::Block,
+            polygon,
+            buildings: Vec::new(),
+        })
+        .collect();
+    let mut unassigned = Vec::new();
+    for (b, w) in which.iter().enumerate() {
+        match w {
+            Some(k) => blocks[*k].buildings.push(BuildingId(b as u32)),
+            None => unassigned.push(b),
+        }
+    }
+    for (polygon, group) in outskirts_groups(footprints, &unassigned, opts.outskirts_link) {
+        let id = BlockId(blocks.len() as u32);
+        blocks.push(Block {
+            id,
+            kind: BlockKind::Outskirts,
+            polygon,
+            buildings: group.into_iter().map(|b| BuildingId(b as u32)).collect(),
+        });
+    }
+    Ok(BlockLayout {
+        blocks,
+        source,
+        street_edges,
+        dangles,
+    })
+}

@@ -1,0 +1,321 @@
+//! Block layout output: GeoJSON in the input's own coordinates, a one-object summary, and a map
+//! picture (SVG, or PNG through an RGB raster).
+
+use super::predicates::polygon_area;
+use super::types::{BlockKind, BlockLayout, BlockSource};
+use blockwalk_importers::{Crs, MetricTransform};
+use geo_types::{Coord, LineString, Polygon};
+use plotters::prelude::*;
+use serde::Serialize;
+use serde_json::{json, Value};
+use std::path::{Path, PathBuf};
+
+/// Why an output could not be written. Every variant names the file.
+#[derive(Debug, thiserror::Error)]
+pub enum ExportError {
+    /// Writing failed.
+    #[error("{file}: {message}")]
+    Write {
+        /// The file.
+        file: PathBuf,
+        /// What went wrong.
+        message: String,
+    },
+    /// The map format is not known from the file name.
+    #[error("{file}: unknown map format (expected .svg or .png)")]
+    Format {
+        /// The file.
+        file: PathBuf,
+    },
+}
+
+fn to_input(t: &MetricTransform, ls: &LineString<f64>) -> LineString<f64> {
+    LineString(
+        ls.0.iter()
+            .map(|c| {
+                let [x, y] = t.from_metric([c.x, c.y]);
+                Coord { x, y }
+            })
+            .collect(),
+    )
+}
+
+/// A polygon mapped from metric world coordinates back to the input's own coordinates.
+pub fn polygon_to_input(t: &MetricTransform, p: &Polygon<f64>) -> Polygon<f64> {
+    Polygon::new(
+        to_input(t, p.exterior()),
+        p.interiors().iter().map(|r| to_input(t, r)).collect(),
+    )
+}
+
+/// Counts and areas of a layout, as printed by `blockwalk blocks --json`.
+#[derive(Clone, Debug, Serialize)]
+pub struct LayoutSummary {
+    /// Blocks (faces / inferred blocks), not counting outskirts groups.
+    pub blocks: usize,
+    /// Outskirts groups.
+    pub outskirts_groups: usize,
+    /// Sum of the block areas in the input's own planar units (e.g. EPSG:3857 units²).
+    pub total_area: f64,
+    /// Sum of the block areas in square metres on the ground (metric world coordinates).
+    pub total_area_m2: f64,
+    /// Buildings inside blocks.
+    pub buildings_assigned: usize,
+    /// Buildings in outskirts groups.
+    pub buildings_outskirts: usize,
+    /// Edges of the noded street graph.
+    pub street_edges: usize,
+    /// Dangling street ends.
+    pub dangles: usize,
+    /// How the blocks were found.
+    pub source: BlockSource,
+}
+
+/// Summarises a layout; `transform` maps the metric world back to the input's coordinates.
+pub fn summary(layout: &BlockLayout, transform: &MetricTransform) -> LayoutSummary {
+    let mut s = LayoutSummary {
+        blocks: 0,
+        outskirts_groups: 0,
+        total_area: 0.0,
+        total_area_m2: 0.0,
+        buildings_assigned: 0,
+        buildings_outskirts: 0,
+        street_edges: layout.street_edges.len(),
+        dangles: layout.dangles,
+        source: layout.source,
+    };
+    for b in &layout.blocks {
+        match b.kind {
+            BlockKind::Block => {
+                s.blocks += 1;
+                s.total_area_m2 += polygon_area(&b.polygon);
+                s.total_area += polygon_area(&polygon_to_input(transform, &b.polygon));
+                s.buildings_assigned += b.buildings.len();
+            }
+            BlockKind::Outskirts => {
+                s.outskirts_groups += 1;
+                s.buildings_outskirts += b.buildings.len();
+            }
+        }
+    }
+    s
+}
+
+fn ring_json(ls: &LineString<f64>) -> Value {
+    Value::Array(ls.0.iter().map(|c| json!([c.x, c.y])).collect())
+}
+
+/// The layout as a GeoJSON FeatureCollection in the input's own coordinates. Properties: `id`,
+/// `kind` (`block` / `outskirts`), `area_m2` (ground area of the metric polygon), `area` (planar
+/// area in the input's units), `n_buildings`, `buildings` (indices into the city's buildings).
+/// A legacy `crs` member names the input's EPSG code when it is known.
+pub fn to_geojson(layout: &BlockLayout, transform: &MetricTransform) -> Value {
+    let features: Vec<Value> = layout
+        .blocks
+        .iter()
+        .map(|b| {
+            let p = polygon_to_input(transform, &b.polygon);
+            let mut rings = vec![ring_json(p.exterior())];
+            rings.extend(p.interiors().iter().map(ring_json));
+            json!({
+                "type": "Feature",
+                "id": b.id.0,
+                "properties": {
+                    "id": b.id.0,
+                    "kind": b.kind,
+                    "area_m2": polygon_area(&b.polygon),
+                    "area": polygon_area(&p),
+                    "n_buildings": b.buildings.len(),
+                    "buildings": b.buildings.iter().map(|i| i.0).collect::<Vec<_>>(),
+                },
+                "geometry": { "type": "Polygon", "coordinates": rings },
+            })
+        })
+        .collect();
+    let mut fc = json!({ "type": "FeatureCollection", "features": features });
+    let epsg = match &transform.crs {
+        Crs::Projected { epsg: Some(e), .. } | Crs::Geographic { epsg: Some(e) } => Some(*e),
+        Crs::WebMercator => Some(3857),
+        _ => None,
+    };
+    if let Some(e) = epsg {
+        fc["crs"] =
+            json!({"type": "name", "properties": {"name": format!("urn:ogc:def:crs:EPSG::{e}")}});
+    }
+    fc
+}
+
+/// Writes [`to_geojson`] to a file.
+///
+/// # Errors
+/// [`ExportError::Write`] naming the file.
+pub fn write_geojson(
+    path: &Path,
+    layout: &BlockLayout,
+    transform: &MetricTransform,
+) -> Result<(), ExportError> {
+    let text =
+        serde_json::to_string(&to_geojson(layout, transform)).map_err(|e| ExportError::Write {
+            file: path.to_path_buf(),
+            message: e.to_string(),
+        })?;
+    std::fs::write(path, text).map_err(|e| ExportError::Write {
+        file: path.to_path_buf(),
+        message: e.to_string(),
+    })
+}
+
+/// A fixed, colour-blind-friendly palette for blocks.
+const PALETTE: [(u8, u8, u8); 8] = [
+    (230, 159, 0),
+    (86, 180, 233),
+    (0, 158, 115),
+    (240, 228, 66),
+    (0, 114, 178),
+    (213, 94, 0),
+    (204, 121, 167),
+    (153, 204, 102),
+];
+
+/// Draws the map: blocks coloured (outskirts groups grey outlines), street edges in dark grey,
+/// buildings in near-black. `buildings` are the footprints in metric world coordinates.
+fn draw<DB: DrawingBackend>(
+    root: &DrawingArea<DB, plotters::coord::Shift>,
+    size: (u32, u32),
+    layout: &BlockLayout,
+    buildings: &[Polygon<f64>],
+) -> Result<(), String> {
+    root.fill(&WHITE).map_err(|e| e.to_string())?;
+    let mut lo = [f64::INFINITY; 2];
+    let mut hi = [f64::NEG_INFINITY; 2];
+    let mut grow = |c: &Coord<f64>| {
+        lo = [lo[0].min(c.x), lo[1].min(c.y)];
+        hi = [hi[0].max(c.x), hi[1].max(c.y)];
+    };
+    layout
+        .blocks
+        .iter()
+        .flat_map(|b| &b.polygon.exterior().0)
+        .for_each(&mut grow);
+    buildings
+        .iter()
+        .flat_map(|b| &b.exterior().0)
+        .for_each(&mut grow);
+    layout
+        .street_edges
+        .iter()
+        .flat_map(|l| &l.0)
+        .for_each(&mut grow);
+    if lo[0] > hi[0] {
+        return Ok(());
+    }
+    let margin = 10.0;
+    let scale = ((size.0 as f64 - 2.0 * margin) / (hi[0] - lo[0]).max(1e-9))
+        .min((size.1 as f64 - 2.0 * margin) / (hi[1] - lo[1]).max(1e-9));
+    let px = |c: &Coord<f64>| -> (i32, i32) {
+        (
+            (margin + (c.x - lo[0]) * scale).round() as i32,
+            (size.1 as f64 - margin - (c.y - lo[1]) * scale).round() as i32,
+        )
+    };
+    let ring = |ls: &LineString<f64>| ls.0.iter().map(px).collect::<Vec<_>>();
+    let err = |e: DrawingAreaErrorKind<DB::ErrorType>| e.to_string();
+    for b in &layout.blocks {
+        match b.kind {
+            BlockKind::Block => {
+                let (r, g, bl) = PALETTE[b.id.0 as usize % PALETTE.len()];
+                root.draw(&plotters::element::Polygon::new(
+                    ring(b.polygon.exterior()),
+                    RGBColor(r, g, bl).mix(0.45).filled(),
+                ))
+                .map_err(err)?;
+                for h in b.polygon.interiors() {
+                    root.draw(&plotters::element::Polygon::new(ring(h), WHITE.filled()))
+                        .map_err(err)?;
+                }
+            }
+            BlockKind::Outskirts => {
+                root.draw(&PathElement::new(
+                    ring(b.polygon.exterior()),
+                    RGBColor(150, 150, 150).stroke_width(1),
+                ))
+                .map_err(err)?;
+            }
+        }
+    }
+    for l in &layout.street_edges {
+        root.draw(&PathElement::new(
+            ring(l),
+            RGBColor(60, 60, 60).stroke_width(2),
+        ))
+        .map_err(err)?;
+    }
+    for b in buildings {
+        root.draw(&plotters::element::Polygon::new(
+            ring(b.exterior()),
+            RGBColor(30, 30, 30).filled(),
+        ))
+        .map_err(err)?;
+    }
+    root.present().map_err(|e| e.to_string())
+}
+
+/// Writes the map as SVG or PNG, chosen by the file's extension; the long side is `long_side`
+/// pixels.
+///
+/// # Errors
+/// [`ExportError`] naming the file.
+pub fn write_map(
+    path: &Path,
+    layout: &BlockLayout,
+    buildings: &[Polygon<f64>],
+    long_side: u32,
+) -> Result<(), ExportError> {
+    let mut lo = [f64::INFINITY; 2];
+    let mut hi = [f64::NEG_INFINITY; 2];
+    for c in layout
+        .blocks
+        .iter()
+        .flat_map(|b| &b.polygon.exterior().0)
+        .chain(buildings.iter().flat_map(|b| &b.exterior().0))
+    {
+        lo = [lo[0].min(c.x), lo[1].min(c.y)];
+        hi = [hi[0].max(c.x), hi[1].max(c.y)];
+    }
+    let (w, h) = if lo[0] <= hi[0] {
+        let (dx, dy) = ((hi[0] - lo[0]).max(1e-9), (hi[1] - lo[1]).max(1e-9));
+        if dx >= dy {
+            (long_side, ((long_side as f64 * dy / dx) as u32).max(64))
+        } else {
+            (((long_side as f64 * dx / dy) as u32).max(64), long_side)
+        }
+    } else {
+        (long_side, long_side)
+    };
+    let fail = |message: String| ExportError::Write {
+        file: path.to_path_buf(),
+        message,
+    };
+    let ext = path
+        .extension()
+        .and_then(|e| e.to_str())
+        .map(|e| e.to_ascii_lowercase());
+    match ext.as_deref() {
+        Some("svg") => {
+            let root = SVGBackend::new(path, (w, h)).into_drawing_area();
+            draw(&root, (w, h), layout, buildings).map_err(fail)
+        }
+        Some("png") => {
+            let mut buf = vec![255u8; (w * h * 3) as usize];
+            {
+                let root = BitMapBackend::with_buffer(&mut buf, (w, h)).into_drawing_area();
+                draw(&root, (w, h), layout, buildings).map_err(fail)?;
+            }
+            image::save_buffer(path, &buf, w, h, image::ExtendedColorType::Rgb8)
+                .map_err(|e| fail(e.to_string()))
+        }
+        _ => Err(ExportError::Format {
+            file: path.to_path_buf(),
+        }),
+    }
+}

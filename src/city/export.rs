@@ -1,1 +1,0 @@
-//! Export: glTF binary and GeoJSON.

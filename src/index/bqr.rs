@@ -1,0 +1,789 @@
+//! The BqR-tree (seed 003 §4): an adaptive quadtree over the city's bounding rectangle whose
+//! nodes hold bounding spheres and whose leaves hold one block each with a box∩sphere volume.
+//!
+//! # Layout
+//! Nodes live in one `Vec` in depth-first preorder, so a node's subtree is the contiguous node
+//! range `[i, subtree_end)` and its blocks the contiguous range `block_range` of
+//! [`BqrTree::blocks`]: a subtree found fully inside the frustum is appended in one go.
+//!
+//! # Linear quadtree key
+//! Every node carries a key: the root is `1`, and the child in quadrant `q` of a node with key
+//! `k` has key `4k + q`, with `q = east + 2·north` (0 south-west, 1 south-east, 2 north-west,
+//! 3 north-east; `east` when the centre's x ≥ the quadrant's middle, `north` likewise for y).
+//! The leading 1 bit marks the depth, so keys of different depths never collide (the paper
+//! stores a numeric key because empty quadrants get no node).
+//!
+//! # Mobile objects
+//! Small dynamic objects (cars, pedestrians) are kept in the deepest existing node whose
+//! quadrant holds their whole footprint (the root when none does). Inserting one grows the
+//! spheres and boxes of its node and every ancestor; removing or moving one never shrinks them
+//! (still conservative) until [`BqrTree::refit`]. They have their own id space ([`ObjectId`])
+//! and are reported in a separate output by [`BqrTree::cull_with_objects`]; the
+//! [`CityIndex`] methods report blocks only.
+
+use super::{validate_bounds, BlockBounds, CityIndex, CullQuery, CullStats, IndexError, Sink};
+use crate::blocks::BlockId;
+use crate::geom::{
+    Aabb3, BoundingSphere, CoherenceState, Containment, Frustum, PlaneMask, ALL_PLANES,
+};
+use glam::{DVec2, DVec3};
+
+const NONE: u32 = u32::MAX;
+const NAME: &str = "bqr";
+
+/// Build parameters of a [`BqrTree`].
+#[derive(Clone, Debug, PartialEq)]
+pub struct BqrParams {
+    /// Depth at which splitting stops even when a quadrant still holds several blocks (blocks
+    /// whose centres coincide, or nearly: the quadrant would never separate them). Such a
+    /// quadrant becomes a multi-block leaf. 1..=30 (the key needs 2 bits per level).
+    pub max_depth: u32,
+}
+
+impl Default for BqrParams {
+    fn default() -> Self {
+        Self { max_depth: 24 }
+    }
+}
+
+/// A mobile object's id (its own id space, separate from [`BlockId`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash, serde::Serialize)]
+pub struct ObjectId(pub u32);
+
+/// Inner node or leaf.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum BqrNodeKind {
+    /// Holds children; volume = bounding sphere.
+    Inner,
+    /// Holds one block (or several at the depth limit); volume = box ∩ sphere.
+    Leaf,
+}
+
+#[derive(Clone, Debug)]
+struct Node {
+    key: u64,
+    depth: u32,
+    kind: BqrNodeKind,
+    parent: u32,
+    /// The quadrant (x, y), used to place objects and check invariants.
+    quad_min: DVec2,
+    quad_max: DVec2,
+    /// Encloses every block and object of the subtree.
+    sphere: BoundingSphere,
+    /// Box of every block and object of the subtree (the leaf volume's box, and what `keep`
+    /// is asked about).
+    aabb: Aabb3,
+    children: [u32; 4],
+    subtree_end: u32,
+    block_start: u32,
+    block_end: u32,
+}
+
+#[derive(Clone, Debug)]
+struct ObjectSlot {
+    aabb: Aabb3,
+    node: u32,
+}
+
+/// The BqR-tree (seed 003 §4). Immutable for blocks after its build; mobile objects can be
+/// inserted, moved and removed.
+#[derive(Clone, Debug)]
+pub struct BqrTree {
+    nodes: Vec<Node>,
+    blocks: Vec<BlockBounds>,
+    max_depth: u32,
+    objects: Vec<Option<ObjectSlot>>,
+    node_objects: Vec<Vec<u32>>,
+    object_count: usize,
+}
+
+struct Builder<'a> {
+    input: &'a [BlockBounds],
+    nodes: Vec<Node>,
+    order: Vec<u32>,
+    max_depth: u32,
+}
+
+impl Builder<'_> {
+    fn build(
+        &mut self,
+        items: &mut [u32],
+        qmin: DVec2,
+        qmax: DVec2,
+        key: u64,
+        depth: u32,
+        parent: u32,
+    ) -> u32 {
+        let idx = self.nodes.len() as u32;
+        let block_start = self.order.len() as u32;
+        self.nodes.push(Node {
+            key,
+            depth,
+            kind: BqrNodeKind::Leaf,
+            parent,
+            quad_min: qmin,
+            quad_max: qmax,
+            sphere: BoundingSphere {
+                center: DVec3::ZERO,
+                radius: 0.0,
+            },
+            aabb: Aabb3::EMPTY,
+            children: [NONE; 4],
+            subtree_end: 0,
+            block_start,
+            block_end: 0,
+        });
+        // A quadrant with one block is indivisible (seed 003 §4); several blocks with the same
+        // centre can never be separated: stop at the depth limit with a multi-block leaf.
+        if items.len() <= 1 || depth >= self.max_depth {
+            self.order.extend_from_slice(items);
+            let mut aabb = Aabb3::EMPTY;
+            let mut sphere: Option<BoundingSphere> = None;
+            for &i in items.iter() {
+                let b = &self.input[i as usize].aabb;
+                aabb = aabb.union(*b);
+                // Deviation (seed 003 §4 intersects the block's sphere with the quadrant box): a
+                // block is assigned by its centre and may stick out of its quadrant, so the
+                // quadrant box is not conservative; we intersect with the block's own AABB.
+                // With only the AABB known, the leaf sphere is the box's circumscribed sphere.
+                let s = BoundingSphere::from_aabb(b);
+                sphere = Some(match sphere {
+                    None => s,
+                    Some(acc) => acc.merge(s),
+                });
+            }
+            let end = self.nodes.len() as u32;
+            let n = &mut self.nodes[idx as usize];
+            n.aabb = aabb;
+            n.sphere = sphere.unwrap_or(BoundingSphere {
+                center: DVec3::ZERO,
+                radius: 0.0,
+            });
+            n.block_end = self.order.len() as u32;
+            n.subtree_end = end;
+            return idx;
+        }
+        let mid = (qmin + qmax) * 0.5;
+        let input = self.input;
+        let quadrant = |i: &u32| {
+            let c = input[*i as usize].center;
+            usize::from(c.x >= mid.x) + 2 * usize::from(c.y >= mid.y)
+        };
+        items.sort_unstable_by_key(quadrant);
+        let mut children = [NONE; 4];
+        let mut rest: &mut [u32] = items;
+        for (q, child) in children.iter_mut().enumerate() {
+            let n = rest.iter().take_while(|i| quadrant(i) == q).count();
+            let (head, tail) = rest.split_at_mut(n);
+            rest = tail;
+            if head.is_empty() {
+                continue; // empty quadrants get no node (adaptive quadtree)
+            }
+            let cmin = DVec2::new(
+                if q & 1 == 1 { mid.x } else { qmin.x },
+                if q & 2 == 2 { mid.y } else { qmin.y },
+            );
+            let cmax = DVec2::new(
+                if q & 1 == 1 { qmax.x } else { mid.x },
+                if q & 2 == 2 { qmax.y } else { mid.y },
+            );
+            *child = self.build(head, cmin, cmax, (key << 2) | q as u64, depth + 1, idx);
+        }
+        // Inner node: the sphere enclosing its children's spheres, bottom-up (seed 003 §4).
+        let mut aabb = Aabb3::EMPTY;
+        let mut sphere: Option<BoundingSphere> = None;
+        for &c in children.iter().filter(|&&c| c != NONE) {
+            let cn = &self.nodes[c as usize];
+            aabb = aabb.union(cn.aabb);
+            sphere = Some(match sphere {
+                None => cn.sphere,
+                Some(s) => s.merge(cn.sphere),
+            });
+        }
+        let end = self.nodes.len() as u32;
+        let n = &mut self.nodes[idx as usize];
+        n.kind = BqrNodeKind::Inner;
+        n.children = children;
+        n.aabb = aabb;
+        n.sphere = sphere.expect("an inner node has at least one child");
+        n.block_end = self.order.len() as u32;
+        n.subtree_end = end;
+        idx
+    }
+}
+
+impl BqrTree {
+    /// Builds the tree over `bounds` (seed 003 §4): the city's bounding rectangle (of the
+    /// blocks' boxes and centres) is split into four equal quadrants recursively until a
+    /// quadrant holds at most one block centre.
+    ///
+    /// # Errors
+    /// [`IndexError::BadParam`] for `max_depth` outside 1..=30, [`IndexError::BadBlock`] for a
+    /// non-finite or empty block box.
+    pub fn build(bounds: &[BlockBounds], params: &BqrParams) -> Result<Self, IndexError> {
+        if !(1..=30).contains(&params.max_depth) {
+            return Err(IndexError::BadParam {
+                structure: NAME,
+                name: "max_depth",
+                value: params.max_depth.to_string(),
+                reason: "must be in 1..=30",
+            });
+        }
+        validate_bounds(NAME, bounds)?;
+        let mut b = Builder {
+            input: bounds,
+            nodes: Vec::with_capacity(bounds.len() * 2),
+            order: Vec::with_capacity(bounds.len()),
+            max_depth: params.max_depth,
+        };
+        if !bounds.is_empty() {
+            let mut rmin = DVec2::splat(f64::INFINITY);
+            let mut rmax = DVec2::splat(f64::NEG_INFINITY);
+            for bb in bounds {
+                rmin = rmin.min(bb.aabb.min.truncate()).min(bb.center);
+                rmax = rmax.max(bb.aabb.max.truncate()).max(bb.center);
+            }
+            let mut items: Vec<u32> = (0..bounds.len() as u32).collect();
+            b.build(&mut items, rmin, rmax, 1, 0, NONE);
+        }
+        let blocks = b
+            .order
+            .iter()
+            .map(|&i| bounds[i as usize].clone())
+            .collect();
+        let n = b.nodes.len();
+        Ok(Self {
+            nodes: b.nodes,
+            blocks,
+            max_depth: params.max_depth,
+            objects: Vec::new(),
+            node_objects: vec![Vec::new(); n],
+            object_count: 0,
+        })
+    }
+
+    /// Blocks in tree order (depth-first, a subtree's blocks contiguous).
+    pub fn blocks(&self) -> &[BlockBounds] {
+        &self.blocks
+    }
+
+    /// Number of leaves.
+    pub fn leaf_count(&self) -> usize {
+        self.nodes
+            .iter()
+            .filter(|n| n.kind == BqrNodeKind::Leaf)
+            .count()
+    }
+
+    /// Depth of the deepest node (root 0).
+    pub fn depth(&self) -> u32 {
+        self.nodes.iter().map(|n| n.depth).max().unwrap_or(0)
+    }
+
+    /// `(key, depth, kind)` of every node in preorder.
+    pub fn node_keys(&self) -> impl Iterator<Item = (u64, u32, BqrNodeKind)> + '_ {
+        self.nodes.iter().map(|n| (n.key, n.depth, n.kind))
+    }
+
+    /// Number of mobile objects.
+    pub fn object_count(&self) -> usize {
+        self.object_count
+    }
+
+    /// The box of a mobile object, if present.
+    pub fn object(&self, id: ObjectId) -> Option<Aabb3> {
+        self.objects
+            .get(id.0 as usize)
+            .and_then(|o| o.as_ref())
+            .map(|o| o.aabb)
+    }
+
+    /// Adds a mobile object without rebuilding: it goes to the deepest existing node whose
+    /// quadrant holds its footprint, whose sphere and box (and its ancestors') grow to hold it.
+    ///
+    /// # Errors
+    /// [`IndexError::BadObject`] for an empty or non-finite box, [`IndexError::DuplicateObject`]
+    /// when `id` is present.
+    pub fn insert_object(&mut self, id: ObjectId, aabb: Aabb3) -> Result<(), IndexError> {
+        if aabb.is_empty() || !aabb.min.is_finite() || !aabb.max.is_finite() {
+            return Err(IndexError::BadObject {
+                structure: NAME,
+                id: id.0,
+            });
+        }
+        let i = id.0 as usize;
+        if self.objects.get(i).is_some_and(|o| o.is_some()) {
+            return Err(IndexError::DuplicateObject {
+                structure: NAME,
+                id: id.0,
+            });
+        }
+        if self.nodes.is_empty() {
+            // No block: a lone root leaf holding objects only.
+            let p = aabb.center().truncate();
+            self.nodes.push(Node {
+                key: 1,
+                depth: 0,
+                kind: BqrNodeKind::Leaf,
+                parent: NONE,
+                quad_min: p,
+                quad_max: p,
+                sphere: BoundingSphere::from_aabb(&aabb),
+                aabb,
+                children: [NONE; 4],
+                subtree_end: 1,
+                block_start: 0,
+                block_end: 0,
+            });
+            self.node_objects.push(Vec::new());
+        }
+        let node = self.place(&aabb);
+        if self.objects.len() <= i {
+            self.objects.resize(i + 1, None);
+        }
+        self.objects[i] = Some(ObjectSlot { aabb, node });
+        self.node_objects[node as usize].push(id.0);
+        self.object_count += 1;
+        let s = BoundingSphere::from_aabb(&aabb);
+        let mut n = node;
+        while n != NONE {
+            let nd = &mut self.nodes[n as usize];
+            nd.sphere = nd.sphere.merge(s);
+            nd.aabb = nd.aabb.union(aabb);
+            n = nd.parent;
+        }
+        Ok(())
+    }
+
+    /// Removes a mobile object. Volumes are not shrunk (see [`BqrTree::refit`]).
+    ///
+    /// # Errors
+    /// [`IndexError::UnknownObject`] when `id` is absent.
+    pub fn remove_object(&mut self, id: ObjectId) -> Result<Aabb3, IndexError> {
+        let slot = self
+            .objects
+            .get_mut(id.0 as usize)
+            .and_then(Option::take)
+            .ok_or(IndexError::UnknownObject {
+                structure: NAME,
+                id: id.0,
+            })?;
+        let list = &mut self.node_objects[slot.node as usize];
+        if let Some(p) = list.iter().position(|&o| o == id.0) {
+            list.swap_remove(p);
+        }
+        self.object_count -= 1;
+        Ok(slot.aabb)
+    }
+
+    /// Moves a mobile object to a new box (remove, then insert).
+    ///
+    /// # Errors
+    /// As [`BqrTree::remove_object`] and [`BqrTree::insert_object`]; on error the object is
+    /// left where it was.
+    pub fn move_object(&mut self, id: ObjectId, aabb: Aabb3) -> Result<(), IndexError> {
+        if aabb.is_empty() || !aabb.min.is_finite() || !aabb.max.is_finite() {
+            return Err(IndexError::BadObject {
+                structure: NAME,
+                id: id.0,
+            });
+        }
+        self.remove_object(id)?;
+        self.insert_object(id, aabb)
+    }
+
+    /// Recomputes every volume bottom-up from the blocks and the objects present now
+    /// (shrinks what removals and moves left grown).
+    pub fn refit(&mut self) {
+        for i in (0..self.nodes.len()).rev() {
+            let n = &self.nodes[i];
+            let mut aabb = Aabb3::EMPTY;
+            let mut sphere: Option<BoundingSphere> = None;
+            let mut add = |b: Aabb3, s: BoundingSphere| {
+                aabb = aabb.union(b);
+                sphere = Some(match sphere {
+                    None => s,
+                    Some(a) => a.merge(s),
+                });
+            };
+            if n.kind == BqrNodeKind::Leaf {
+                for b in &self.blocks[n.block_start as usize..n.block_end as usize] {
+                    add(b.aabb, BoundingSphere::from_aabb(&b.aabb));
+                }
+            }
+            for &c in n.children.iter().filter(|&&c| c != NONE) {
+                let cn = &self.nodes[c as usize];
+                if !cn.aabb.is_empty() {
+                    add(cn.aabb, cn.sphere);
+                }
+            }
+            for &o in &self.node_objects[i] {
+                if let Some(slot) = &self.objects[o as usize] {
+                    add(slot.aabb, BoundingSphere::from_aabb(&slot.aabb));
+                }
+            }
+            let n = &mut self.nodes[i];
+            n.aabb = aabb;
+            n.sphere = sphere.unwrap_or(BoundingSphere {
+                center: n.sphere.center,
+                radius: 0.0,
+            });
+        }
+    }
+
+    fn place(&self, aabb: &Aabb3) -> u32 {
+        let (lo, hi) = (aabb.min.truncate(), aabb.max.truncate());
+        let mut n = 0u32;
+        loop {
+            let nd = &self.nodes[n as usize];
+            let next = nd.children.iter().copied().find(|&c| {
+                c != NONE && {
+                    let cn = &self.nodes[c as usize];
+                    cn.quad_min.cmple(lo).all() && hi.cmple(cn.quad_max).all()
+                }
+            });
+            match next {
+                Some(c) => n = c,
+                None => return n,
+            }
+        }
+    }
+
+    /// Blocks (to `out`) and mobile objects (to `objects`) that may intersect the query's
+    /// frustum, front to back. `coherence`, when given, holds per node the plane that rejected
+    /// it last frame and is tested first (temporal coherence; sized on first use).
+    pub fn cull_with_objects(
+        &self,
+        query: &CullQuery<'_>,
+        keep: Option<&mut dyn FnMut(&Aabb3) -> bool>,
+        out: &mut Vec<BlockId>,
+        objects: &mut Vec<ObjectId>,
+        coherence: Option<&mut CoherenceState>,
+    ) -> CullStats {
+        let mut sink = Sink {
+            keep,
+            out,
+            stats: CullStats::default(),
+        };
+        let mut t = Traversal {
+            tree: self,
+            frustum: query.frustum,
+            eye: query.eye,
+            objects: Some(objects),
+            coherence,
+        };
+        if !self.nodes.is_empty() {
+            t.visit(0, ALL_PLANES, &mut sink);
+        }
+        sink.stats
+    }
+
+    /// As [`CityIndex::cull`] with temporal coherence (see [`BqrTree::cull_with_objects`]).
+    pub fn cull_coherent(
+        &self,
+        frustum: &Frustum,
+        coherence: &mut CoherenceState,
+        out: &mut Vec<BlockId>,
+    ) -> CullStats {
+        let q = CullQuery::new(frustum);
+        self.run(&q, None, out, Some(coherence))
+    }
+
+    fn run(
+        &self,
+        query: &CullQuery<'_>,
+        keep: Option<&mut dyn FnMut(&Aabb3) -> bool>,
+        out: &mut Vec<BlockId>,
+        coherence: Option<&mut CoherenceState>,
+    ) -> CullStats {
+        let mut sink = Sink {
+            keep,
+            out,
+            stats: CullStats::default(),
+        };
+        let mut t = Traversal {
+            tree: self,
+            frustum: query.frustum,
+            eye: query.eye,
+            objects: None,
+            coherence,
+        };
+        if !self.nodes.is_empty() {
+            t.visit(0, ALL_PLANES, &mut sink);
+        }
+        sink.stats
+    }
+
+    /// Checks the structure's invariants; panics with a message naming the broken one.
+    /// Always compiled (tests and `--check` call it).
+    ///
+    /// # Panics
+    /// When an invariant is broken.
+    pub fn check_invariants(&self) {
+        let tol = |s: &BoundingSphere| 1e-9 * (1.0 + s.center.abs().max_element() + s.radius);
+        let mut seen = vec![false; self.blocks.len()];
+        for (i, n) in self.nodes.iter().enumerate() {
+            assert!(
+                (n.subtree_end as usize) > i && (n.subtree_end as usize) <= self.nodes.len(),
+                "node {i}: bad subtree end"
+            );
+            assert!(n.depth <= self.max_depth, "node {i}: deeper than the limit");
+            assert_eq!(
+                64 - n.key.leading_zeros(),
+                2 * n.depth + 1,
+                "node {i}: key {} does not encode depth {}",
+                n.key,
+                n.depth
+            );
+            if i == 0 {
+                assert_eq!(n.parent, NONE, "root has a parent");
+            }
+            match n.kind {
+                BqrNodeKind::Leaf => {
+                    assert!(
+                        n.children.iter().all(|&c| c == NONE),
+                        "leaf {i} has children"
+                    );
+                    let count = n.block_end - n.block_start;
+                    assert!(
+                        count <= 1 || n.depth == self.max_depth,
+                        "leaf {i} holds {count} blocks above the depth limit"
+                    );
+                    assert!(
+                        count >= 1 || self.blocks.is_empty(),
+                        "leaf {i} holds no block"
+                    );
+                    for k in n.block_start..n.block_end {
+                        assert!(!seen[k as usize], "block slot {k} in two leaves");
+                        seen[k as usize] = true;
+                    }
+                }
+                BqrNodeKind::Inner => {
+                    let mut next_block = n.block_start;
+                    let mut next_node = i as u32 + 1;
+                    for (q, &c) in n.children.iter().enumerate() {
+                        if c == NONE {
+                            continue;
+                        }
+                        let cn = &self.nodes[c as usize];
+                        assert_eq!(c, next_node, "node {i}: children not in preorder");
+                        assert_eq!(cn.parent, i as u32, "node {c}: wrong parent");
+                        assert_eq!(cn.key, (n.key << 2) | q as u64, "node {c}: wrong key");
+                        assert_eq!(cn.depth, n.depth + 1, "node {c}: wrong depth");
+                        assert_eq!(cn.block_start, next_block, "node {c}: block ranges");
+                        next_block = cn.block_end;
+                        next_node = cn.subtree_end;
+                        if self.object_count == 0 && !cn.aabb.is_empty() {
+                            let d = (cn.sphere.center - n.sphere.center).length();
+                            assert!(
+                                d + cn.sphere.radius <= n.sphere.radius + tol(&n.sphere),
+                                "node {i}: sphere does not hold child {c}'s sphere"
+                            );
+                        }
+                    }
+                    assert_eq!(next_block, n.block_end, "node {i}: block range");
+                    assert_eq!(next_node, n.subtree_end, "node {i}: subtree range");
+                    assert!(n.children.iter().any(|&c| c != NONE), "inner {i} is empty");
+                }
+            }
+            // The volume holds every block of the subtree, and the leaf's quadrant its centre.
+            for b in &self.blocks[n.block_start as usize..n.block_end as usize] {
+                assert!(
+                    n.aabb.contains_point(b.aabb.min) && n.aabb.contains_point(b.aabb.max),
+                    "node {i}: box misses block {:?}",
+                    b.id
+                );
+                for p in b.aabb.corners() {
+                    assert!(
+                        (p - n.sphere.center).length() <= n.sphere.radius + tol(&n.sphere),
+                        "node {i}: sphere misses block {:?}",
+                        b.id
+                    );
+                }
+                let c = b.center;
+                assert!(
+                    n.quad_min.cmple(c).all() && c.cmple(n.quad_max).all(),
+                    "node {i}: block {:?} centre outside the quadrant",
+                    b.id
+                );
+            }
+        }
+        assert!(seen.iter().all(|&s| s), "a block is in no leaf");
+        // Objects: in their node's list, inside the node's quadrant (unless at the root), and
+        // inside every ancestor's volume.
+        let mut live = 0;
+        for (id, o) in self.objects.iter().enumerate() {
+            let Some(o) = o else { continue };
+            live += 1;
+            assert!(
+                self.node_objects[o.node as usize].contains(&(id as u32)),
+                "object {id} missing from its node's list"
+            );
+            let mut n = o.node;
+            while n != NONE {
+                let nd = &self.nodes[n as usize];
+                assert!(
+                    nd.aabb.contains_point(o.aabb.min) && nd.aabb.contains_point(o.aabb.max),
+                    "node {n}: box misses object {id}"
+                );
+                for p in o.aabb.corners() {
+                    assert!(
+                        (p - nd.sphere.center).length() <= nd.sphere.radius + tol(&nd.sphere),
+                        "node {n}: sphere misses object {id}"
+                    );
+                }
+                n = nd.parent;
+            }
+        }
+        assert_eq!(live, self.object_count, "object count");
+    }
+}
+
+struct Traversal<'t, 'q, 'o, 'c> {
+    tree: &'t BqrTree,
+    frustum: &'q Frustum,
+    eye: DVec3,
+    objects: Option<&'o mut Vec<ObjectId>>,
+    coherence: Option<&'c mut CoherenceState>,
+}
+
+impl Traversal<'_, '_, '_, '_> {
+    fn visit(&mut self, i: usize, mask: PlaneMask, sink: &mut Sink<'_, '_>) {
+        let tree = self.tree;
+        let n = &tree.nodes[i];
+        sink.stats.nodes_visited += 1;
+        let mut m = mask;
+        let tests = &mut sink.stats.plane_tests;
+        // Top-down culling (seed 003 §5): outside → cull the subtree, inside → accept it
+        // without further tests, partial → descend. `m` keeps the planes still crossed.
+        let res = if m == 0 {
+            Containment::Inside
+        } else if let Some(coh) = self.coherence.as_deref_mut() {
+            let slot = coh.slot(i);
+            match n.kind {
+                // box ∩ sphere of a box's circumscribed sphere is the box.
+                BqrNodeKind::Leaf => self
+                    .frustum
+                    .test_aabb_coherent(&n.aabb, &mut m, slot, tests),
+                BqrNodeKind::Inner => self
+                    .frustum
+                    .test_sphere_coherent(&n.sphere, &mut m, slot, tests),
+            }
+        } else {
+            match n.kind {
+                BqrNodeKind::Leaf => self
+                    .frustum
+                    .test_aabb_sphere_masked(&n.aabb, &n.sphere, &mut m, tests),
+                BqrNodeKind::Inner => self.frustum.test_sphere_masked(&n.sphere, &mut m, tests),
+            }
+        };
+        if res == Containment::Outside || !sink.keep(&n.aabb) {
+            return;
+        }
+        if res == Containment::Inside && sink.keep.is_none() {
+            // Accept the whole subtree in one go.
+            for b in &tree.blocks[n.block_start as usize..n.block_end as usize] {
+                sink.accept(b);
+            }
+            if let Some(objs) = self.objects.as_deref_mut() {
+                for k in i..n.subtree_end as usize {
+                    objs.extend(tree.node_objects[k].iter().map(|&o| ObjectId(o)));
+                }
+            }
+            return;
+        }
+        let own_objects = &tree.node_objects[i];
+        if n.kind == BqrNodeKind::Leaf {
+            let range = &tree.blocks[n.block_start as usize..n.block_end as usize];
+            let exact = range.len() == 1 && own_objects.is_empty();
+            for b in range {
+                if exact {
+                    // The leaf volume is this block's volume: already tested.
+                    sink.accept(b);
+                    continue;
+                }
+                sink.stats.nodes_visited += 1;
+                let mut bm = m;
+                if self
+                    .frustum
+                    .test_aabb_masked(&b.aabb, &mut bm, &mut sink.stats.plane_tests)
+                    != Containment::Outside
+                    && sink.keep(&b.aabb)
+                {
+                    sink.accept(b);
+                }
+            }
+        }
+        if let Some(objs) = self.objects.as_deref_mut() {
+            for &o in own_objects {
+                let Some(slot) = &tree.objects[o as usize] else {
+                    continue;
+                };
+                let mut om = m;
+                if self
+                    .frustum
+                    .test_aabb_masked(&slot.aabb, &mut om, &mut sink.stats.plane_tests)
+                    != Containment::Outside
+                    && sink.keep(&slot.aabb)
+                {
+                    objs.push(ObjectId(o));
+                }
+            }
+        }
+        if n.kind == BqrNodeKind::Inner {
+            // Nearest child first (front to back), by distance from the eye to the child's box.
+            let mut order: [(f64, u32); 4] = [(f64::INFINITY, NONE); 4];
+            let mut k = 0;
+            for &c in n.children.iter().filter(|&&c| c != NONE) {
+                order[k] = (box_distance_2(&tree.nodes[c as usize].aabb, self.eye), c);
+                k += 1;
+            }
+            order[..k].sort_unstable_by(|a, b| a.0.total_cmp(&b.0));
+            for &(_, c) in &order[..k] {
+                self.visit(c as usize, m, sink);
+            }
+        }
+    }
+}
+
+/// Squared distance from `p` to the box (0 inside).
+pub(crate) fn box_distance_2(b: &Aabb3, p: DVec3) -> f64 {
+    let d = (b.min - p).max(p - b.max).max(DVec3::ZERO);
+    d.length_squared()
+}
+
+impl CityIndex for BqrTree {
+    fn name(&self) -> &'static str {
+        NAME
+    }
+
+    fn cull(&self, frustum: &Frustum, out: &mut Vec<BlockId>) -> CullStats {
+        self.run(&CullQuery::new(frustum), None, out, None)
+    }
+
+    fn cull_filtered(
+        &self,
+        frustum: &Frustum,
+        keep: &mut dyn FnMut(&Aabb3) -> bool,
+        out: &mut Vec<BlockId>,
+    ) -> CullStats {
+        self.run(&CullQuery::new(frustum), Some(keep), out, None)
+    }
+
+    fn cull_query(
+        &self,
+        query: &CullQuery<'_>,
+        keep: &mut dyn FnMut(&Aabb3) -> bool,
+        out: &mut Vec<BlockId>,
+    ) -> CullStats {
+        self.run(query, Some(keep), out, None)
+    }
+
+    fn len(&self) -> usize {
+        self.blocks.len()
+    }
+
+    fn node_count(&self) -> usize {
+        self.nodes.len()
+    }
+}
