@@ -252,3 +252,37 @@ proptest! {
         prop_assert_eq!(again.edges.len(), l.street_edges.len());
     }
 }
+
+/// On a generated city the street faces are the generator's blocks: as many faces holding
+/// buildings as blocks were used, and no building in the outskirts.
+#[test]
+fn generated_city_faces_are_its_blocks() {
+    use blockwalk::city::generate::{generate_city, GenerateParams};
+    let g = generate_city(&GenerateParams {
+        buildings: 1500,
+        seed: 3,
+        ..GenerateParams::default()
+    })
+    .unwrap();
+    let lines: Vec<LineString<f64>> = g.streets.iter().map(|s| s.line.clone()).collect();
+    let fps: Vec<Polygon<f64>> = g.buildings.iter().map(|b| b.footprint.clone()).collect();
+    let l = streets(&lines, &fps, 0.05);
+    let with = l
+        .blocks
+        .iter()
+        .filter(|b| b.kind == BlockKind::Block && !b.buildings.is_empty())
+        .count();
+    let outskirts: usize = l
+        .blocks
+        .iter()
+        .filter(|b| b.kind == BlockKind::Outskirts)
+        .map(|b| b.buildings.len())
+        .sum();
+    println!(
+        "generated: {} blocks used, {with} faces with buildings, {outskirts} outskirts",
+        g.blocks
+    );
+    assert_eq!(with, g.blocks);
+    assert_eq!(outskirts, 0);
+    assert!(once_each(&l, fps.len()));
+}

@@ -244,3 +244,94 @@ fn bubenec_from_footprints_groups_like_streets() {
     // UTM copy: the 20 m street width is in true metres there.
     compare_inferred("bubenec_utm33n", BlockSource::Footprints, &[], 0.25);
 }
+
+fn city(fp: &str, streets: Option<&str>, parcels: Option<&str>) -> blockwalk::city::City {
+    use blockwalk::importers::{read_layer, Theme};
+    let f = read_layer(&data(fp), &Theme::Buildings).unwrap();
+    let s = streets.map(|p| read_layer(&data(p), &Theme::Streets).unwrap());
+    let p = parcels.map(|p| read_layer(&data(p), &Theme::Parcels).unwrap());
+    blockwalk::city::build::build_city(&f, s.as_ref(), p.as_ref(), &Default::default()).unwrap()
+}
+
+/// The whole path: files → City (metric world, local transverse Mercator for EPSG:3857) →
+/// blocks → areas back in the input's units and GeoJSON/SVG/PNG.
+#[test]
+fn bubenec_city_pipeline_areas_in_input_units() {
+    use blockwalk::blocks::export::{summary, to_geojson, write_geojson, write_map};
+    let c = city("bubenec/buildings.shp", Some("bubenec/streets.shp"), None);
+    let l = blockwalk::blocks::detect(&c, &BlockOptions::default()).unwrap();
+    assert_eq!(l.source, BlockSource::Streets);
+    let s = summary(&l, &c.transform);
+    println!("{}", serde_json::to_string(&s).unwrap());
+    assert_eq!(s.blocks, 7);
+    assert!(
+        (s.total_area - 204_834.6).abs() / 204_834.6 < 1e-4,
+        "{}",
+        s.total_area
+    );
+    // Ground area: Mercator areas are about 1/cos²(50.1°) = 2.43 times too large.
+    let ratio = s.total_area / s.total_area_m2;
+    assert!((2.35..2.5).contains(&ratio), "{ratio}");
+    assert_eq!((s.buildings_assigned, s.buildings_outskirts), (96, 48));
+    check_partition(&l, c.buildings.len());
+    let gj = to_geojson(&l, &c.transform);
+    let feats = gj["features"].as_array().unwrap();
+    assert_eq!(feats.len(), l.blocks.len());
+    let reference = read_polygons("bubenec/reference/enclosures_momepy.shp");
+    for f in feats.iter().filter(|f| f["properties"]["kind"] == "block") {
+        let ring: Vec<(f64, f64)> = f["geometry"]["coordinates"][0]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|c| (c[0].as_f64().unwrap(), c[1].as_f64().unwrap()))
+            .collect();
+        let p = Polygon::new(ring.into(), vec![]);
+        let best = reference.iter().map(|r| iou(&p, r)).fold(0.0, f64::max);
+        assert!(
+            best > 0.999,
+            "GeoJSON face back in EPSG:3857 matches the reference: {best}"
+        );
+    }
+    let dir = tempfile::tempdir().unwrap();
+    write_geojson(&dir.path().join("b.geojson"), &l, &c.transform).unwrap();
+    let fps: Vec<Polygon<f64>> = c.buildings.iter().map(|b| b.footprint.clone()).collect();
+    write_map(&dir.path().join("m.svg"), &l, &fps, 800).unwrap();
+    write_map(&dir.path().join("m.png"), &l, &fps, 800).unwrap();
+    let img = image::open(dir.path().join("m.png")).unwrap();
+    assert_eq!(img.width().max(img.height()), 800);
+    let svg = std::fs::read_to_string(dir.path().join("m.svg")).unwrap();
+    assert!(svg.matches("<polygon").count() >= 7 + 144);
+    assert!(write_map(&dir.path().join("m.bmp"), &l, &fps, 800).is_err());
+}
+
+/// Helsinki through the City: by default bridges do not cut blocks (one face fewer than the
+/// reference); with `grade_separated_cut` the reference's plain polygonize is reproduced.
+#[test]
+fn helsinki_city_bridges_option() {
+    use blockwalk::blocks::export::summary;
+    let c = city(
+        "helsinki/buildings.shp",
+        Some("helsinki/streets_blockclass.shp"),
+        None,
+    );
+    let default = blockwalk::blocks::detect(&c, &BlockOptions::default()).unwrap();
+    let cut = BlockOptions {
+        grade_separated_cut: true,
+        ..BlockOptions::default()
+    };
+    let polygonize = blockwalk::blocks::detect(&c, &cut).unwrap();
+    let (sd, sc) = (
+        summary(&default, &c.transform),
+        summary(&polygonize, &c.transform),
+    );
+    println!(
+        "default {} faces {:.0} m²; bridges cut {} faces {:.0} m²",
+        sd.blocks, sd.total_area_m2, sc.blocks, sc.total_area_m2
+    );
+    assert_eq!(sc.blocks, 70);
+    assert!((sc.total_area_m2 - 893_374.0).abs() / 893_374.0 < 1e-3);
+    assert!(sd.blocks < sc.blocks, "a bridge no longer splits a face");
+    assert!(c.streets.iter().any(|s| s.grade_separated));
+    check_partition(&default, c.buildings.len());
+    check_partition(&polygonize, c.buildings.len());
+}

@@ -1,9 +1,144 @@
-//! (to be written)
+//! `blockwalk blocks`: streets and urban blocks (seed 003 §3), GeoJSON in the input's own
+//! coordinates, an SVG/PNG map, a summary.
+
+use super::common::CityArgs;
+use anyhow::Context;
+use blockwalk::blocks::export::{summary, write_geojson, write_map};
+use blockwalk::blocks::{detect, BlockOptions, BlockSource};
+use blockwalk::city::build::{build_city, BuildOptions};
+use blockwalk::city::City;
+use blockwalk::importers::{read_layer, Theme};
+use std::path::PathBuf;
+use std::time::Instant;
+
+/// Where the blocks come from.
+#[derive(clap::ValueEnum, Clone, Copy, Debug)]
+pub enum SourceArg {
+    /// Faces of the street graph.
+    Streets,
+    /// Unions of touching parcels.
+    Parcels,
+    /// Inferred from the gaps between footprints.
+    Footprints,
+}
 
 /// Arguments.
 #[derive(clap::Args, Debug)]
-pub struct Args {}
+pub struct Args {
+    /// The city: footprints, `--streets`, `--parcels`, `--exclude-tag`.
+    #[command(flatten)]
+    pub city: CityArgs,
+    /// Output GeoJSON (blocks and outskirts groups, in the input's coordinates).
+    #[arg(short = 'o', long = "output")]
+    pub output: Option<PathBuf>,
+    /// Write an SVG map.
+    #[arg(long)]
+    pub svg: Option<PathBuf>,
+    /// Write a PNG map.
+    #[arg(long)]
+    pub png: Option<PathBuf>,
+    /// Use this source instead of streets → parcels → footprints.
+    #[arg(long, value_enum)]
+    pub source: Option<SourceArg>,
+    /// Snap tolerance, metres.
+    #[arg(long, default_value_t = blockwalk::blocks::noding::DEFAULT_SNAP_TOLERANCE)]
+    pub snap: f64,
+    /// Let bridges and tunnels cut blocks (as a plain polygonize of the lines does).
+    #[arg(long)]
+    pub bridges_cut: bool,
+    /// Street width threshold for blocks from footprints, metres.
+    #[arg(long, default_value_t = blockwalk::blocks::infer::DEFAULT_STREET_WIDTH)]
+    pub street_width: f64,
+    /// Outskirts buildings closer than this are one group, metres.
+    #[arg(long, default_value_t = blockwalk::blocks::assign::DEFAULT_OUTSKIRTS_LINK)]
+    pub outskirts_link: f64,
+    /// Print one JSON object instead of the human summary.
+    #[arg(long)]
+    pub json: bool,
+}
 
-pub fn run(_args: Args) -> anyhow::Result<()> {
-    anyhow::bail!("not yet implemented")
+fn parse_tags(tags: &[String]) -> anyhow::Result<Vec<(String, String)>> {
+    tags.iter()
+        .map(|t| {
+            t.split_once('=')
+                .map(|(k, v)| (k.to_string(), v.to_string()))
+                .with_context(|| format!("--exclude-tag {t:?}: expected key=value"))
+        })
+        .collect()
+}
+
+/// Reads the layers and builds the city.
+fn load(args: &CityArgs) -> anyhow::Result<City> {
+    anyhow::ensure!(
+        args.inputs.len() == 1,
+        "blocks takes one footprint file ({} given)",
+        args.inputs.len()
+    );
+    let fp = read_layer(&args.inputs[0], &Theme::Buildings)
+        .with_context(|| format!("reading footprints {}", args.inputs[0].display()))?;
+    let streets = match &args.streets {
+        Some(p) => Some(
+            read_layer(p, &Theme::Streets)
+                .with_context(|| format!("reading streets {}", p.display()))?,
+        ),
+        None => None,
+    };
+    let parcels = match &args.parcels {
+        Some(p) => Some(
+            read_layer(p, &Theme::Parcels)
+                .with_context(|| format!("reading parcels {}", p.display()))?,
+        ),
+        None => None,
+    };
+    let opts = BuildOptions {
+        exclude_street_tags: parse_tags(&args.exclude_tag)?,
+        ..BuildOptions::default()
+    };
+    Ok(build_city(&fp, streets.as_ref(), parcels.as_ref(), &opts)?)
+}
+
+/// Runs the command.
+pub fn run(args: Args) -> anyhow::Result<()> {
+    let t0 = Instant::now();
+    let city = load(&args.city)?;
+    let opts = BlockOptions {
+        snap_tolerance: args.snap,
+        force_source: args.source.map(|s| match s {
+            SourceArg::Streets => BlockSource::Streets,
+            SourceArg::Parcels => BlockSource::Parcels,
+            SourceArg::Footprints => BlockSource::Footprints,
+        }),
+        grade_separated_cut: args.bridges_cut,
+        outskirts_link: args.outskirts_link,
+        street_width: args.street_width,
+    };
+    let t1 = Instant::now();
+    let layout = detect(&city, &opts)?;
+    let ms = t1.elapsed().as_secs_f64() * 1e3;
+    if let Some(o) = &args.output {
+        write_geojson(o, &layout, &city.transform)?;
+    }
+    let footprints: Vec<_> = city.buildings.iter().map(|b| b.footprint.clone()).collect();
+    for p in [&args.svg, &args.png].into_iter().flatten() {
+        write_map(p, &layout, &footprints, 1600)?;
+    }
+    let s = summary(&layout, &city.transform);
+    if args.json {
+        let mut v = serde_json::to_value(&s)?;
+        v["ms"] = serde_json::json!(ms);
+        v["total_ms"] = serde_json::json!(t0.elapsed().as_secs_f64() * 1e3);
+        v["buildings"] = serde_json::json!(city.buildings.len());
+        v["crs"] = serde_json::json!(city.transform.describe());
+        println!("{}", serde_json::to_string(&v)?);
+    } else {
+        println!(
+            "{}: {} blocks from {:?} ({:.0} m², {:.1} in the input's units), {} outskirts groups",
+            city.name, s.blocks, s.source, s.total_area_m2, s.total_area, s.outskirts_groups
+        );
+        println!(
+            "buildings: {} in blocks, {} in outskirts; street graph: {} edges, {} dangles; {ms:.1} ms",
+            s.buildings_assigned, s.buildings_outskirts, s.street_edges, s.dangles
+        );
+    }
+    Ok(())
 }
