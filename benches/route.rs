@@ -1,4 +1,5 @@
-//! Route benchmarks: sampling the paper's route (seed 003 §5) and extracting its frusta.
+//! Route benchmarks: sampling the paper's route (seed 003 §5) and extracting its frusta; the
+//! walk (culling + bookkeeping, no rendering) of 300 frames through every structure.
 
 use blockwalk::geom::Aabb3;
 use blockwalk::route::{paper_route, Lens, PaperRouteParams, StreetGraph};
@@ -62,5 +63,54 @@ fn route_sampling(c: &mut Criterion) {
     });
 }
 
-criterion_group!(benches, route_sampling);
+/// The walk without rendering: 300 frames of the paper route, five structures, frustum culling
+/// and the per-frame bookkeeping. The city is the jittered block grid of `index::synthetic` with
+/// 2,500 blocks (the block count of a generated city of about 80,000 buildings).
+fn walk_300_frames(c: &mut Criterion) {
+    use blockwalk::city::LocalFrame;
+    use blockwalk::index::{build_by_name, synthetic::block_grid, STRUCTURES};
+    use blockwalk::report::walk::{run_walk, OcclusionMode, WalkParams, WalkScene};
+    let bounds = block_grid(2_500, 1);
+    let structures = STRUCTURES
+        .iter()
+        .map(|s| build_by_name(s, &bounds).unwrap())
+        .collect();
+    let scene = WalkScene {
+        name: "grid 2500".into(),
+        frame: LocalFrame {
+            origin: DVec3::ZERO,
+        },
+        street_edges: Vec::new(),
+        meshes: Vec::new(),
+        structures,
+        occlusion: None,
+        oracle: None,
+        cpu_renderer: None,
+        bounds,
+    };
+    let route = paper_route(
+        &scene.city_bounds(),
+        None,
+        &PaperRouteParams::default(),
+        Lens::default(),
+    )
+    .unwrap();
+    let params = WalkParams {
+        route,
+        frames: 300,
+        occlusion: OcclusionMode::Off,
+        render: false,
+        image_every: 0,
+        oracle: false,
+        size: (1280, 720),
+    };
+    let mut g = c.benchmark_group("walk");
+    g.sample_size(10);
+    g.bench_function("paper route 300 frames, 5 structures, 2500 blocks", |b| {
+        b.iter(|| run_walk(&scene, &params, &mut |_, _| {}).unwrap())
+    });
+    g.finish();
+}
+
+criterion_group!(benches, route_sampling, walk_300_frames);
 criterion_main!(benches);

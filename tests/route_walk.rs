@@ -26,6 +26,9 @@ impl CityIndex for Linear {
     fn name(&self) -> &'static str {
         self.1
     }
+    fn len(&self) -> usize {
+        self.0.len()
+    }
     fn cull_filtered(
         &self,
         frustum: &Frustum,
@@ -52,6 +55,9 @@ struct Everything(Vec<BlockBounds>);
 impl CityIndex for Everything {
     fn name(&self) -> &'static str {
         "none"
+    }
+    fn len(&self) -> usize {
+        self.0.len()
     }
     fn cull_filtered(
         &self,

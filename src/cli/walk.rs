@@ -1,9 +1,13 @@
 //! `blockwalk walk`: a camera route through the city with every spatial structure (seed 003 §5.1).
 
-use super::common::CityArgs;
+use super::common::{load_city, spinner, CityArgs};
 use anyhow::Context;
+use blockwalk::blocks::{detect, BlockOptions};
+use blockwalk::city::extrude::extrude_city;
+use blockwalk::index::{block_bounds, build_by_name, STRUCTURES};
 use blockwalk::report::walk::{run_walk, OcclusionMode, WalkParams, WalkReport, WalkScene};
 use blockwalk::route::{self, CameraRoute, Lens, PaperRouteParams, RouteFile, StreetGraph};
+use blockwalk::visibility::{CullerOptions, OcclusionCuller};
 use indicatif::{ProgressBar, ProgressStyle};
 use std::path::PathBuf;
 
@@ -126,17 +130,44 @@ pub fn choose_route(
     })
 }
 
-/// Loads the city and builds the walk scene (blocks, meshes, bounds, structures, culler,
-/// oracle).
-fn build_scene(args: &Args) -> anyhow::Result<WalkScene> {
-    let _ = (&args.city, &args.structures);
-    anyhow::bail!("walk: the city pipeline (import, blocks, index) is not available in this build")
+/// Loads the city and builds the walk scene: blocks, one mesh per building, block bounds, the
+/// structures asked for, and the occlusion culler unless occlusion is off.
+fn build_scene(args: &Args, occlusion: OcclusionMode) -> anyhow::Result<WalkScene> {
+    for s in &args.structures {
+        anyhow::ensure!(
+            STRUCTURES.contains(&s.as_str()),
+            "unknown structure `{s}`; expected one of {}",
+            STRUCTURES.join(", ")
+        );
+    }
+    let city = load_city(&args.city)?;
+    let pb = spinner("detecting blocks");
+    let layout = detect(&city, &BlockOptions::default())
+        .with_context(|| format!("detecting blocks of {}", city.name))?;
+    pb.set_message("extruding buildings");
+    let meshes = extrude_city(&city);
+    pb.set_message("building the structures");
+    let bounds = block_bounds(&city, &layout);
+    let mut scene = WalkScene::from_city(&city, &layout, meshes, bounds);
+    for s in &args.structures {
+        let index = build_by_name(s, &scene.bounds)
+            .with_context(|| format!("building structure {s} over {}", city.name))?;
+        scene.structures.push(index);
+    }
+    if occlusion != OcclusionMode::Off {
+        pb.set_message("extracting occluders");
+        let culler = OcclusionCuller::new(&city, &layout, CullerOptions::default())
+            .with_context(|| format!("occlusion culler for {}", city.name))?;
+        scene.occlusion = Some(Box::new(culler));
+    }
+    pb.finish_and_clear();
+    Ok(scene)
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
     let size = parse_size(&args.size)?;
     let occlusion = parse_occlusion(&args.occlusion)?;
-    let scene = build_scene(&args)?;
+    let scene = build_scene(&args, occlusion)?;
     let (route, file_frames) = choose_route(&args.route, &scene, size.0 as f64 / size.1 as f64)?;
     let frames = args.frames.or(file_frames).unwrap_or(300);
     anyhow::ensure!(frames > 0, "--frames must be at least 1");

@@ -67,7 +67,7 @@ pub struct WalkScene {
     /// Per-block bounds (local frame) as the structures index them.
     pub bounds: Vec<BlockBounds>,
     /// The spatial structures to compare, built over `bounds`.
-    pub structures: Vec<Box<dyn CityIndex + Send + Sync>>,
+    pub structures: Vec<Box<dyn CityIndex>>,
     /// The occlusion culler, when there is one.
     pub occlusion: Option<Box<dyn OcclusionProvider>>,
     /// The visibility oracle, when there is one.
@@ -319,7 +319,9 @@ pub fn run_walk(
                     .cpu_renderer
                     .as_ref()
                     .map(|r| r.describe())
-                    .unwrap_or_else(|| "no CPU renderer either: frames not rendered".into());
+                    .unwrap_or_else(|| {
+                        "CPU z-buffer shading (visibility::oracle::shade), wall time".into()
+                    });
                 renderer_desc = format!("CPU fallback ({why}): {fallback}");
                 notes.push(format!(
                     "GPU rendering unavailable ({why}); render times are CPU times and not comparable with GPU numbers"
@@ -334,6 +336,11 @@ pub fn run_walk(
         .position(|s| s.name() == "bqr")
         .unwrap_or(0);
 
+    let mesh_refs: Vec<(BlockId, &Mesh)> = scene.meshes.iter().map(|(b, m)| (*b, m)).collect();
+    let oracle_shader = OracleShader {
+        meshes: &mesh_refs,
+        size: params.size,
+    };
     let mut rows = Vec::with_capacity(cameras.len() * scene.structures.len() * modes.len());
     let mut images = Vec::new();
     let mut visible: Vec<BlockId> = Vec::new();
@@ -341,16 +348,26 @@ pub fn run_walk(
     for (f, cam) in cameras.iter().enumerate() {
         let frustum = cam.frustum();
         let truth = if params.oracle {
-            match &scene.oracle {
-                Some(o) => Some(o.visible(cam, params.size.0, params.size.1)),
+            Some(match &scene.oracle {
+                Some(o) => o.visible(cam, params.size.0, params.size.1),
                 None => {
                     if !oracle_note {
-                        notes.push("--oracle asked for, but no oracle is available".into());
+                        notes.push(format!(
+                            "false culls counted against the CPU z-buffer oracle at {}x{}",
+                            params.size.0, params.size.1
+                        ));
                         oracle_note = true;
                     }
-                    None
+                    crate::visibility::oracle::visible_blocks(
+                        &mesh_refs,
+                        cam,
+                        params.size.0,
+                        params.size.1,
+                    )
+                    .into_iter()
+                    .collect()
                 }
-            }
+            })
         } else {
             None
         };
@@ -375,8 +392,14 @@ pub fn run_walk(
                     && mode == *modes.last().unwrap();
                 let mut render_s = None;
                 if params.render {
-                    let r = gpu_renderer.as_deref().or(scene.cpu_renderer.as_deref());
-                    if let Some(r) = r {
+                    let r: &dyn FrameRenderer = if let Some(g) = gpu_renderer.as_deref() {
+                        g
+                    } else if let Some(c) = scene.cpu_renderer.as_deref() {
+                        c
+                    } else {
+                        &oracle_shader
+                    };
+                    {
                         match r.render(cam, &visible, want_image) {
                             Ok((secs, img)) => {
                                 render_s = Some(secs);
@@ -420,6 +443,51 @@ pub fn run_walk(
         notes,
         total_s: started.elapsed().as_secs_f64(),
     })
+}
+
+/// The CPU fallback: the visibility oracle's shaded z-buffer image of the listed blocks.
+struct OracleShader<'a> {
+    meshes: &'a [(BlockId, &'a Mesh)],
+    size: (u32, u32),
+}
+
+impl FrameRenderer for OracleShader<'_> {
+    fn describe(&self) -> String {
+        format!(
+            "CPU z-buffer shading (visibility::oracle::shade), wall time, {}x{}",
+            self.size.0, self.size.1
+        )
+    }
+    fn size(&self) -> (u32, u32) {
+        self.size
+    }
+    fn render(
+        &self,
+        camera: &Camera,
+        visible: &[BlockId],
+        want_image: bool,
+    ) -> Result<(f64, Option<image::RgbaImage>), String> {
+        let t0 = Instant::now();
+        let keep: HashSet<BlockId> = visible.iter().copied().collect();
+        let list: Vec<(BlockId, &Mesh)> = self
+            .meshes
+            .iter()
+            .filter(|(b, _)| keep.contains(b))
+            .copied()
+            .collect();
+        let img = crate::visibility::oracle::shade(&list, camera, self.size.0, self.size.1);
+        Ok((t0.elapsed().as_secs_f64(), want_image.then_some(img)))
+    }
+}
+
+/// The occluder-shadow culler (seed 004 §3.2) as the walk's occlusion culler.
+impl OcclusionProvider for crate::visibility::OcclusionCuller {
+    fn name(&self) -> String {
+        "occluder shadows + cull map (seed 004 §3.2)".into()
+    }
+    fn cull(&self, index: &dyn CityIndex, camera: &Camera, out: &mut Vec<BlockId>) -> CullStats {
+        crate::visibility::OcclusionCuller::cull(self, index, camera, out).cull
+    }
 }
 
 /// A GPU renderer over the scene's meshes, or why there is none.

@@ -100,7 +100,7 @@ impl StreetGraph {
             .component_size
             .iter()
             .enumerate()
-            .max_by_key(|(i, &s)| (s, Reverse(*i)))?
+            .max_by_key(|&(i, s)| (*s, Reverse(i)))?
             .0 as u32;
         let mut best: Option<(f64, u32)> = None;
         for (i, q) in self.nodes.iter().enumerate() {
