@@ -1,7 +1,116 @@
-//! (to be written)
+//! Route benchmarks: sampling the paper's route (seed 003 §5) and extracting its frusta; the
+//! walk (culling + bookkeeping, no rendering) of 300 frames through every structure.
+
+use blockwalk::geom::Aabb3;
+use blockwalk::route::{paper_route, Lens, PaperRouteParams, StreetGraph};
 use criterion::{criterion_group, criterion_main, Criterion};
+use geo_types::LineString;
+use glam::DVec3;
+use std::hint::black_box;
 
-fn placeholder(_c: &mut Criterion) {}
+/// A 40 × 40 street grid, 60 m apart (the size of the generated 80k-building city's network).
+fn grid() -> (Vec<LineString<f64>>, blockwalk::city::LocalFrame) {
+    let n = 40;
+    let mut lines = Vec::new();
+    for i in 0..=n {
+        let v = 60.0 * i as f64;
+        lines.push(LineString::from(
+            (0..=n).map(|j| (v, 60.0 * j as f64)).collect::<Vec<_>>(),
+        ));
+        lines.push(LineString::from(
+            (0..=n).map(|j| (60.0 * j as f64, v)).collect::<Vec<_>>(),
+        ));
+    }
+    let frame = blockwalk::city::LocalFrame {
+        origin: DVec3::new(1200.0, 1200.0, 0.0),
+    };
+    (lines, frame)
+}
 
-criterion_group!(benches, placeholder);
+fn route_sampling(c: &mut Criterion) {
+    let (lines, frame) = grid();
+    let bounds = Aabb3::new(
+        DVec3::new(-1200.0, -1200.0, 0.0),
+        DVec3::new(1200.0, 1200.0, 60.0),
+    );
+    c.bench_function("street graph 40x40 build", |b| {
+        b.iter(|| StreetGraph::from_world_lines(black_box(&lines), &frame))
+    });
+    let g = StreetGraph::from_world_lines(&lines, &frame);
+    c.bench_function("paper route build (Dijkstra)", |b| {
+        b.iter(|| {
+            paper_route(
+                black_box(&bounds),
+                Some(&g),
+                &PaperRouteParams::default(),
+                Lens::default(),
+            )
+            .unwrap()
+        })
+    });
+    let r = paper_route(
+        &bounds,
+        Some(&g),
+        &PaperRouteParams::default(),
+        Lens::default(),
+    )
+    .unwrap();
+    c.bench_function("paper route sample 300 frames + frusta", |b| {
+        b.iter(|| {
+            let cams = r.sample(300);
+            cams.iter().map(|c| c.frustum()).collect::<Vec<_>>()
+        })
+    });
+}
+
+/// The walk without rendering: 300 frames of the paper route, five structures, frustum culling
+/// and the per-frame bookkeeping. The city is the jittered block grid of `index::synthetic` with
+/// 2,500 blocks (the block count of a generated city of about 80,000 buildings).
+fn walk_300_frames(c: &mut Criterion) {
+    use blockwalk::city::LocalFrame;
+    use blockwalk::index::{build_by_name, synthetic::block_grid, STRUCTURES};
+    use blockwalk::report::walk::{run_walk, OcclusionMode, WalkParams, WalkScene};
+    let bounds = block_grid(2_500, 1);
+    let structures = STRUCTURES
+        .iter()
+        .map(|s| build_by_name(s, &bounds).unwrap())
+        .collect();
+    let scene = WalkScene {
+        name: "grid 2500".into(),
+        frame: LocalFrame {
+            origin: DVec3::ZERO,
+        },
+        street_edges: Vec::new(),
+        meshes: Vec::new(),
+        structures,
+        occlusion: None,
+        oracle: None,
+        cpu_renderer: None,
+        bounds,
+    };
+    let route = paper_route(
+        &scene.city_bounds(),
+        None,
+        &PaperRouteParams::default(),
+        Lens::default(),
+    )
+    .unwrap();
+    let params = WalkParams {
+        route,
+        frames: 300,
+        occlusion: OcclusionMode::Off,
+        render: false,
+        image_every: 0,
+        oracle: false,
+        size: (1280, 720),
+    };
+    let mut g = c.benchmark_group("walk");
+    g.sample_size(10);
+    g.bench_function("paper route 300 frames, 5 structures, 2500 blocks", |b| {
+        b.iter(|| run_walk(&scene, &params, &mut |_, _| {}).unwrap())
+    });
+    g.finish();
+}
+
+criterion_group!(benches, route_sampling, walk_300_frames);
 criterion_main!(benches);

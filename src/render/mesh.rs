@@ -1,0 +1,638 @@
+//! The block mesh renderer: one vertex and index buffer for the whole city, one indexed draw
+//! per visible block.
+
+use super::{Gpu, RenderError};
+use crate::blocks::BlockId;
+use crate::city::Mesh;
+use crate::geom::Camera;
+use bytemuck::{Pod, Zeroable};
+use std::time::Instant;
+use wgpu::util::DeviceExt;
+
+/// Colour target format; not sRGB, so the bytes read back are what the shader wrote (block IDs
+/// survive exactly).
+const COLOR_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba8Unorm;
+/// Depth target format (see the module docs of [`super`] for the depth convention).
+const DEPTH_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
+/// Instance id of the ground plane; must match `GROUND` in `mesh.wgsl`.
+const GROUND: u32 = 0x00FF_FFFF;
+/// Sky colour (linear RGB as written).
+const SKY: wgpu::Color = wgpu::Color {
+    r: 0.62,
+    g: 0.77,
+    b: 0.93,
+    a: 1.0,
+};
+
+/// What a frame shows.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Shading {
+    /// Lit colours, ground and sky.
+    #[default]
+    Lit,
+    /// Each block in a flat colour encoding `id + 1` in R (low byte), G, B; 0 where no block is
+    /// (no ground, black background).
+    Ids,
+}
+
+/// Image size and shading.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct RenderOptions {
+    /// Width, pixels.
+    pub width: u32,
+    /// Height, pixels.
+    pub height: u32,
+}
+
+impl Default for RenderOptions {
+    /// 1280 × 720.
+    fn default() -> Self {
+        Self {
+            width: 1280,
+            height: 720,
+        }
+    }
+}
+
+/// How long a frame took.
+#[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize)]
+pub struct FrameTimings {
+    /// GPU time of the render pass from timestamp queries, seconds (when the device has them).
+    pub gpu_s: Option<f64>,
+    /// Wall time from encoding to the image read back, seconds.
+    pub wall_s: f64,
+    /// Blocks drawn.
+    pub blocks: u32,
+    /// Triangles drawn (blocks only).
+    pub triangles: u64,
+}
+
+impl FrameTimings {
+    /// GPU time when measured, else wall time.
+    pub fn best_s(&self) -> f64 {
+        self.gpu_s.unwrap_or(self.wall_s)
+    }
+}
+
+/// A rendered image (RGBA8, rows top to bottom, no padding) and its timings.
+#[derive(Clone, Debug)]
+pub struct Frame {
+    /// Width, pixels.
+    pub width: u32,
+    /// Height, pixels.
+    pub height: u32,
+    /// RGBA bytes, `width * height * 4`.
+    pub rgba: Vec<u8>,
+    /// Timings.
+    pub timings: FrameTimings,
+}
+
+impl Frame {
+    /// The block id at each pixel of an [`Shading::Ids`] frame (`None` where no block is),
+    /// row-major from the top-left.
+    pub fn block_ids(&self) -> Vec<Option<BlockId>> {
+        self.rgba
+            .chunks_exact(4)
+            .map(|p| {
+                let v = p[0] as u32 | (p[1] as u32) << 8 | (p[2] as u32) << 16;
+                v.checked_sub(1).map(BlockId)
+            })
+            .collect()
+    }
+
+    /// The image.
+    pub fn to_image(&self) -> Option<image::RgbaImage> {
+        image::RgbaImage::from_raw(self.width, self.height, self.rgba.clone())
+    }
+
+    /// Writes the frame as PNG.
+    pub fn save_png(&self, path: &std::path::Path) -> Result<(), RenderError> {
+        let img = self
+            .to_image()
+            .ok_or_else(|| RenderError::Readback("frame has the wrong size".into()))?;
+        img.save(path)
+            .map_err(|e| RenderError::Readback(format!("{}: {e}", path.display())))
+    }
+}
+
+#[repr(C)]
+#[derive(Clone, Copy, Pod, Zeroable)]
+struct Vertex {
+    position: [f32; 3],
+    normal: [f32; 3],
+}
+
+#[repr(C)]
+#[derive(Clone, Copy, Pod, Zeroable)]
+struct Globals {
+    clip_from_world: [[f32; 4]; 4],
+    sun: [f32; 4],
+    mode: [u32; 4],
+}
+
+/// Where one block lives in the shared buffers.
+#[derive(Clone, Copy, Debug)]
+struct BlockRange {
+    first_index: u32,
+    index_count: u32,
+    base_vertex: i32,
+}
+
+/// Uploaded block meshes and the render targets.
+pub struct MeshRenderer {
+    options: RenderOptions,
+    pipeline: wgpu::RenderPipeline,
+    globals: wgpu::Buffer,
+    bind_group: wgpu::BindGroup,
+    vertices: wgpu::Buffer,
+    indices: wgpu::Buffer,
+    /// Indexed by `BlockId.0`.
+    ranges: Vec<Option<BlockRange>>,
+    ground: BlockRange,
+    color: wgpu::Texture,
+    depth: wgpu::Texture,
+    readback: wgpu::Buffer,
+    padded_row: u32,
+    queries: Option<(wgpu::QuerySet, wgpu::Buffer, wgpu::Buffer)>,
+}
+
+impl std::fmt::Debug for MeshRenderer {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("MeshRenderer")
+            .field("options", &self.options)
+            .field("blocks", &self.ranges.iter().flatten().count())
+            .finish()
+    }
+}
+
+impl MeshRenderer {
+    /// Uploads the meshes at 1280 × 720 ([`RenderOptions::default`]).
+    pub fn new(gpu: &Gpu, blocks: &[(BlockId, &Mesh)]) -> Result<Self, RenderError> {
+        Self::with_options(gpu, blocks, RenderOptions::default())
+    }
+
+    /// Uploads the meshes (local frame, f32, as in [`Mesh`]); a block may appear several times
+    /// (one mesh per building), its meshes are drawn together.
+    pub fn with_options(
+        gpu: &Gpu,
+        blocks: &[(BlockId, &Mesh)],
+        options: RenderOptions,
+    ) -> Result<Self, RenderError> {
+        if options.width == 0 || options.height == 0 {
+            return Err(RenderError::Input(format!(
+                "image size {}x{} is empty",
+                options.width, options.height
+            )));
+        }
+        let limit = gpu.device.limits().max_texture_dimension_2d;
+        if options.width > limit || options.height > limit {
+            return Err(RenderError::Input(format!(
+                "image size {}x{} exceeds the adapter's {limit}",
+                options.width, options.height
+            )));
+        }
+        let device = &gpu.device;
+        // Group meshes by block, keeping the input order within a block.
+        let mut order: Vec<usize> = (0..blocks.len()).collect();
+        order.sort_by_key(|&i| blocks[i].0);
+        let mut vertices: Vec<Vertex> = Vec::new();
+        let mut indices: Vec<u32> = Vec::new();
+        // The ground plane comes first: a 40 km square at z = 0 around the local origin.
+        let g = 20_000.0f32;
+        for (x, y) in [(-g, -g), (g, -g), (g, g), (-g, g)] {
+            vertices.push(Vertex {
+                position: [x, y, 0.0],
+                normal: [0.0, 0.0, 1.0],
+            });
+        }
+        indices.extend_from_slice(&[0, 1, 2, 0, 2, 3]);
+        let ground = BlockRange {
+            first_index: 0,
+            index_count: 6,
+            base_vertex: 0,
+        };
+        let max_id = blocks.iter().map(|b| b.0 .0).max();
+        if max_id.is_some_and(|m| m >= GROUND) {
+            return Err(RenderError::Input(format!(
+                "block id {} is too large (limit {})",
+                max_id.unwrap_or(0),
+                GROUND - 1
+            )));
+        }
+        let mut ranges: Vec<Option<BlockRange>> = vec![None; max_id.map_or(0, |m| m as usize + 1)];
+        let mut i = 0;
+        while i < order.len() {
+            let id = blocks[order[i]].0;
+            let base_vertex = vertices.len();
+            let first_index = indices.len();
+            while i < order.len() && blocks[order[i]].0 == id {
+                let mesh = blocks[order[i]].1;
+                if mesh.positions.len() != mesh.normals.len() || mesh.indices.len() % 3 != 0 {
+                    return Err(RenderError::Input(format!(
+                        "block {}: mesh has {} positions, {} normals, {} indices",
+                        id.0,
+                        mesh.positions.len(),
+                        mesh.normals.len(),
+                        mesh.indices.len()
+                    )));
+                }
+                let offset = (vertices.len() - base_vertex) as u32;
+                if let Some(&bad) = mesh
+                    .indices
+                    .iter()
+                    .find(|&&k| k as usize >= mesh.positions.len())
+                {
+                    return Err(RenderError::Input(format!(
+                        "block {}: index {bad} out of range ({} vertices)",
+                        id.0,
+                        mesh.positions.len()
+                    )));
+                }
+                vertices.extend(
+                    mesh.positions
+                        .iter()
+                        .zip(&mesh.normals)
+                        .map(|(p, n)| Vertex {
+                            position: p.to_array(),
+                            normal: n.to_array(),
+                        }),
+                );
+                indices.extend(mesh.indices.iter().map(|k| k + offset));
+                i += 1;
+            }
+            ranges[id.0 as usize] = Some(BlockRange {
+                first_index: first_index as u32,
+                index_count: (indices.len() - first_index) as u32,
+                base_vertex: i32::try_from(base_vertex)
+                    .map_err(|_| RenderError::Input("more than 2^31 vertices".into()))?,
+            });
+        }
+
+        let vertex_buffer = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("block vertices"),
+            contents: bytemuck::cast_slice(&vertices),
+            usage: wgpu::BufferUsages::VERTEX,
+        });
+        let index_buffer = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("block indices"),
+            contents: bytemuck::cast_slice(&indices),
+            usage: wgpu::BufferUsages::INDEX,
+        });
+        let globals = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("globals"),
+            size: std::mem::size_of::<Globals>() as u64,
+            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("globals"),
+            entries: &[wgpu::BindGroupLayoutEntry {
+                binding: 0,
+                visibility: wgpu::ShaderStages::VERTEX | wgpu::ShaderStages::FRAGMENT,
+                ty: wgpu::BindingType::Buffer {
+                    ty: wgpu::BufferBindingType::Uniform,
+                    has_dynamic_offset: false,
+                    min_binding_size: None,
+                },
+                count: None,
+            }],
+        });
+        let bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("globals"),
+            layout: &layout,
+            entries: &[wgpu::BindGroupEntry {
+                binding: 0,
+                resource: globals.as_entire_binding(),
+            }],
+        });
+        let shader = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+            label: Some("mesh.wgsl"),
+            source: wgpu::ShaderSource::Wgsl(include_str!("mesh.wgsl").into()),
+        });
+        let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+            label: Some("mesh"),
+            bind_group_layouts: &[Some(&layout)],
+            immediate_size: 0,
+        });
+        let attributes = wgpu::vertex_attr_array![0 => Float32x3, 1 => Float32x3];
+        let pipeline = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+            label: Some("mesh"),
+            layout: Some(&pipeline_layout),
+            vertex: wgpu::VertexState {
+                module: &shader,
+                entry_point: Some("vs_main"),
+                compilation_options: Default::default(),
+                buffers: &[Some(wgpu::VertexBufferLayout {
+                    array_stride: std::mem::size_of::<Vertex>() as u64,
+                    step_mode: wgpu::VertexStepMode::Vertex,
+                    attributes: &attributes,
+                })],
+            },
+            primitive: wgpu::PrimitiveState {
+                topology: wgpu::PrimitiveTopology::TriangleList,
+                front_face: wgpu::FrontFace::Ccw,
+                // Meshes are closed and outward-oriented; no culling keeps open or flipped input
+                // visible rather than silently missing.
+                cull_mode: None,
+                ..Default::default()
+            },
+            depth_stencil: Some(wgpu::DepthStencilState {
+                format: DEPTH_FORMAT,
+                depth_write_enabled: Some(true),
+                depth_compare: Some(wgpu::CompareFunction::Less),
+                stencil: Default::default(),
+                bias: Default::default(),
+            }),
+            multisample: Default::default(),
+            fragment: Some(wgpu::FragmentState {
+                module: &shader,
+                entry_point: Some("fs_main"),
+                compilation_options: Default::default(),
+                targets: &[Some(wgpu::ColorTargetState {
+                    format: COLOR_FORMAT,
+                    blend: None,
+                    write_mask: wgpu::ColorWrites::ALL,
+                })],
+            }),
+            multiview_mask: None,
+            cache: None,
+        });
+
+        let size = wgpu::Extent3d {
+            width: options.width,
+            height: options.height,
+            depth_or_array_layers: 1,
+        };
+        let target = |label, format| {
+            device.create_texture(&wgpu::TextureDescriptor {
+                label: Some(label),
+                size,
+                mip_level_count: 1,
+                sample_count: 1,
+                dimension: wgpu::TextureDimension::D2,
+                format,
+                usage: wgpu::TextureUsages::RENDER_ATTACHMENT
+                    | wgpu::TextureUsages::TEXTURE_BINDING
+                    | wgpu::TextureUsages::COPY_SRC,
+                view_formats: &[],
+            })
+        };
+        let color = target("colour", COLOR_FORMAT);
+        let depth = target("depth", DEPTH_FORMAT);
+        // Texture-to-buffer copies need every row to start at a multiple of 256 bytes
+        // (COPY_BYTES_PER_ROW_ALIGNMENT): rows are padded here and the padding is dropped on
+        // read-back.
+        let align = wgpu::COPY_BYTES_PER_ROW_ALIGNMENT;
+        let padded_row = (options.width * 4).div_ceil(align) * align;
+        let readback = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("read-back"),
+            size: padded_row as u64 * options.height as u64,
+            usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::MAP_READ,
+            mapped_at_creation: false,
+        });
+        let queries = gpu.timestamps.then(|| {
+            let set = device.create_query_set(&wgpu::QuerySetDescriptor {
+                label: Some("pass time"),
+                ty: wgpu::QueryType::Timestamp,
+                count: 2,
+            });
+            let resolve = device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("timestamps"),
+                size: 2 * wgpu::QUERY_SIZE as u64,
+                usage: wgpu::BufferUsages::QUERY_RESOLVE | wgpu::BufferUsages::COPY_SRC,
+                mapped_at_creation: false,
+            });
+            let read = device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("timestamps read-back"),
+                size: 2 * wgpu::QUERY_SIZE as u64,
+                usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::MAP_READ,
+                mapped_at_creation: false,
+            });
+            (set, resolve, read)
+        });
+        Ok(Self {
+            options,
+            pipeline,
+            globals,
+            bind_group,
+            vertices: vertex_buffer,
+            indices: index_buffer,
+            ranges,
+            ground,
+            color,
+            depth,
+            readback,
+            padded_row,
+            queries,
+        })
+    }
+
+    /// Image size.
+    pub fn options(&self) -> RenderOptions {
+        self.options
+    }
+
+    /// The colour target of the last frame (for a later pass; see the module docs).
+    pub fn color_texture(&self) -> &wgpu::Texture {
+        &self.color
+    }
+
+    /// The depth target of the last frame (for a later pass; see the module docs).
+    pub fn depth_texture(&self) -> &wgpu::Texture {
+        &self.depth
+    }
+
+    /// Draws the blocks in `visible` (others are not drawn; unknown ids are skipped) lit, with
+    /// ground and sky, and reads the image back. The camera's aspect should match the image's.
+    pub fn draw(
+        &self,
+        gpu: &Gpu,
+        camera: &Camera,
+        visible: &[BlockId],
+    ) -> Result<Frame, RenderError> {
+        self.draw_shaded(gpu, camera, visible, Shading::Lit)
+    }
+
+    /// As [`Self::draw`], with the given shading.
+    pub fn draw_shaded(
+        &self,
+        gpu: &Gpu,
+        camera: &Camera,
+        visible: &[BlockId],
+        shading: Shading,
+    ) -> Result<Frame, RenderError> {
+        let start = Instant::now();
+        let m = camera.clip_from_world().as_mat4();
+        // Sun from the south-east, 50° up; ambient 0.35.
+        let sun = glam::DVec3::new(0.5, -0.6, 1.3).normalize().as_vec3();
+        let globals = Globals {
+            clip_from_world: m.to_cols_array_2d(),
+            sun: [sun.x, sun.y, sun.z, 0.35],
+            mode: [matches!(shading, Shading::Ids) as u32, 0, 0, 0],
+        };
+        gpu.queue
+            .write_buffer(&self.globals, 0, bytemuck::bytes_of(&globals));
+        let color_view = self.color.create_view(&Default::default());
+        let depth_view = self.depth.create_view(&Default::default());
+        let mut encoder = gpu
+            .device
+            .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                label: Some("frame"),
+            });
+        let mut blocks = 0u32;
+        let mut triangles = 0u64;
+        {
+            let clear = match shading {
+                Shading::Lit => SKY,
+                Shading::Ids => wgpu::Color::BLACK,
+            };
+            let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
+                label: Some("blocks"),
+                color_attachments: &[Some(wgpu::RenderPassColorAttachment {
+                    view: &color_view,
+                    depth_slice: None,
+                    resolve_target: None,
+                    ops: wgpu::Operations {
+                        load: wgpu::LoadOp::Clear(clear),
+                        store: wgpu::StoreOp::Store,
+                    },
+                })],
+                depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
+                    view: &depth_view,
+                    depth_ops: Some(wgpu::Operations {
+                        load: wgpu::LoadOp::Clear(1.0),
+                        store: wgpu::StoreOp::Store,
+                    }),
+                    stencil_ops: None,
+                }),
+                timestamp_writes: self.queries.as_ref().map(|(set, _, _)| {
+                    wgpu::RenderPassTimestampWrites {
+                        query_set: set,
+                        beginning_of_pass_write_index: Some(0),
+                        end_of_pass_write_index: Some(1),
+                    }
+                }),
+                occlusion_query_set: None,
+                multiview_mask: None,
+            });
+            pass.set_pipeline(&self.pipeline);
+            pass.set_bind_group(0, &self.bind_group, &[]);
+            pass.set_vertex_buffer(0, self.vertices.slice(..));
+            pass.set_index_buffer(self.indices.slice(..), wgpu::IndexFormat::Uint32);
+            if shading == Shading::Lit {
+                let g = self.ground;
+                pass.draw_indexed(
+                    g.first_index..g.first_index + g.index_count,
+                    g.base_vertex,
+                    GROUND..GROUND + 1,
+                );
+            }
+            for id in visible {
+                let Some(Some(r)) = self.ranges.get(id.0 as usize) else {
+                    continue;
+                };
+                if r.index_count == 0 {
+                    continue;
+                }
+                // The block id travels as the instance index (see mesh.wgsl).
+                pass.draw_indexed(
+                    r.first_index..r.first_index + r.index_count,
+                    r.base_vertex,
+                    id.0..id.0 + 1,
+                );
+                blocks += 1;
+                triangles += r.index_count as u64 / 3;
+            }
+        }
+        if let Some((set, resolve, read)) = &self.queries {
+            encoder.resolve_query_set(set, 0..2, resolve, 0);
+            encoder.copy_buffer_to_buffer(resolve, 0, read, 0, 2 * wgpu::QUERY_SIZE as u64);
+        }
+        encoder.copy_texture_to_buffer(
+            wgpu::TexelCopyTextureInfo {
+                texture: &self.color,
+                mip_level: 0,
+                origin: wgpu::Origin3d::ZERO,
+                aspect: wgpu::TextureAspect::All,
+            },
+            wgpu::TexelCopyBufferInfo {
+                buffer: &self.readback,
+                layout: wgpu::TexelCopyBufferLayout {
+                    offset: 0,
+                    // Padded to 256 bytes per row (see `padded_row`).
+                    bytes_per_row: Some(self.padded_row),
+                    rows_per_image: Some(self.options.height),
+                },
+            },
+            wgpu::Extent3d {
+                width: self.options.width,
+                height: self.options.height,
+                depth_or_array_layers: 1,
+            },
+        );
+        gpu.queue.submit([encoder.finish()]);
+
+        let rgba = self.read_image(gpu)?;
+        let gpu_s = match &self.queries {
+            Some((_, _, read)) => Some(read_timestamps(gpu, read)?),
+            None => None,
+        };
+        Ok(Frame {
+            width: self.options.width,
+            height: self.options.height,
+            rgba,
+            timings: FrameTimings {
+                gpu_s,
+                wall_s: start.elapsed().as_secs_f64(),
+                blocks,
+                triangles,
+            },
+        })
+    }
+
+    /// Maps the read-back buffer and strips the row padding.
+    fn read_image(&self, gpu: &Gpu) -> Result<Vec<u8>, RenderError> {
+        let bytes = map_read(gpu, &self.readback)?;
+        let row = (self.options.width * 4) as usize;
+        let mut rgba = Vec::with_capacity(row * self.options.height as usize);
+        for y in 0..self.options.height as usize {
+            let start = y * self.padded_row as usize;
+            rgba.extend_from_slice(&bytes[start..start + row]);
+        }
+        Ok(rgba)
+    }
+}
+
+/// Maps `buffer` for reading, waits, copies its bytes out and unmaps it.
+fn map_read(gpu: &Gpu, buffer: &wgpu::Buffer) -> Result<Vec<u8>, RenderError> {
+    let (tx, rx) = std::sync::mpsc::channel();
+    buffer.map_async(wgpu::MapMode::Read, .., move |r| {
+        let _ = tx.send(r);
+    });
+    gpu.device
+        .poll(wgpu::PollType::wait_indefinitely())
+        .map_err(|e| RenderError::Readback(e.to_string()))?;
+    rx.recv()
+        .map_err(|e| RenderError::Readback(e.to_string()))?
+        .map_err(|e| RenderError::Readback(e.to_string()))?;
+    let bytes = buffer
+        .get_mapped_range(..)
+        .map_err(|e| RenderError::Readback(e.to_string()))?
+        .to_vec();
+    buffer.unmap();
+    Ok(bytes)
+}
+
+/// Seconds between the two timestamps in `read`.
+fn read_timestamps(gpu: &Gpu, read: &wgpu::Buffer) -> Result<f64, RenderError> {
+    let bytes = map_read(gpu, read)?;
+    let stamp = |i: usize| -> Result<u64, RenderError> {
+        bytes
+            .get(i * 8..i * 8 + 8)
+            .and_then(|b| b.try_into().ok())
+            .map(u64::from_le_bytes)
+            .ok_or_else(|| RenderError::Readback("short timestamp buffer".into()))
+    };
+    let ticks = stamp(1)?.wrapping_sub(stamp(0)?);
+    Ok(ticks as f64 * gpu.queue.get_timestamp_period() as f64 * 1e-9)
+}

@@ -1,0 +1,456 @@
+//! Routes for any city: the paper's route (seed 003 §5), a street-level walk, an orbit; and the
+//! street graph they walk on.
+
+use super::{CameraRoute, KeyFrame, Lens, RouteError};
+use crate::city::LocalFrame;
+use crate::geom::Aabb3;
+use geo_types::LineString;
+use glam::{DVec2, DVec3};
+use std::cmp::Reverse;
+use std::collections::{BinaryHeap, HashMap};
+use std::f64::consts::{FRAC_PI_2, TAU};
+
+/// Street vertices closer than this (metres) are merged into one node.
+const SNAP: f64 = 0.01;
+
+/// An undirected street graph in the local frame (x, y metres): vertices of the street lines are
+/// nodes (merged within 1 cm), consecutive vertices are joined by edges weighted by length.
+#[derive(Clone, Debug, Default)]
+pub struct StreetGraph {
+    /// Node positions, local frame.
+    pub nodes: Vec<DVec2>,
+    /// Adjacency: `(neighbour, length)` per node.
+    pub adjacency: Vec<Vec<(u32, f64)>>,
+    /// Connected component of each node.
+    component: Vec<u32>,
+    /// Node count per component.
+    component_size: Vec<u32>,
+}
+
+impl StreetGraph {
+    /// Builds the graph from street lines in metric world coordinates (e.g.
+    /// `BlockLayout::street_edges`), moved into the local frame with `frame`. Non-finite
+    /// vertices are skipped.
+    pub fn from_world_lines(lines: &[LineString<f64>], frame: &LocalFrame) -> Self {
+        let mut g = StreetGraph::default();
+        let mut lookup: HashMap<(i64, i64), u32> = HashMap::new();
+        for line in lines {
+            let mut prev: Option<u32> = None;
+            for c in line.coords() {
+                if !(c.x.is_finite() && c.y.is_finite()) {
+                    prev = None;
+                    continue;
+                }
+                let p = frame.to_local_f64(DVec3::new(c.x, c.y, 0.0)).truncate();
+                let key = ((p.x / SNAP).round() as i64, (p.y / SNAP).round() as i64);
+                let id = *lookup.entry(key).or_insert_with(|| {
+                    g.nodes.push(p);
+                    g.adjacency.push(Vec::new());
+                    (g.nodes.len() - 1) as u32
+                });
+                if let Some(a) = prev {
+                    if a != id {
+                        let w = g.nodes[a as usize].distance(g.nodes[id as usize]);
+                        g.adjacency[a as usize].push((id, w));
+                        g.adjacency[id as usize].push((a, w));
+                    }
+                }
+                prev = Some(id);
+            }
+        }
+        g.label_components();
+        g
+    }
+
+    fn label_components(&mut self) {
+        let n = self.nodes.len();
+        self.component = vec![u32::MAX; n];
+        self.component_size.clear();
+        let mut stack = Vec::new();
+        for s in 0..n {
+            if self.component[s] != u32::MAX {
+                continue;
+            }
+            let c = self.component_size.len() as u32;
+            let mut size = 0;
+            self.component[s] = c;
+            stack.push(s as u32);
+            while let Some(v) = stack.pop() {
+                size += 1;
+                for &(w, _) in &self.adjacency[v as usize] {
+                    if self.component[w as usize] == u32::MAX {
+                        self.component[w as usize] = c;
+                        stack.push(w);
+                    }
+                }
+            }
+            self.component_size.push(size);
+        }
+    }
+
+    /// True when the graph has no node.
+    pub fn is_empty(&self) -> bool {
+        self.nodes.is_empty()
+    }
+
+    /// The node nearest to `p` among the nodes of the largest connected component (so that any
+    /// two such nodes are joined by a path); `None` for an empty graph. Ties go to the lower id.
+    pub fn nearest_in_main_component(&self, p: DVec2) -> Option<u32> {
+        let main = self
+            .component_size
+            .iter()
+            .enumerate()
+            .max_by_key(|&(i, s)| (*s, Reverse(i)))?
+            .0 as u32;
+        let mut best: Option<(f64, u32)> = None;
+        for (i, q) in self.nodes.iter().enumerate() {
+            if self.component[i] != main {
+                continue;
+            }
+            let d = q.distance_squared(p);
+            if best.map_or(true, |(bd, _)| d < bd) {
+                best = Some((d, i as u32));
+            }
+        }
+        best.map(|(_, i)| i)
+    }
+
+    /// Shortest path from `from` to `to` (Dijkstra); the node sequence including both ends, or
+    /// `None` when they are not connected.
+    pub fn shortest_path(&self, from: u32, to: u32) -> Option<Vec<u32>> {
+        let n = self.nodes.len();
+        if from as usize >= n || to as usize >= n {
+            return None;
+        }
+        let mut dist = vec![f64::INFINITY; n];
+        let mut prev = vec![u32::MAX; n];
+        let mut heap = BinaryHeap::new();
+        dist[from as usize] = 0.0;
+        // Distances are finite and non-negative: their bit patterns order like the values.
+        heap.push(Reverse((0u64, from)));
+        while let Some(Reverse((dbits, v))) = heap.pop() {
+            let d = f64::from_bits(dbits);
+            if d > dist[v as usize] {
+                continue;
+            }
+            if v == to {
+                break;
+            }
+            for &(w, len) in &self.adjacency[v as usize] {
+                let nd = d + len;
+                if nd < dist[w as usize] {
+                    dist[w as usize] = nd;
+                    prev[w as usize] = v;
+                    heap.push(Reverse((nd.to_bits(), w)));
+                }
+            }
+        }
+        if !dist[to as usize].is_finite() {
+            return None;
+        }
+        let mut path = vec![to];
+        let mut v = to;
+        while v != from {
+            v = prev[v as usize];
+            path.push(v);
+        }
+        path.reverse();
+        Some(path)
+    }
+
+    /// Total length of a node path, metres.
+    pub fn path_length(&self, path: &[u32]) -> f64 {
+        path.windows(2)
+            .map(|w| self.nodes[w[0] as usize].distance(self.nodes[w[1] as usize]))
+            .sum()
+    }
+}
+
+/// Drops points closer than `min_gap` to the last kept one; the last point always ends the list.
+fn thin(points: Vec<DVec2>, min_gap: f64) -> Vec<DVec2> {
+    let Some(&end) = points.last() else {
+        return points;
+    };
+    let mut out: Vec<DVec2> = Vec::with_capacity(points.len());
+    for p in points {
+        if out.last().map_or(true, |q| q.distance(p) >= min_gap) {
+            out.push(p);
+        }
+    }
+    if out.last() != Some(&end) {
+        if out.len() > 1 {
+            out.pop();
+        }
+        out.push(end);
+    }
+    out.dedup_by(|a, b| a.distance(*b) < 1e-9);
+    out
+}
+
+/// Key frames walking along `points` at eye height `eye`, looking along the way (each key looks
+/// toward the next point), starting at `t0` with `speed` m/s. Returns the keys and the end time.
+fn walk_keys(points: &[DVec2], eye: f64, speed: f64, t0: f64) -> (Vec<KeyFrame>, f64) {
+    let mut keys = Vec::with_capacity(points.len());
+    let mut t = t0;
+    let mut yaw = 0.0;
+    for (i, p) in points.iter().enumerate() {
+        if i > 0 {
+            t += points[i - 1].distance(*p) / speed;
+        }
+        if let Some(next) = points.get(i + 1) {
+            let d = *next - *p;
+            yaw = d.y.atan2(d.x);
+        }
+        keys.push(KeyFrame::new(t, p.extend(eye), yaw, 0.0));
+    }
+    (keys, t)
+}
+
+/// Parameters of the paper's route (seed 003 §5).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PaperRouteParams {
+    /// Eye height above the ground while walking, metres.
+    pub eye_height: f64,
+    /// How far outside the city's box the walk starts, as a fraction of the box's larger side.
+    pub start_margin: f64,
+    /// Height reached by the rise above the highest roof, metres.
+    pub clearance: f64,
+    /// Share of the route's time spent walking in.
+    pub walk_share: f64,
+    /// Share of the route's time spent rising (the rest is the diagonal descent).
+    pub rise_share: f64,
+    /// Route duration, seconds (sampling chooses the frame count).
+    pub duration: f64,
+    /// Pitch at the end of the descent, radians (negative: looking down at the landing).
+    pub landing_pitch: f64,
+}
+
+impl Default for PaperRouteParams {
+    /// The proportions of seed 003 Fig. 4: the rise spans frames 48–140 of about 200, so about a
+    /// quarter of the time walks in, 45 % rises, the rest descends.
+    fn default() -> Self {
+        Self {
+            eye_height: 1.7,
+            start_margin: 0.05,
+            clearance: 60.0,
+            walk_share: 0.25,
+            rise_share: 0.45,
+            duration: 60.0,
+            landing_pitch: -60f64.to_radians(),
+        }
+    }
+}
+
+/// The paper's route (seed 003 §5) for a city whose geometry lies in `bounds` (local frame):
+/// it starts outside the city at street level (south of the box, `start_margin` out), walks to
+/// the centre (along the street network when `streets` has nodes: the shortest path from the
+/// street node nearest the start to the node nearest the centre; else straight), rises
+/// vertically above the roofs while turning to look straight down, then flies diagonally down
+/// to the ground, facing the floor, to a point a quarter of the box's diagonal north-east of the
+/// centre.
+///
+/// Deviation: the paper gives no numbers for the heights or the landing point; the defaults in
+/// [`PaperRouteParams`] are ours.
+pub fn paper_route(
+    bounds: &Aabb3,
+    streets: Option<&StreetGraph>,
+    params: &PaperRouteParams,
+    lens: Lens,
+) -> Result<CameraRoute, RouteError> {
+    let bad = |problem: &str| RouteError::Bad {
+        route: "paper".into(),
+        problem: problem.into(),
+    };
+    if bounds.is_empty() || !bounds.min.is_finite() || !bounds.max.is_finite() {
+        return Err(bad("the city has no geometry to route through"));
+    }
+    let ok = params.walk_share > 0.0
+        && params.rise_share > 0.0
+        && params.walk_share + params.rise_share < 1.0
+        && params.duration > 0.0
+        && params.eye_height > 0.0;
+    if !ok {
+        return Err(bad(
+            "route shares must be positive and sum below 1; duration and eye height positive",
+        ));
+    }
+    let ext = bounds.extent();
+    let side = ext.x.max(ext.y).max(1.0);
+    let centre = bounds.center().truncate();
+    let anchor = DVec2::new(centre.x, bounds.min.y - params.start_margin * side);
+
+    let mut walk: Vec<DVec2> = vec![anchor];
+    if let Some(g) = streets.filter(|g| !g.is_empty()) {
+        let s = g.nearest_in_main_component(anchor);
+        let e = g.nearest_in_main_component(centre);
+        if let (Some(s), Some(e)) = (s, e) {
+            if let Some(path) = g.shortest_path(s, e) {
+                walk.extend(path.iter().map(|&i| g.nodes[i as usize]));
+            }
+        }
+    }
+    if walk.len() == 1 {
+        walk.push(centre);
+    }
+    let walk = thin(walk, 1.0);
+    let walk = if walk.len() < 2 {
+        vec![anchor, centre]
+    } else {
+        walk
+    };
+
+    let walk_len: f64 = walk.windows(2).map(|w| w[0].distance(w[1])).sum();
+    let t_walk = params.duration * params.walk_share;
+    let speed = walk_len.max(1e-3) / t_walk;
+    let (mut keys, t_end) = walk_keys(&walk, params.eye_height, speed, 0.0);
+    let top_z = bounds.max.z.max(0.0) + params.clearance;
+    let last = *keys.last().unwrap();
+    let (yaw, _) = super::yaw_pitch_from_orientation(last.orientation);
+    let here = last.position.truncate();
+    // Keep the heading of the walk while turning to look down; the end of the walk is a corner.
+    keys.last_mut().unwrap().corner = true;
+    let t_rise = t_end + params.duration * params.rise_share;
+    keys.push(KeyFrame::new(t_rise, here.extend(top_z), yaw, -FRAC_PI_2).corner());
+    let diag = DVec2::new(ext.x, ext.y).length().max(1.0);
+    let land = here + DVec2::new(1.0, 1.0).normalize() * (0.25 * diag);
+    let fly = land - here;
+    let fly_yaw = fly.y.atan2(fly.x);
+    let t_land = params.duration;
+    // Looking straight down the whole way except the end, as in Fig. 4 ("facing the floor").
+    let t_mid = t_rise + 0.8 * (t_land - t_rise);
+    let mid = here + fly * 0.8;
+    let mid_z = top_z + (params.eye_height - top_z) * 0.8;
+    keys.push(KeyFrame::new(t_mid, mid.extend(mid_z), fly_yaw, -FRAC_PI_2));
+    keys.push(KeyFrame::new(
+        t_land,
+        land.extend(params.eye_height),
+        fly_yaw,
+        params.landing_pitch,
+    ));
+    CameraRoute::new("paper", keys, lens)
+}
+
+/// A walk at eye height along the shortest street path between the street nodes nearest to
+/// `from` and `to` (local frame), at `speed` m/s, looking along the way.
+pub fn street_walk(
+    graph: &StreetGraph,
+    from: DVec2,
+    to: DVec2,
+    eye_height: f64,
+    speed: f64,
+    lens: Lens,
+) -> Result<CameraRoute, RouteError> {
+    let bad = |problem: String| RouteError::Bad {
+        route: "street".into(),
+        problem,
+    };
+    if !(speed > 0.0 && speed.is_finite()) {
+        return Err(bad(format!("speed must be positive, got {speed}")));
+    }
+    let s = graph
+        .nearest_in_main_component(from)
+        .ok_or_else(|| bad("the street graph is empty".into()))?;
+    let e = graph
+        .nearest_in_main_component(to)
+        .ok_or_else(|| bad("the street graph is empty".into()))?;
+    let path = graph
+        .shortest_path(s, e)
+        .ok_or_else(|| bad("no street path between the two points".into()))?;
+    let pts = thin(path.iter().map(|&i| graph.nodes[i as usize]).collect(), 1.0);
+    if pts.len() < 2 {
+        return Err(bad(format!(
+            "the two points snap to the same street node at ({:.1}, {:.1})",
+            graph.nodes[s as usize].x, graph.nodes[s as usize].y
+        )));
+    }
+    let (keys, _) = walk_keys(&pts, eye_height, speed, 0.0);
+    CameraRoute::new("street", keys, lens)
+}
+
+/// An orbit around the centre of `bounds` at `radius_factor` × the box's larger half-side, at
+/// `height` metres above the highest roof, looking at the centre of the ground; one turn in
+/// `duration` seconds, counter-clockwise, starting south.
+pub fn orbit_route(
+    bounds: &Aabb3,
+    radius_factor: f64,
+    height: f64,
+    duration: f64,
+    lens: Lens,
+) -> Result<CameraRoute, RouteError> {
+    if bounds.is_empty() || !(duration > 0.0) || !(radius_factor > 0.0) {
+        return Err(RouteError::Bad {
+            route: "orbit".into(),
+            problem: "needs a non-empty city, positive radius and duration".into(),
+        });
+    }
+    let c = bounds.center();
+    let ext = bounds.extent();
+    let r = radius_factor * 0.5 * ext.x.max(ext.y).max(1.0);
+    let z = bounds.max.z.max(0.0) + height;
+    let target = DVec3::new(c.x, c.y, 0.0);
+    let n = 24;
+    let keys = (0..=n)
+        .map(|i| {
+            let a = -FRAC_PI_2 + TAU * i as f64 / n as f64;
+            let eye = DVec3::new(c.x + r * a.cos(), c.y + r * a.sin(), z);
+            let cam = crate::geom::Camera::looking_at(eye, target);
+            KeyFrame::new(duration * i as f64 / n as f64, eye, cam.yaw, cam.pitch)
+        })
+        .collect();
+    CameraRoute::new("orbit", keys, lens)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn frame0() -> LocalFrame {
+        LocalFrame {
+            origin: DVec3::new(1000.0, 2000.0, 0.0),
+        }
+    }
+
+    /// A 3×3 grid of streets, 100 m apart, in world coordinates.
+    fn grid_lines() -> Vec<LineString<f64>> {
+        let mut lines = Vec::new();
+        for i in 0..3 {
+            let v = 1000.0 + 100.0 * i as f64;
+            lines.push(LineString::from(vec![
+                (v, 2000.0),
+                (v, 2100.0),
+                (v, 2200.0),
+            ]));
+            let h = 2000.0 + 100.0 * i as f64;
+            lines.push(LineString::from(vec![
+                (1000.0, h),
+                (1100.0, h),
+                (1200.0, h),
+            ]));
+        }
+        lines
+    }
+
+    #[test]
+    fn dijkstra_matches_manhattan_distance_on_a_grid() {
+        let g = StreetGraph::from_world_lines(&grid_lines(), &frame0());
+        assert_eq!(g.nodes.len(), 9);
+        let a = g.nearest_in_main_component(DVec2::new(0.0, 0.0)).unwrap();
+        let b = g
+            .nearest_in_main_component(DVec2::new(200.0, 200.0))
+            .unwrap();
+        let p = g.shortest_path(a, b).unwrap();
+        assert!((g.path_length(&p) - 400.0).abs() < 1e-9);
+        assert_eq!(p.len(), 5);
+    }
+
+    #[test]
+    fn disconnected_nodes_are_not_chosen() {
+        let mut lines = grid_lines();
+        lines.push(LineString::from(vec![(900.0, 1900.0), (901.0, 1900.0)]));
+        let g = StreetGraph::from_world_lines(&lines, &frame0());
+        let near_island = g
+            .nearest_in_main_component(DVec2::new(-100.0, -100.0))
+            .unwrap();
+        assert_eq!(g.nodes[near_island as usize], DVec2::new(0.0, 0.0));
+    }
+}

@@ -1,0 +1,302 @@
+//! Per-frame occlusion culling: select occluders near the viewer, draw their shadows into the
+//! cull map, and test the index's nodes against it while frustum culling (seed 004 §3.2.5–3.2.8).
+
+use super::cullmap::{CullMap, Resolution};
+use super::occluders::{extract, BlockOccluders, OccluderOptions};
+use super::shadow::{Occluder, OccluderShadow};
+use super::VisibilityError;
+use crate::blocks::{BlockId, BlockLayout};
+use crate::city::City;
+use crate::geom::{Aabb3, Camera, Frustum};
+use crate::index::{CityIndex, CullStats};
+use glam::{DVec2, DVec3};
+use serde::Serialize;
+use std::sync::Mutex;
+use std::time::Instant;
+
+/// Parameters of the occlusion culler.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct CullerOptions {
+    /// Cull map resolution.
+    pub resolution: Resolution,
+    /// Only blocks within this plan-view distance of the viewer give occluders (the seed's
+    /// "local model"), metres.
+    pub local_radius: f64,
+    /// At most this many occluders per frame, the largest by `length × height / distance²`.
+    pub max_occluders: usize,
+    /// Skip occlusion culling when the eye is higher than this many times the tallest candidate
+    /// occluder (the shadows would be small and drawing them cannot pay).
+    pub skip_height_factor: f64,
+    /// How occluders are extracted.
+    pub occluders: OccluderOptions,
+}
+
+impl Default for CullerOptions {
+    fn default() -> Self {
+        Self {
+            resolution: Resolution::Cells(256),
+            local_radius: 300.0,
+            max_occluders: 256,
+            skip_height_factor: 3.0,
+            occluders: OccluderOptions::default(),
+        }
+    }
+}
+
+/// Why a frame was not occlusion culled.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum SkipReason {
+    /// No occluder faces the viewer within the local radius.
+    NoOccluders,
+    /// The eye is far above the roofs nearby.
+    TooHigh,
+    /// The eye is below the ground.
+    BelowGround,
+}
+
+/// What one frame of occlusion culling did.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize)]
+pub struct OcclusionStats {
+    /// Set when the cull map was not used this frame.
+    pub skipped: Option<SkipReason>,
+    /// Facing occluders within the local radius.
+    pub occluder_candidates: u64,
+    /// Occluders whose shadows were drawn.
+    pub occluders_used: u64,
+    /// Shadows that covered at least one cell.
+    pub shadows_drawn: u64,
+    /// Cells written (summed over shadows).
+    pub cells_covered: u64,
+    /// Volumes (nodes and blocks) the index asked about.
+    pub volumes_tested: u64,
+    /// Volumes proven hidden (dropped with their subtrees).
+    pub volumes_hidden: u64,
+    /// Blocks pushed to the output.
+    pub blocks_out: u64,
+    /// Milliseconds to select occluders and draw the cull map (with its pyramid).
+    pub build_ms: f64,
+    /// Milliseconds of the index traversal with the cull map tests.
+    pub test_ms: f64,
+    /// The index's own counters.
+    pub cull: CullStats,
+}
+
+/// Occlusion culling with occluder shadows and a cull map (seed 004 §3.2).
+#[derive(Debug)]
+pub struct OcclusionCuller {
+    blocks: Vec<BlockOccluders>,
+    opts: CullerOptions,
+    min: DVec2,
+    max: DVec2,
+    map: Mutex<CullMap>,
+}
+
+/// True unless the box lies entirely outside one plane of the frustum.
+pub fn aabb_may_intersect(f: &Frustum, b: &Aabb3) -> bool {
+    f.planes.iter().all(|p| {
+        let v = DVec3::new(
+            if p.normal.x >= 0.0 { b.max.x } else { b.min.x },
+            if p.normal.y >= 0.0 { b.max.y } else { b.min.y },
+            if p.normal.z >= 0.0 { b.max.z } else { b.min.z },
+        );
+        p.distance(v) >= 0.0
+    })
+}
+
+impl OcclusionCuller {
+    /// Extracts every block's occluders and allocates the cull map over the city's plan-view
+    /// bounds (buildings and block outlines, local frame).
+    pub fn new(
+        city: &City,
+        layout: &BlockLayout,
+        opts: CullerOptions,
+    ) -> Result<Self, VisibilityError> {
+        let blocks = extract(city, layout, &opts.occluders);
+        let mut bounds = Aabb3::EMPTY;
+        for b in &blocks {
+            bounds = bounds.union(b.aabb);
+        }
+        for block in &layout.blocks {
+            for c in block.polygon.exterior().coords() {
+                bounds = bounds.including(city.frame.to_local_f64(DVec3::new(c.x, c.y, 0.0)));
+            }
+        }
+        if bounds.is_empty() {
+            bounds = Aabb3::new(DVec3::ZERO, DVec3::ZERO);
+        }
+        Self::from_blocks(
+            blocks,
+            bounds.min.truncate() - 1.0,
+            bounds.max.truncate() + 1.0,
+            opts,
+        )
+    }
+
+    /// A culler over given per-block occluders and cull map bounds (local frame).
+    pub fn from_blocks(
+        blocks: Vec<BlockOccluders>,
+        min: DVec2,
+        max: DVec2,
+        opts: CullerOptions,
+    ) -> Result<Self, VisibilityError> {
+        let positive = |v: f64| v > 0.0; // false for NaN
+        if !positive(opts.local_radius) || !positive(opts.skip_height_factor) {
+            return Err(VisibilityError::BadParameter(format!(
+                "local radius {} and skip height factor {} must be > 0",
+                opts.local_radius, opts.skip_height_factor
+            )));
+        }
+        let map = CullMap::new(min, max, opts.resolution)?;
+        Ok(Self {
+            blocks,
+            opts,
+            min,
+            max,
+            map: Mutex::new(map),
+        })
+    }
+
+    /// The options.
+    pub fn options(&self) -> &CullerOptions {
+        &self.opts
+    }
+
+    /// Per-block occluders.
+    pub fn blocks(&self) -> &[BlockOccluders] {
+        &self.blocks
+    }
+
+    /// A copy of this culler at another resolution (occluders are reused).
+    pub fn with_resolution(&self, resolution: Resolution) -> Result<Self, VisibilityError> {
+        Self::from_blocks(
+            self.blocks.clone(),
+            self.min,
+            self.max,
+            CullerOptions {
+                resolution,
+                ..self.opts
+            },
+        )
+    }
+
+    /// The occluders chosen for `camera` (seed 004 §3.2.5): facade edges facing the viewer, of
+    /// blocks within the local radius whose box meets the frustum, the `max_occluders` largest.
+    pub fn select(&self, camera: &Camera, out: &mut Vec<Occluder>) -> (u64, Option<SkipReason>) {
+        out.clear();
+        let v = camera.position;
+        if v.z < 0.0 {
+            return (0, Some(SkipReason::BelowGround));
+        }
+        let v2 = v.truncate();
+        let frustum = camera.frustum();
+        let r = self.opts.local_radius;
+        let mut scored: Vec<(f64, Occluder)> = Vec::new();
+        let mut tallest: f64 = 0.0;
+        for b in &self.blocks {
+            let lo = b.aabb.min.truncate();
+            let hi = b.aabb.max.truncate();
+            let d = (v2.clamp(lo, hi) - v2).length();
+            if b.aabb.is_empty() || d > r || !aabb_may_intersect(&frustum, &b.aabb) {
+                continue;
+            }
+            for o in &b.occluders {
+                if !o.faces(v2) {
+                    continue;
+                }
+                let dist = o.distance_to(v2);
+                if dist > r {
+                    continue;
+                }
+                tallest = tallest.max(o.height);
+                let score = o.length() * o.height / (dist * dist).max(1.0);
+                scored.push((score, *o));
+            }
+        }
+        let candidates = scored.len() as u64;
+        if scored.is_empty() {
+            return (0, Some(SkipReason::NoOccluders));
+        }
+        if v.z > self.opts.skip_height_factor * tallest {
+            return (candidates, Some(SkipReason::TooHigh));
+        }
+        let n = self.opts.max_occluders.min(scored.len());
+        if n < scored.len() {
+            scored.select_nth_unstable_by(n, |a, b| b.0.total_cmp(&a.0));
+            scored.truncate(n);
+        }
+        // Deterministic order (the result does not depend on it; the timing might).
+        scored.sort_by(|a, b| b.0.total_cmp(&a.0));
+        out.extend(scored.into_iter().map(|(_, o)| o));
+        (candidates, None)
+    }
+
+    /// Selects occluders and draws their shadows into `map` (cleared first), then builds its
+    /// pyramid. Returns the stats so far.
+    pub fn build(&self, camera: &Camera, map: &mut CullMap) -> OcclusionStats {
+        let t0 = Instant::now();
+        map.clear();
+        let mut occ = Vec::new();
+        let (candidates, skipped) = self.select(camera, &mut occ);
+        let mut st = OcclusionStats {
+            skipped,
+            occluder_candidates: candidates,
+            ..Default::default()
+        };
+        if skipped.is_none() {
+            for o in &occ {
+                if let Ok(s) = OccluderShadow::new(camera.position, o) {
+                    st.occluders_used += 1;
+                    let c = map.draw(&s);
+                    st.cells_covered += c;
+                    st.shadows_drawn += (c > 0) as u64;
+                }
+            }
+        }
+        map.build_pyramid();
+        st.build_ms = t0.elapsed().as_secs_f64() * 1e3;
+        st
+    }
+
+    /// The cull map this culler builds for `camera` (a fresh copy, for inspection and tests).
+    pub fn cull_map_for(&self, camera: &Camera) -> CullMap {
+        let mut map = self.map.lock().unwrap_or_else(|e| e.into_inner()).clone();
+        self.build(camera, &mut map);
+        map
+    }
+
+    /// One frame: frustum culling through `index` with every surviving node and block tested
+    /// against the cull map, front to back; pushes the blocks to draw to `out`.
+    pub fn cull(
+        &self,
+        index: &dyn CityIndex,
+        camera: &Camera,
+        out: &mut Vec<BlockId>,
+    ) -> OcclusionStats {
+        let mut map = self.map.lock().unwrap_or_else(|e| e.into_inner());
+        let mut st = self.build(camera, &mut map);
+        let t1 = Instant::now();
+        let frustum = camera.frustum();
+        let n0 = out.len();
+        let (mut tested, mut hidden) = (0u64, 0u64);
+        let use_map = st.skipped.is_none() && st.cells_covered > 0;
+        st.cull = index.cull_filtered(
+            &frustum,
+            &mut |b: &Aabb3| {
+                if !use_map {
+                    return true;
+                }
+                tested += 1;
+                let h = map.box_hidden(b);
+                hidden += h as u64;
+                !h
+            },
+            out,
+        );
+        st.volumes_tested = tested;
+        st.volumes_hidden = hidden;
+        st.blocks_out = (out.len() - n0) as u64;
+        st.test_ms = t1.elapsed().as_secs_f64() * 1e3;
+        st
+    }
+}

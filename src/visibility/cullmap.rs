@@ -1,0 +1,565 @@
+//! The cull map (seed 004 §3.2.3–3.2.4): a regular grid over the city's plan-view bounds, per cell
+//! the height below which everything is hidden this frame.
+//!
+//! Shadows are drawn on the CPU in f64 and kept as f32 cells, rounded down. A cell takes a
+//! shadow's height only when the shadow covers the whole cell, and then the plane's minimum over
+//! the cell (the minimum of its four corners, since the plane is linear). The seed shrinks every
+//! occluder by half a cell for the same purpose; testing the corners against the exact region is
+//! conservative without that approximation.
+
+use super::shadow::OccluderShadow;
+use super::VisibilityError;
+use crate::geom::Aabb3;
+use glam::DVec2;
+use serde::{Deserialize, Serialize};
+
+/// Largest number of cells along one side.
+pub const MAX_CELLS_PER_SIDE: usize = 4096;
+
+/// How fine the cull map is.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub enum Resolution {
+    /// This many cells along the longer side of the bounds (square cells).
+    Cells(u32),
+    /// Cells of this size, metres.
+    CellSize(f64),
+}
+
+/// The grid geometry: square cells of side `cell` from `origin`, `nx × ny` of them.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct Grid {
+    /// Lower-left corner of cell (0, 0), local frame.
+    pub origin: DVec2,
+    /// Cell side, metres.
+    pub cell: f64,
+    /// Cells along x.
+    pub nx: usize,
+    /// Cells along y.
+    pub ny: usize,
+}
+
+impl Grid {
+    /// A grid over `[min, max]` at `resolution`.
+    pub fn new(min: DVec2, max: DVec2, resolution: Resolution) -> Result<Self, VisibilityError> {
+        let ext = max - min;
+        if !(min.is_finite() && max.is_finite()) || ext.x < 0.0 || ext.y < 0.0 {
+            return Err(VisibilityError::BadBounds {
+                min: min.to_array(),
+                max: max.to_array(),
+            });
+        }
+        let side = ext.x.max(ext.y).max(1e-3);
+        let cell = match resolution {
+            Resolution::Cells(n) if n >= 1 && n as usize <= MAX_CELLS_PER_SIDE => side / n as f64,
+            Resolution::CellSize(c) if c.is_finite() && c > 0.0 => c,
+            r => return Err(VisibilityError::BadResolution(format!("{r:?}"))),
+        };
+        let nx = ((ext.x / cell).ceil() as usize).max(1);
+        let ny = ((ext.y / cell).ceil() as usize).max(1);
+        if nx > MAX_CELLS_PER_SIDE || ny > MAX_CELLS_PER_SIDE {
+            return Err(VisibilityError::BadResolution(format!(
+                "{resolution:?} gives {nx}×{ny} cells over {:.0}×{:.0} m (at most {MAX_CELLS_PER_SIDE} per side)",
+                ext.x, ext.y
+            )));
+        }
+        Ok(Self {
+            origin: min,
+            cell,
+            nx,
+            ny,
+        })
+    }
+
+    /// x of the cell column boundary `i` (0..=nx).
+    #[inline]
+    pub fn x(&self, i: usize) -> f64 {
+        self.origin.x + i as f64 * self.cell
+    }
+    /// y of the cell row boundary `j` (0..=ny).
+    #[inline]
+    pub fn y(&self, j: usize) -> f64 {
+        self.origin.y + j as f64 * self.cell
+    }
+
+    /// The upper-right corner.
+    pub fn max(&self) -> DVec2 {
+        DVec2::new(self.x(self.nx), self.y(self.ny))
+    }
+
+    /// The inclusive cell ranges `(i0, i1, j0, j1)` touched by the closed plan-view box
+    /// `[min, max]` grown by `pad` metres; `None` when any part of it lies outside the map (the
+    /// map knows nothing there, so such a box is never hidden).
+    pub fn cells_touched(
+        &self,
+        min: DVec2,
+        max: DVec2,
+        pad: f64,
+    ) -> Option<(usize, usize, usize, usize)> {
+        let top = self.max();
+        let (lo, hi) = (min - pad, max + pad);
+        if !(lo.x >= self.origin.x && lo.y >= self.origin.y && hi.x <= top.x && hi.y <= top.y) {
+            return None;
+        }
+        let c =
+            |v: f64, o: f64, n: usize| (((v - o) / self.cell).floor().max(0.0) as usize).min(n - 1);
+        Some((
+            c(lo.x, self.origin.x, self.nx),
+            c(hi.x, self.origin.x, self.nx),
+            c(lo.y, self.origin.y, self.ny),
+            c(hi.y, self.origin.y, self.ny),
+        ))
+    }
+}
+
+/// f64 → f32 rounded towards −∞ (so a stored height never exceeds the proven one).
+#[inline]
+pub(crate) fn f32_down(v: f64) -> f32 {
+    let f = v as f32;
+    if (f as f64) > v {
+        f.next_down()
+    } else {
+        f
+    }
+}
+
+/// f64 → f32 rounded towards +∞ (for the heights of boxes under test).
+#[inline]
+pub(crate) fn f32_up(v: f64) -> f32 {
+    let f = v as f32;
+    if (f as f64) < v {
+        f.next_up()
+    } else {
+        f
+    }
+}
+
+/// The cull map: per cell, the height below which everything is hidden (−∞ when nothing is known).
+#[derive(Clone, Debug)]
+pub struct CullMap {
+    grid: Grid,
+    /// Row-major, `j * nx + i`.
+    values: Vec<f32>,
+    pyramid: MinPyramid,
+    /// Margin by which every shadow half-plane is shrunk before the corner test, metres.
+    margin: f64,
+    /// Amount subtracted from every plane height before it is stored, metres.
+    height_margin: f64,
+}
+
+impl CullMap {
+    /// An empty cull map over `[min, max]` (local frame, metres).
+    pub fn new(min: DVec2, max: DVec2, resolution: Resolution) -> Result<Self, VisibilityError> {
+        let grid = Grid::new(min, max, resolution)?;
+        let scale = (grid.max() - grid.origin).abs().max_element().max(1.0)
+            + grid.origin.abs().max_element();
+        Ok(Self {
+            values: vec![f32::NEG_INFINITY; grid.nx * grid.ny],
+            pyramid: MinPyramid::new(grid.nx, grid.ny),
+            grid,
+            margin: 1e-9 * scale + 1e-7,
+            height_margin: 1e-4,
+        })
+    }
+
+    /// The grid.
+    pub fn grid(&self) -> &Grid {
+        &self.grid
+    }
+
+    /// Cell values, row-major (`j * nx + i`).
+    pub fn values(&self) -> &[f32] {
+        &self.values
+    }
+
+    /// The value of cell `(i, j)`.
+    pub fn value(&self, i: usize, j: usize) -> f32 {
+        self.values[j * self.grid.nx + i]
+    }
+
+    /// Resets every cell to −∞.
+    pub fn clear(&mut self) {
+        self.values.fill(f32::NEG_INFINITY);
+    }
+
+    /// Draws one shadow, keeping the maximum per cell, into cells the shadow covers completely.
+    /// Returns the number of cells covered.
+    pub fn draw(&mut self, s: &OccluderShadow) -> u64 {
+        let g = self.grid;
+        let (x_lo, x_hi) = (g.x(0), g.x(g.nx));
+        let p = s.plane;
+        let mut covered = 0u64;
+        // Interval of the shadow on the previous boundary line.
+        let mut prev = s.row_interval(g.y(0), self.margin, x_lo, x_hi);
+        for j in 0..g.ny {
+            let next = s.row_interval(g.y(j + 1), self.margin, x_lo, x_hi);
+            if let (Some((a0, a1)), Some((b0, b1))) = (prev, next) {
+                let lo = a0.max(b0);
+                let hi = a1.min(b1);
+                if lo < hi {
+                    // First column boundary ≥ lo and last ≤ hi; corrected for rounding.
+                    let mut i0 = ((lo - g.origin.x) / g.cell).ceil().max(0.0) as usize;
+                    while i0 > 0 && g.x(i0 - 1) >= lo {
+                        i0 -= 1;
+                    }
+                    while i0 <= g.nx && g.x(i0) < lo {
+                        i0 += 1;
+                    }
+                    let mut i1 = (((hi - g.origin.x) / g.cell).floor().max(0.0) as usize).min(g.nx);
+                    while i1 < g.nx && g.x(i1 + 1) <= hi {
+                        i1 += 1;
+                    }
+                    while i1 > 0 && g.x(i1) > hi {
+                        i1 -= 1;
+                    }
+                    if i1 > i0 && g.x(i1) <= hi {
+                        let (y0, y1) = (g.y(j), g.y(j + 1));
+                        let zy = (p.zy * y0).min(p.zy * y1);
+                        let base = p.z0 + zy - self.height_margin;
+                        let row = &mut self.values[j * g.nx..(j + 1) * g.nx];
+                        for (i, cell) in row.iter_mut().enumerate().take(i1).skip(i0) {
+                            let zx = (p.zx * g.x(i)).min(p.zx * g.x(i + 1));
+                            let z = base + zx;
+                            let z = z - 1e-9 * z.abs();
+                            let zf = f32_down(z);
+                            if zf > *cell {
+                                *cell = zf;
+                            }
+                        }
+                        covered += (i1 - i0) as u64;
+                    }
+                }
+            }
+            prev = next;
+        }
+        covered
+    }
+
+    /// Rebuilds the min pyramid from the cells; call after drawing, before [`CullMap::box_hidden`].
+    pub fn build_pyramid(&mut self) {
+        self.pyramid.build(&self.values);
+    }
+
+    /// The min pyramid (valid after [`CullMap::build_pyramid`]).
+    pub fn pyramid(&self) -> &MinPyramid {
+        &self.pyramid
+    }
+
+    /// Brute force: true when the box's top is at or below the cull map value in every cell its
+    /// plan-view footprint touches.
+    ///
+    /// The seed tests one point (the footprint's centre at the box's top, §3.2.8), which misses
+    /// parts of the box that stick out of a shadow; here every touched cell must hide the top,
+    /// and cells are counted as touched with a small pad so that a box whose side lies on a cell
+    /// boundary also tests the neighbouring cell. A box reaching outside the map is never hidden.
+    pub fn box_hidden_brute(&self, b: &Aabb3) -> bool {
+        let Some((i0, i1, j0, j1)) = self.touched(b) else {
+            return false;
+        };
+        let top = f32_up(b.max.z);
+        (j0..=j1).all(|j| (i0..=i1).all(|i| self.value(i, j) >= top))
+    }
+
+    /// As [`CullMap::box_hidden_brute`], through the min pyramid: the box is first tested at the
+    /// level where it covers at most 2×2 cells, and only cells that fail are refined. Gives the
+    /// same answer as the brute force test.
+    pub fn box_hidden(&self, b: &Aabb3) -> bool {
+        let Some((i0, i1, j0, j1)) = self.touched(b) else {
+            return false;
+        };
+        self.pyramid.all_at_least(i0, i1, j0, j1, f32_up(b.max.z))
+    }
+
+    fn touched(&self, b: &Aabb3) -> Option<(usize, usize, usize, usize)> {
+        if b.is_empty() || !b.max.z.is_finite() {
+            return None;
+        }
+        self.grid
+            .cells_touched(b.min.truncate(), b.max.truncate(), self.margin)
+    }
+}
+
+/// A min pyramid over the cull map: level 0 is the map, each level above holds the minimum of (up
+/// to) 2×2 cells below it.
+#[derive(Clone, Debug)]
+pub struct MinPyramid {
+    /// Levels from fine (0) to one cell; `(nx, ny, values)`.
+    levels: Vec<(usize, usize, Vec<f32>)>,
+}
+
+impl MinPyramid {
+    fn new(nx: usize, ny: usize) -> Self {
+        let mut levels = vec![(nx, ny, vec![f32::NEG_INFINITY; nx * ny])];
+        let (mut w, mut h) = (nx, ny);
+        while w > 1 || h > 1 {
+            w = w.div_ceil(2);
+            h = h.div_ceil(2);
+            levels.push((w, h, vec![f32::NEG_INFINITY; w * h]));
+        }
+        Self { levels }
+    }
+
+    /// Number of levels.
+    pub fn levels(&self) -> usize {
+        self.levels.len()
+    }
+
+    fn build(&mut self, base: &[f32]) {
+        self.levels[0].2.copy_from_slice(base);
+        for l in 1..self.levels.len() {
+            let (lo, hi) = self.levels.split_at_mut(l);
+            let (cw, ch, child) = (&lo[l - 1].0, &lo[l - 1].1, &lo[l - 1].2);
+            let (w, h, vals) = (&hi[0].0, &hi[0].1, &mut hi[0].2);
+            for j in 0..*h {
+                for i in 0..*w {
+                    let mut m = f32::INFINITY;
+                    for dj in 0..2 {
+                        for di in 0..2 {
+                            let (ci, cj) = (2 * i + di, 2 * j + dj);
+                            if ci < *cw && cj < *ch {
+                                m = m.min(child[cj * cw + ci]);
+                            }
+                        }
+                    }
+                    vals[j * w + i] = m;
+                }
+            }
+        }
+    }
+
+    /// True when every level-0 cell in `[i0, i1] × [j0, j1]` is ≥ `top`.
+    pub fn all_at_least(&self, i0: usize, i1: usize, j0: usize, j1: usize, top: f32) -> bool {
+        let mut l = 0;
+        while l + 1 < self.levels.len() && ((i1 >> l) - (i0 >> l) > 1 || (j1 >> l) - (j0 >> l) > 1)
+        {
+            l += 1;
+        }
+        for cj in (j0 >> l)..=(j1 >> l) {
+            for ci in (i0 >> l)..=(i1 >> l) {
+                if !self.cell_ok(l, ci, cj, (i0, i1, j0, j1), top) {
+                    return false;
+                }
+            }
+        }
+        true
+    }
+
+    fn cell_ok(
+        &self,
+        l: usize,
+        ci: usize,
+        cj: usize,
+        r: (usize, usize, usize, usize),
+        top: f32,
+    ) -> bool {
+        let (w, _, vals) = &self.levels[l];
+        if vals[cj * w + ci] >= top {
+            return true;
+        }
+        if l == 0 {
+            return false;
+        }
+        let (cw, ch, _) = &self.levels[l - 1];
+        let (i0, i1, j0, j1) = (
+            r.0 >> (l - 1),
+            r.1 >> (l - 1),
+            r.2 >> (l - 1),
+            r.3 >> (l - 1),
+        );
+        for dj in 0..2 {
+            for di in 0..2 {
+                let (x, y) = (2 * ci + di, 2 * cj + dj);
+                if x < *cw
+                    && y < *ch
+                    && x >= i0
+                    && x <= i1
+                    && y >= j0
+                    && y <= j1
+                    && !self.cell_ok(l - 1, x, y, r, top)
+                {
+                    return false;
+                }
+            }
+        }
+        true
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::super::shadow::Occluder;
+    use super::*;
+    use glam::DVec3;
+    use rand::{Rng, SeedableRng};
+
+    fn map(n: u32) -> CullMap {
+        CullMap::new(
+            DVec2::new(-100.0, -100.0),
+            DVec2::new(100.0, 100.0),
+            Resolution::Cells(n),
+        )
+        .unwrap()
+    }
+
+    fn wall() -> Occluder {
+        Occluder {
+            a: DVec2::new(10.0, -20.0),
+            b: DVec2::new(10.0, 20.0),
+            height: 15.0,
+        }
+    }
+
+    /// Brute force coverage: a cell is covered when its four corners lie in the closed region;
+    /// the stored value must never exceed the plane's minimum over the corners.
+    #[test]
+    fn drawn_cells_are_fully_covered_and_below_the_plane() {
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(3);
+        for n in [16u32, 64, 200] {
+            for _ in 0..40 {
+                let mut m = map(n);
+                let v = DVec3::new(
+                    rng.random_range(-90.0..5.0),
+                    rng.random_range(-90.0..90.0),
+                    rng.random_range(0.0..40.0),
+                );
+                let Ok(s) = OccluderShadow::new(v, &wall()) else {
+                    continue;
+                };
+                m.draw(&s);
+                let g = *m.grid();
+                let mut drawn = 0;
+                for j in 0..g.ny {
+                    for i in 0..g.nx {
+                        let val = m.value(i, j);
+                        let corners = [
+                            DVec2::new(g.x(i), g.y(j)),
+                            DVec2::new(g.x(i + 1), g.y(j)),
+                            DVec2::new(g.x(i), g.y(j + 1)),
+                            DVec2::new(g.x(i + 1), g.y(j + 1)),
+                        ];
+                        let inside = corners.iter().all(|c| s.contains(*c));
+                        if val > f32::NEG_INFINITY {
+                            drawn += 1;
+                            assert!(inside, "cell {i},{j} drawn but not covered");
+                            let zmin = corners
+                                .iter()
+                                .map(|c| s.plane.at(*c))
+                                .fold(f64::INFINITY, f64::min);
+                            assert!((val as f64) <= zmin, "{val} > {zmin}");
+                            assert!((val as f64) > zmin - 1e-2, "too low: {val} vs {zmin}");
+                        } else {
+                            // Cells strictly inside (with some slack) must have been drawn.
+                            let strictly = corners
+                                .iter()
+                                .all(|c| s.region.iter().all(|h| h.eval(*c) > 1e-6));
+                            assert!(!strictly, "cell {i},{j} covered but not drawn");
+                        }
+                    }
+                }
+                let _ = drawn;
+            }
+        }
+    }
+
+    #[test]
+    fn viewer_cell_and_front_are_never_drawn() {
+        let mut m = map(64);
+        let v = DVec3::new(0.0, 0.0, 1.7);
+        m.draw(&OccluderShadow::new(v, &wall()).unwrap());
+        let g = *m.grid();
+        for j in 0..g.ny {
+            for i in 0..g.nx {
+                if m.value(i, j) > f32::NEG_INFINITY {
+                    assert!(g.x(i) >= 10.0, "cell in front of the wall drawn");
+                }
+            }
+        }
+        // Something was drawn behind the wall.
+        assert!(m.values().iter().any(|v| *v > 15.0));
+    }
+
+    #[test]
+    fn wall_on_a_cell_boundary_does_not_hide_its_own_building() {
+        // Map cells of 200/64 = 3.125 m; put the wall at x = 12.5 (a boundary).
+        let mut m = map(64);
+        let occ = Occluder {
+            a: DVec2::new(12.5, -20.0),
+            b: DVec2::new(12.5, 20.0),
+            height: 15.0,
+        };
+        m.draw(&OccluderShadow::new(DVec3::new(0.0, 0.0, 1.7), &occ).unwrap());
+        m.build_pyramid();
+        let own = Aabb3::new(DVec3::new(12.5, -20.0, 0.0), DVec3::new(30.0, 20.0, 15.0));
+        assert!(!m.box_hidden_brute(&own));
+        assert!(!m.box_hidden(&own));
+        let behind = Aabb3::new(DVec3::new(40.0, -5.0, 0.0), DVec3::new(50.0, 5.0, 20.0));
+        assert!(m.box_hidden_brute(&behind));
+        assert!(m.box_hidden(&behind));
+    }
+
+    #[test]
+    fn pyramid_equals_brute_force_on_random_boxes() {
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(11);
+        for (n, extent) in [(64u32, 200.0), (100, 200.0), (37, 150.0)] {
+            let mut m = CullMap::new(
+                DVec2::new(-100.0, -100.0),
+                DVec2::new(-100.0 + extent, 100.0),
+                Resolution::Cells(n),
+            )
+            .unwrap();
+            for _ in 0..6 {
+                let a = DVec2::new(rng.random_range(-90.0..40.0), rng.random_range(-90.0..90.0));
+                let b =
+                    a + DVec2::new(rng.random_range(-30.0..30.0), rng.random_range(-30.0..30.0));
+                let occ = Occluder {
+                    a,
+                    b,
+                    height: rng.random_range(5.0..30.0),
+                };
+                let v = DVec3::new(
+                    rng.random_range(-100.0..50.0),
+                    rng.random_range(-100.0..100.0),
+                    rng.random_range(0.0..20.0),
+                );
+                if let Ok(s) = OccluderShadow::new(v, &occ) {
+                    m.draw(&s);
+                }
+            }
+            m.build_pyramid();
+            let mut hidden = 0;
+            for _ in 0..3000 {
+                let c = DVec2::new(
+                    rng.random_range(-110.0..60.0),
+                    rng.random_range(-110.0..110.0),
+                );
+                let e = DVec2::new(rng.random_range(0.0..40.0), rng.random_range(0.0..40.0));
+                let b = Aabb3::new(c.extend(0.0), (c + e).extend(rng.random_range(0.0..40.0)));
+                let brute = m.box_hidden_brute(&b);
+                assert_eq!(brute, m.box_hidden(&b), "{b:?}");
+                hidden += brute as usize;
+            }
+            assert!(hidden > 0, "test would be vacuous");
+        }
+    }
+
+    #[test]
+    fn rounding_helpers_are_directed() {
+        for v in [0.1f64, 1.0 / 3.0, 12345.678901, -7.3, 1e30] {
+            assert!(f32_down(v) as f64 <= v);
+            assert!(f32_up(v) as f64 >= v);
+        }
+    }
+
+    #[test]
+    fn bad_resolutions_are_refused() {
+        let (a, b) = (DVec2::ZERO, DVec2::splat(100.0));
+        assert!(CullMap::new(a, b, Resolution::Cells(0)).is_err());
+        assert!(CullMap::new(a, b, Resolution::Cells(5000)).is_err());
+        assert!(CullMap::new(a, b, Resolution::CellSize(0.001)).is_err());
+        assert!(CullMap::new(a, b, Resolution::CellSize(f64::NAN)).is_err());
+        assert!(CullMap::new(b, a, Resolution::Cells(4)).is_err());
+        let g = *CullMap::new(a, DVec2::new(100.0, 50.0), Resolution::Cells(64))
+            .unwrap()
+            .grid();
+        assert_eq!((g.nx, g.ny), (64, 32));
+    }
+}

@@ -1,0 +1,236 @@
+//! Occluders of a city: facade top edges, per block, with collinear runs merged along block
+//! fronts (seed 004 §3.2.5).
+
+use super::shadow::Occluder;
+use crate::blocks::{BlockId, BlockLayout};
+use crate::city::City;
+use crate::geom::Aabb3;
+use glam::{DVec2, DVec3};
+
+/// How occluders are extracted.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct OccluderOptions {
+    /// Facade runs are merged when the gap between them along their common line is at most this
+    /// many metres. A gap is an opening one could see through, so any value above 0 is an
+    /// approximation; the default only closes rounding-sized gaps between touching buildings.
+    pub merge_gap: f64,
+    /// Edges are collinear when their directions differ by at most this angle (radians) and
+    /// their lines are at most `collinear_offset` metres apart.
+    pub collinear_angle: f64,
+    /// See `collinear_angle`, metres.
+    pub collinear_offset: f64,
+    /// Edges shorter than this (metres) are not kept on their own (they may still join a run).
+    pub min_length: f64,
+}
+
+impl Default for OccluderOptions {
+    fn default() -> Self {
+        Self {
+            merge_gap: 1e-3,
+            collinear_angle: 1e-4,
+            collinear_offset: 1e-3,
+            min_length: 1.0,
+        }
+    }
+}
+
+/// The occluders of one block and its bounds.
+#[derive(Clone, Debug)]
+pub struct BlockOccluders {
+    /// The block.
+    pub block: BlockId,
+    /// Box around the block's buildings, local frame (footprints × [0, max height]).
+    pub aabb: Aabb3,
+    /// Facade edges and merged facade runs.
+    pub occluders: Vec<Occluder>,
+}
+
+/// Facade top edges of every building of every block, local frame.
+///
+/// Only exterior rings are used. A roof edge at height `h` occludes only if the wall below it is
+/// solid down to the ground, so buildings with `min_height_m > 0` (passages, overhangs, bridges)
+/// give no occluders; they are still culled like any other geometry. Edges of the same block whose
+/// lines coincide and that point the same way (a block front of touching buildings) are merged
+/// into one run at the smallest of their heights, which is still a solid wall; the original edges
+/// are kept too, at their own heights.
+pub fn extract(city: &City, layout: &BlockLayout, opts: &OccluderOptions) -> Vec<BlockOccluders> {
+    layout
+        .blocks
+        .iter()
+        .map(|block| {
+            let mut aabb = Aabb3::EMPTY;
+            let mut edges = Vec::new();
+            for bid in &block.buildings {
+                let Some(b) = city.buildings.get(bid.0 as usize) else {
+                    continue;
+                };
+                if !(b.height_m.is_finite()) {
+                    continue;
+                }
+                for c in b.footprint.exterior().coords() {
+                    let p = city.frame.to_local_f64(DVec3::new(c.x, c.y, 0.0));
+                    aabb = aabb
+                        .including(DVec3::new(p.x, p.y, 0.0))
+                        .including(DVec3::new(p.x, p.y, b.height_m.max(0.0)));
+                }
+                if b.min_height_m > 0.0 || b.height_m <= 0.0 {
+                    continue;
+                }
+                let ring: Vec<DVec2> = b
+                    .footprint
+                    .exterior()
+                    .coords()
+                    .map(|c| {
+                        city.frame
+                            .to_local_f64(DVec3::new(c.x, c.y, 0.0))
+                            .truncate()
+                    })
+                    .collect();
+                let ccw = signed_area(&ring) >= 0.0;
+                for w in ring.windows(2) {
+                    let (a, b2) = if ccw { (w[0], w[1]) } else { (w[1], w[0]) };
+                    if a != b2 {
+                        edges.push(Occluder {
+                            a,
+                            b: b2,
+                            height: b.height_m,
+                        });
+                    }
+                }
+            }
+            let mut occluders = merge_runs(&edges, opts);
+            occluders.extend(edges.iter().filter(|e| e.length() >= opts.min_length));
+            BlockOccluders {
+                block: block.id,
+                aabb,
+                occluders,
+            }
+        })
+        .collect()
+}
+
+fn signed_area(ring: &[DVec2]) -> f64 {
+    ring.windows(2).map(|w| w[0].perp_dot(w[1])).sum::<f64>() * 0.5
+}
+
+/// Merged runs of collinear, same-direction edges (only runs of two or more edges).
+pub fn merge_runs(edges: &[Occluder], opts: &OccluderOptions) -> Vec<Occluder> {
+    // Key each edge by its direction angle and its line's signed offset, then sweep.
+    let mut keyed: Vec<(f64, f64, usize)> = edges
+        .iter()
+        .enumerate()
+        .filter(|(_, e)| e.length() > 0.0)
+        .map(|(i, e)| {
+            let d = (e.b - e.a).normalize();
+            let n = DVec2::new(-d.y, d.x);
+            (d.y.atan2(d.x), n.dot(e.a), i)
+        })
+        .collect();
+    keyed.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.total_cmp(&b.1)));
+    let mut out = Vec::new();
+    let mut used = vec![false; keyed.len()];
+    for s in 0..keyed.len() {
+        if used[s] {
+            continue;
+        }
+        // Group: all edges parallel and on the same line as `s` (angle sweep stays local).
+        let (ang, off, ei) = keyed[s];
+        let mut group = vec![ei];
+        used[s] = true;
+        for t in s + 1..keyed.len() {
+            if keyed[t].0 - ang > opts.collinear_angle {
+                break;
+            }
+            if !used[t] && (keyed[t].1 - off).abs() <= opts.collinear_offset {
+                used[t] = true;
+                group.push(keyed[t].2);
+            }
+        }
+        if group.len() < 2 {
+            continue;
+        }
+        let e0 = edges[ei];
+        let d = (e0.b - e0.a).normalize();
+        let mut iv: Vec<(f64, f64, f64)> = group
+            .iter()
+            .map(|&k| {
+                let e = edges[k];
+                (d.dot(e.a - e0.a), d.dot(e.b - e0.a), e.height)
+            })
+            .collect();
+        iv.sort_by(|a, b| a.0.total_cmp(&b.0));
+        let mut k = 0;
+        while k < iv.len() {
+            let (start, mut end, mut h) = iv[k];
+            let mut parts = 1;
+            let mut m = k + 1;
+            while m < iv.len() && iv[m].0 <= end + opts.merge_gap {
+                end = end.max(iv[m].1);
+                h = h.min(iv[m].2);
+                parts += 1;
+                m += 1;
+            }
+            if parts >= 2 && end - start >= opts.min_length {
+                out.push(Occluder {
+                    a: e0.a + d * start,
+                    b: e0.a + d * end,
+                    height: h,
+                });
+            }
+            k = m;
+        }
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn collinear_touching_edges_merge_at_the_lower_height() {
+        let e = |x0: f64, x1: f64, h: f64| Occluder {
+            a: DVec2::new(x0, 0.0),
+            b: DVec2::new(x1, 0.0),
+            height: h,
+        };
+        let edges = [
+            e(0.0, 10.0, 20.0),
+            e(10.0, 25.0, 12.0),
+            e(30.0, 40.0, 30.0),
+            e(40.0, 30.0, 9.0),
+        ];
+        let runs = merge_runs(&edges, &OccluderOptions::default());
+        assert_eq!(runs.len(), 1, "{runs:?}");
+        assert_eq!(runs[0].a, DVec2::new(0.0, 0.0));
+        assert_eq!(runs[0].b, DVec2::new(25.0, 0.0));
+        assert_eq!(runs[0].height, 12.0);
+        // With a 5 m gap allowed, the third edge joins (the fourth points the other way).
+        let runs = merge_runs(
+            &edges,
+            &OccluderOptions {
+                merge_gap: 5.0,
+                ..Default::default()
+            },
+        );
+        assert_eq!(runs.len(), 1);
+        assert_eq!(runs[0].b, DVec2::new(40.0, 0.0));
+    }
+
+    #[test]
+    fn parallel_edges_on_other_lines_do_not_merge() {
+        let edges = [
+            Occluder {
+                a: DVec2::new(0.0, 0.0),
+                b: DVec2::new(10.0, 0.0),
+                height: 5.0,
+            },
+            Occluder {
+                a: DVec2::new(10.0, 0.5),
+                b: DVec2::new(20.0, 0.5),
+                height: 5.0,
+            },
+        ];
+        assert!(merge_runs(&edges, &OccluderOptions::default()).is_empty());
+    }
+}

@@ -1,0 +1,461 @@
+//! The visibility oracle: a CPU z-buffer rasteriser that draws block ids, the ground truth the
+//! cull map is checked against, and a simple shaded fallback renderer.
+//!
+//! Triangles are transformed in f64, clipped against the near and far planes in homogeneous clip
+//! space, and sampled at pixel centres with a top-left style tie rule (a pixel centre on an edge
+//! shared by two triangles belongs to exactly one). Depth is `z/w`, which is affine in screen
+//! space, so interpolating it with screen barycentrics is exact. No back-face culling: a block
+//! counts as visible wherever any of its triangles wins the depth test.
+
+use crate::blocks::BlockId;
+use crate::city::Mesh;
+use crate::geom::Camera;
+use glam::{DVec3, DVec4};
+use rayon::prelude::*;
+use std::collections::BTreeSet;
+
+/// Id of a pixel that shows no block.
+pub const SKY: u32 = u32::MAX;
+
+/// Block ids and depths of an image, row-major from the top-left pixel.
+#[derive(Clone, Debug, PartialEq)]
+pub struct IdBuffer {
+    /// Width, pixels.
+    pub width: u32,
+    /// Height, pixels.
+    pub height: u32,
+    /// Block id per pixel ([`SKY`] where nothing was drawn).
+    pub ids: Vec<u32>,
+    /// Depth per pixel (`z/w` in `[0, 1]`, 1 = far plane / sky).
+    pub depth: Vec<f32>,
+}
+
+impl IdBuffer {
+    /// The set of blocks with at least one pixel.
+    pub fn visible(&self) -> BTreeSet<BlockId> {
+        let mut seen: Vec<u32> = self.ids.iter().copied().filter(|&i| i != SKY).collect();
+        seen.sort_unstable();
+        seen.dedup();
+        seen.into_iter().map(BlockId).collect()
+    }
+}
+
+#[derive(Clone, Copy, Debug)]
+struct ScreenTri {
+    p: [DVec3; 3],
+    id: u32,
+    color: [u8; 3],
+    ymin: i64,
+    ymax: i64,
+}
+
+fn clip_polygon(poly: &mut Vec<DVec4>, tmp: &mut Vec<DVec4>, dist: impl Fn(DVec4) -> f64) {
+    tmp.clear();
+    let n = poly.len();
+    for k in 0..n {
+        let a = poly[k];
+        let b = poly[(k + 1) % n];
+        let (da, db) = (dist(a), dist(b));
+        if da >= 0.0 {
+            tmp.push(a);
+        }
+        if (da >= 0.0) != (db >= 0.0) {
+            let t = da / (da - db);
+            tmp.push(a + (b - a) * t);
+        }
+    }
+    std::mem::swap(poly, tmp);
+}
+
+fn facade_color(n: DVec3, id: u32) -> [u8; 3] {
+    let light = DVec3::new(0.35, 0.55, 0.76).normalize();
+    let lambert = n.dot(light).abs() * 0.6 + 0.4;
+    // A small per-block tint so neighbours can be told apart.
+    let h = id.wrapping_mul(2654435761) >> 24;
+    let tint = (h % 32) as f64 / 255.0;
+    let base = if n.z.abs() > 0.7 {
+        [0.62 + tint, 0.36, 0.30]
+    } else {
+        [0.86, 0.80 - tint, 0.68]
+    };
+    base.map(|c| (c * lambert * 255.0).clamp(0.0, 255.0) as u8)
+}
+
+fn project(
+    blocks: &[(BlockId, &Mesh)],
+    camera: &Camera,
+    width: u32,
+    height: u32,
+) -> Vec<ScreenTri> {
+    let m = camera.clip_from_world();
+    let (w, h) = (width as f64, height as f64);
+    let mut out = Vec::new();
+    let mut poly = Vec::with_capacity(8);
+    let mut tmp = Vec::with_capacity(8);
+    for (id, mesh) in blocks {
+        for t in mesh.indices.chunks_exact(3) {
+            let Some(v) = t
+                .iter()
+                .map(|&i| mesh.positions.get(i as usize).map(|p| p.as_dvec3()))
+                .collect::<Option<Vec<_>>>()
+            else {
+                continue;
+            };
+            let c: Vec<DVec4> = v.iter().map(|p| m * p.extend(1.0)).collect();
+            // Trivially outside one side plane: skip.
+            if c.iter().all(|q| q.x > q.w)
+                || c.iter().all(|q| q.x < -q.w)
+                || c.iter().all(|q| q.y > q.w)
+                || c.iter().all(|q| q.y < -q.w)
+            {
+                continue;
+            }
+            poly.clear();
+            poly.extend_from_slice(&c);
+            clip_polygon(&mut poly, &mut tmp, |q| q.z); // near: z ≥ 0
+            if poly.len() < 3 {
+                continue;
+            }
+            clip_polygon(&mut poly, &mut tmp, |q| q.w - q.z); // far: z ≤ w
+            if poly.len() < 3 {
+                continue;
+            }
+            let n = (v[1] - v[0]).cross(v[2] - v[0]).normalize_or_zero();
+            let color = facade_color(n, id.0);
+            let s: Vec<DVec3> = poly
+                .iter()
+                .map(|q| {
+                    DVec3::new(
+                        (q.x / q.w + 1.0) * 0.5 * w,
+                        (1.0 - q.y / q.w) * 0.5 * h,
+                        q.z / q.w,
+                    )
+                })
+                .collect();
+            for k in 1..s.len() - 1 {
+                let p = [s[0], s[k], s[k + 1]];
+                let ymin = p.iter().map(|q| q.y).fold(f64::INFINITY, f64::min);
+                let ymax = p.iter().map(|q| q.y).fold(f64::NEG_INFINITY, f64::max);
+                if !(ymin.is_finite() && ymax.is_finite()) {
+                    continue;
+                }
+                out.push(ScreenTri {
+                    p,
+                    id: id.0,
+                    color,
+                    ymin: (ymin - 0.5).ceil().max(0.0) as i64,
+                    ymax: ((ymax - 0.5).floor()).min(h - 1.0) as i64,
+                });
+            }
+        }
+    }
+    out
+}
+
+#[inline]
+fn edge(a: DVec3, b: DVec3, px: f64, py: f64) -> f64 {
+    (b.x - a.x) * (py - a.y) - (b.y - a.y) * (px - a.x)
+}
+
+/// Owns a pixel centre lying exactly on the edge `a → b`: exactly one of the two directions of a
+/// shared edge does.
+#[inline]
+fn owns_tie(a: DVec3, b: DVec3) -> bool {
+    let d = b - a;
+    d.y > 0.0 || (d.y == 0.0 && d.x < 0.0)
+}
+
+fn raster(
+    tris: &[ScreenTri],
+    width: u32,
+    mut colors: Option<&mut [[u8; 3]]>,
+    ids: &mut [u32],
+    depth: &mut [f32],
+    row0: usize,
+) {
+    let w = width as usize;
+    let rows = ids.len() / w.max(1);
+    let (r0, r1) = (row0 as i64, (row0 + rows) as i64 - 1);
+    for t in tris {
+        if t.ymax < r0 || t.ymin > r1 {
+            continue;
+        }
+        let mut p = t.p;
+        let mut area = edge(p[0], p[1], p[2].x, p[2].y);
+        if area == 0.0 || !area.is_finite() {
+            continue;
+        }
+        if area < 0.0 {
+            p.swap(1, 2);
+            area = -area;
+        }
+        let xmin = p.iter().map(|q| q.x).fold(f64::INFINITY, f64::min);
+        let xmax = p.iter().map(|q| q.x).fold(f64::NEG_INFINITY, f64::max);
+        let x0 = ((xmin - 0.5).ceil().max(0.0)) as i64;
+        let x1 = ((xmax - 0.5).floor().min(width as f64 - 1.0)) as i64;
+        let tie = [
+            owns_tie(p[1], p[2]),
+            owns_tie(p[2], p[0]),
+            owns_tie(p[0], p[1]),
+        ];
+        for y in t.ymin.max(r0)..=t.ymax.min(r1) {
+            let py = y as f64 + 0.5;
+            let row = (y - r0) as usize * w;
+            for x in x0..=x1 {
+                let px = x as f64 + 0.5;
+                let e0 = edge(p[1], p[2], px, py);
+                let e1 = edge(p[2], p[0], px, py);
+                let e2 = edge(p[0], p[1], px, py);
+                let inside = (e0 > 0.0 || (e0 == 0.0 && tie[0]))
+                    && (e1 > 0.0 || (e1 == 0.0 && tie[1]))
+                    && (e2 > 0.0 || (e2 == 0.0 && tie[2]));
+                if !inside {
+                    continue;
+                }
+                let z = ((e0 * p[0].z + e1 * p[1].z + e2 * p[2].z) / area) as f32;
+                let k = row + x as usize;
+                if z < depth[k] {
+                    depth[k] = z;
+                    ids[k] = t.id;
+                    if let Some(c) = colors.as_deref_mut() {
+                        c[k] = t.color;
+                    }
+                }
+            }
+        }
+    }
+}
+
+const BAND: usize = 16;
+
+fn render(
+    blocks: &[(BlockId, &Mesh)],
+    camera: &Camera,
+    width: u32,
+    height: u32,
+    with_color: bool,
+) -> (IdBuffer, Vec<[u8; 3]>) {
+    let tris = project(blocks, camera, width, height);
+    let n = width as usize * height as usize;
+    let mut ids = vec![SKY; n];
+    let mut depth = vec![1.0f32; n];
+    let mut colors = vec![[0u8; 3]; if with_color { n } else { 0 }];
+    let band = BAND * width as usize;
+    if n > 0 {
+        if with_color {
+            ids.par_chunks_mut(band)
+                .zip(depth.par_chunks_mut(band))
+                .zip(colors.par_chunks_mut(band))
+                .enumerate()
+                .for_each(|(b, ((i, d), c))| raster(&tris, width, Some(c), i, d, b * BAND));
+        } else {
+            ids.par_chunks_mut(band)
+                .zip(depth.par_chunks_mut(band))
+                .enumerate()
+                .for_each(|(b, (i, d))| raster(&tris, width, None, i, d, b * BAND));
+        }
+    }
+    (
+        IdBuffer {
+            width,
+            height,
+            ids,
+            depth,
+        },
+        colors,
+    )
+}
+
+/// Draws the blocks' meshes (local frame) seen by `camera` into an id and depth buffer.
+pub fn render_ids(
+    blocks: &[(BlockId, &Mesh)],
+    camera: &Camera,
+    width: u32,
+    height: u32,
+) -> IdBuffer {
+    render(blocks, camera, width, height, false).0
+}
+
+/// The blocks with at least one pixel in a `width × height` image from `camera`: the visibility
+/// ground truth at that resolution.
+pub fn visible_blocks(
+    blocks: &[(BlockId, &Mesh)],
+    camera: &Camera,
+    width: u32,
+    height: u32,
+) -> BTreeSet<BlockId> {
+    render_ids(blocks, camera, width, height).visible()
+}
+
+/// A shaded image of the blocks: roofs and facades coloured by their normal with one directional
+/// light, a sky gradient behind. A fallback for drawing frames without a GPU.
+pub fn shade(
+    blocks: &[(BlockId, &Mesh)],
+    camera: &Camera,
+    width: u32,
+    height: u32,
+) -> image::RgbaImage {
+    let (buf, colors) = render(blocks, camera, width, height, true);
+    let mut img = image::RgbaImage::new(width, height);
+    for (k, px) in img.pixels_mut().enumerate() {
+        if buf.ids[k] == SKY {
+            let y = (k / width as usize) as f64 / height.max(1) as f64;
+            let c = |top: f64, bottom: f64| (top + (bottom - top) * y) as u8;
+            *px = image::Rgba([c(110.0, 200.0), c(160.0, 220.0), c(230.0, 245.0), 255]);
+        } else {
+            let [r, g, b] = colors[k];
+            *px = image::Rgba([r, g, b, 255]);
+        }
+    }
+    img
+}
+
+/// A closed box mesh (12 triangles, outward normals) in the local frame: a test and fallback
+/// primitive.
+pub fn box_mesh(min: glam::Vec3, max: glam::Vec3) -> Mesh {
+    use glam::Vec3;
+    let mut m = Mesh::default();
+    let faces: [(Vec3, [Vec3; 4]); 6] = {
+        let (a, b) = (min, max);
+        let p = |x: f32, y: f32, z: f32| Vec3::new(x, y, z);
+        [
+            (
+                Vec3::NEG_X,
+                [
+                    p(a.x, a.y, a.z),
+                    p(a.x, a.y, b.z),
+                    p(a.x, b.y, b.z),
+                    p(a.x, b.y, a.z),
+                ],
+            ),
+            (
+                Vec3::X,
+                [
+                    p(b.x, a.y, a.z),
+                    p(b.x, b.y, a.z),
+                    p(b.x, b.y, b.z),
+                    p(b.x, a.y, b.z),
+                ],
+            ),
+            (
+                Vec3::NEG_Y,
+                [
+                    p(a.x, a.y, a.z),
+                    p(b.x, a.y, a.z),
+                    p(b.x, a.y, b.z),
+                    p(a.x, a.y, b.z),
+                ],
+            ),
+            (
+                Vec3::Y,
+                [
+                    p(a.x, b.y, a.z),
+                    p(a.x, b.y, b.z),
+                    p(b.x, b.y, b.z),
+                    p(b.x, b.y, a.z),
+                ],
+            ),
+            (
+                Vec3::NEG_Z,
+                [
+                    p(a.x, a.y, a.z),
+                    p(a.x, b.y, a.z),
+                    p(b.x, b.y, a.z),
+                    p(b.x, a.y, a.z),
+                ],
+            ),
+            (
+                Vec3::Z,
+                [
+                    p(a.x, a.y, b.z),
+                    p(b.x, a.y, b.z),
+                    p(b.x, b.y, b.z),
+                    p(a.x, b.y, b.z),
+                ],
+            ),
+        ]
+    };
+    for (n, q) in faces {
+        let base = m.positions.len() as u32;
+        m.positions.extend_from_slice(&q);
+        m.normals.extend_from_slice(&[n; 4]);
+        m.indices
+            .extend_from_slice(&[base, base + 1, base + 2, base, base + 2, base + 3]);
+    }
+    m
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use glam::Vec3;
+
+    #[test]
+    fn box_mesh_is_outward() {
+        let m = box_mesh(Vec3::ZERO, Vec3::ONE);
+        let c = Vec3::splat(0.5);
+        for t in m.indices.chunks(3) {
+            let p: Vec<Vec3> = t.iter().map(|&i| m.positions[i as usize]).collect();
+            let n = (p[1] - p[0]).cross(p[2] - p[0]);
+            assert!(n.dot(p[0] - c) > 0.0);
+        }
+    }
+
+    #[test]
+    fn near_box_hides_far_box_and_sky_stays_sky() {
+        let near = box_mesh(Vec3::new(10.0, -20.0, 0.0), Vec3::new(12.0, 20.0, 30.0));
+        let far = box_mesh(Vec3::new(30.0, -5.0, 0.0), Vec3::new(35.0, 5.0, 10.0));
+        let tall = box_mesh(Vec3::new(30.0, 30.0, 0.0), Vec3::new(35.0, 35.0, 10.0));
+        let cam = Camera::new(DVec3::new(0.0, 0.0, 1.7), 0.0, 0.0);
+        let blocks = [(BlockId(0), &near), (BlockId(1), &far), (BlockId(2), &tall)];
+        let buf = render_ids(&blocks, &cam, 160, 90);
+        let vis = buf.visible();
+        assert!(vis.contains(&BlockId(0)));
+        assert!(!vis.contains(&BlockId(1)), "hidden behind the wall");
+        // The top row is wall (its top is 71° above the horizon, beyond the 30° half-fov); the
+        // bottom row is sky (no ground; the wall's foot is 9.6° below the horizon).
+        assert_eq!(buf.ids[0], 0);
+        assert_eq!(buf.ids[(89 * 160) as usize], SKY);
+        // Without the wall, the far box shows.
+        let vis2 = visible_blocks(&blocks[1..], &cam, 160, 90);
+        assert!(vis2.contains(&BlockId(1)));
+        // The centre pixel's depth matches the wall's distance: view z = -10.
+        let k = (45 * 160 + 80) as usize;
+        let (n, f) = (cam.near, cam.far);
+        let expect = f / (n - f) * (-10.0 + n) / 10.0;
+        assert!(
+            ((buf.depth[k] as f64) - (-expect)).abs() < 1e-3
+                || ((buf.depth[k] as f64) - expect).abs() < 1e-3,
+            "{}",
+            buf.depth[k]
+        );
+    }
+
+    #[test]
+    fn shared_edges_leave_no_cracks_and_no_double_pixels() {
+        // A wall made of two boxes side by side: no sky pixel may appear on the seam.
+        let a = box_mesh(Vec3::new(10.0, -20.0, 0.0), Vec3::new(12.0, 0.0, 30.0));
+        let b = box_mesh(Vec3::new(10.0, 0.0, 0.0), Vec3::new(12.0, 20.0, 30.0));
+        let cam = Camera::new(DVec3::new(0.0, 0.3, 1.7), 0.0, 0.0);
+        let buf = render_ids(&[(BlockId(0), &a), (BlockId(1), &b)], &cam, 320, 180);
+        // The upper half of the image (0° to 30° up) sees only the wall, across the seam.
+        let upper = &buf.ids[..(90 * 320)];
+        assert!(upper.iter().all(|&i| i != SKY));
+        assert!(upper.contains(&0) && upper.contains(&1));
+    }
+
+    #[test]
+    fn near_plane_clipping_keeps_geometry_crossing_the_eye() {
+        // A long wall beside the viewer, starting behind the eye: must be drawn, without NaN.
+        let wall = box_mesh(Vec3::new(-50.0, 3.0, 0.0), Vec3::new(50.0, 4.0, 10.0));
+        let cam = Camera::new(DVec3::new(0.0, 0.0, 1.7), 0.3, 0.0);
+        let buf = render_ids(&[(BlockId(7), &wall)], &cam, 64, 36);
+        assert!(buf.visible().contains(&BlockId(7)));
+        assert!(buf
+            .depth
+            .iter()
+            .all(|d| d.is_finite() && (0.0..=1.0).contains(d)));
+        let img = shade(&[(BlockId(7), &wall)], &cam, 64, 36);
+        assert_eq!(img.dimensions(), (64, 36));
+    }
+}

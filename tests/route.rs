@@ -1,0 +1,351 @@
+//! Camera routes: interpolation, continuity, poles, determinism, files, generated routes.
+
+use blockwalk::city::LocalFrame;
+use blockwalk::geom::{Aabb3, Camera};
+use blockwalk::route::file::RouteFile;
+use blockwalk::route::{
+    orbit_route, paper_route, street_walk, CameraRoute, FrameSpec, KeyFrame, Lens,
+    PaperRouteParams, StreetGraph,
+};
+use geo_types::LineString;
+use glam::{DVec2, DVec3};
+use proptest::prelude::*;
+use std::f64::consts::FRAC_PI_2;
+
+fn routes_dir() -> std::path::PathBuf {
+    std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("examples/routes")
+}
+
+fn zigzag() -> CameraRoute {
+    let keys = vec![
+        KeyFrame::new(0.0, DVec3::new(0.0, 0.0, 2.0), 0.0, 0.0),
+        KeyFrame::new(1.0, DVec3::new(10.0, 3.0, 2.0), 0.5, 0.1),
+        KeyFrame::new(3.0, DVec3::new(20.0, -5.0, 30.0), 1.5, -FRAC_PI_2),
+        KeyFrame::new(4.0, DVec3::new(25.0, 0.0, 60.0), 2.5, -FRAC_PI_2),
+        KeyFrame::new(6.0, DVec3::new(40.0, 40.0, 1.7), -2.0, -0.5),
+    ];
+    CameraRoute::new("zigzag", keys, Lens::default()).unwrap()
+}
+
+fn same_direction(a: &Camera, b: &Camera) -> bool {
+    a.forward().distance(b.forward()) < 1e-9 && a.up().distance(b.up()) < 1e-9
+}
+
+#[test]
+fn passes_through_every_key_frame() {
+    let r = zigzag();
+    for k in r.keys() {
+        let c = r.camera_at(k.time);
+        assert!(c.position.distance(k.position) < 1e-9, "{k:?} → {c:?}");
+        let (yaw, pitch) = blockwalk::route::yaw_pitch_from_orientation(k.orientation);
+        let expect = Camera::new(k.position, yaw, pitch);
+        assert!(same_direction(&c, &expect), "{k:?} → {c:?}");
+    }
+}
+
+#[test]
+fn positions_and_directions_are_continuous() {
+    let r = zigzag();
+    let n = 6001;
+    let cams = r.sample(n);
+    assert_eq!(cams.len(), n);
+    // A bound on the speed of this route (its chords are at most ~40 m per second of route
+    // time, the spline overshoots little): 6 s / 6000 steps moves well under 0.5 m and turns
+    // well under 2°.
+    for w in cams.windows(2) {
+        assert!(w[0].position.distance(w[1].position) < 0.5);
+        let turn = w[0].forward().dot(w[1].forward()).clamp(-1.0, 1.0).acos();
+        assert!(turn < 2f64.to_radians(), "turn {turn} at {:?}", w[0]);
+        let roll = w[0].up().dot(w[1].up()).clamp(-1.0, 1.0).acos();
+        assert!(roll < 2f64.to_radians(), "image-up jumps at {:?}", w[0]);
+    }
+}
+
+#[test]
+fn looking_straight_down_never_produces_nan_or_flips() {
+    // Two keys straight down with different headings, and a pass through the pole.
+    let keys = vec![
+        KeyFrame::new(0.0, DVec3::new(0.0, 0.0, 100.0), 0.3, -FRAC_PI_2),
+        // A corner: the turn from straight down towards the horizon starts here, so the first
+        // segment only spins about the vertical.
+        KeyFrame::new(1.0, DVec3::new(0.0, 0.0, 50.0), 2.0, -FRAC_PI_2).corner(),
+        KeyFrame::new(2.0, DVec3::new(0.0, 0.0, 10.0), 2.0, -0.2),
+        KeyFrame::new(
+            3.0,
+            DVec3::new(0.0, 0.0, 10.0),
+            2.0 + std::f64::consts::PI,
+            -0.2,
+        ),
+    ];
+    let r = CameraRoute::new("pole", keys, Lens::default()).unwrap();
+    let cams = r.sample(3001);
+    for c in &cams {
+        let m = c.clip_from_world();
+        assert!(m.to_cols_array().iter().all(|v| v.is_finite()), "{c:?}");
+        assert!(c.yaw.is_finite() && c.pitch.is_finite());
+        assert!(c.pitch >= -FRAC_PI_2 - 1e-12 && c.pitch <= FRAC_PI_2 + 1e-12);
+    }
+    for w in cams[..1000].windows(2) {
+        // While looking straight down the image-up vector turns smoothly with the heading.
+        assert!((w[0].forward().z + 1.0).abs() < 1e-9);
+        assert!(w[0].up().dot(w[1].up()) > 0.999, "flip at {:?}", w[0]);
+    }
+    assert!(
+        cams[0]
+            .up()
+            .distance(DVec3::new(0.3f64.cos(), 0.3f64.sin(), 0.0))
+            < 1e-9
+    );
+}
+
+#[test]
+fn sampling_is_deterministic_and_counts_frames() {
+    let a = zigzag().sample(300);
+    let b = zigzag().sample(300);
+    assert_eq!(a, b);
+    assert_eq!(zigzag().sample(1).len(), 1);
+    assert!(zigzag().sample(0).is_empty());
+    // 6 s at 10 fps: frames 0..=60.
+    assert_eq!(zigzag().sample_rate(10.0).len(), 61);
+}
+
+#[test]
+fn bad_routes_are_refused_with_reasons() {
+    let one = vec![KeyFrame::new(0.0, DVec3::ZERO, 0.0, 0.0)];
+    assert!(CameraRoute::new("x", one, Lens::default())
+        .unwrap_err()
+        .to_string()
+        .contains("at least 2"));
+    let back = vec![
+        KeyFrame::new(1.0, DVec3::ZERO, 0.0, 0.0),
+        KeyFrame::new(0.5, DVec3::X, 0.0, 0.0),
+    ];
+    let e = CameraRoute::new("x", back, Lens::default())
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("key frame 1"), "{e}");
+    let nan = vec![
+        KeyFrame::new(0.0, DVec3::ZERO, 0.0, 0.0),
+        KeyFrame::new(1.0, DVec3::new(f64::NAN, 0.0, 0.0), 0.0, 0.0),
+    ];
+    assert!(CameraRoute::new("x", nan, Lens::default()).is_err());
+}
+
+#[test]
+fn example_route_files_load_and_sample() {
+    for name in ["avenue.toml", "flyover.toml", "flyover.json"] {
+        let f = RouteFile::read(&routes_dir().join(name)).unwrap();
+        let r = f.to_route(None).unwrap();
+        let cams = r.sample_by(f.frame_spec());
+        assert!(cams.len() > 10, "{name}");
+        assert!(cams
+            .iter()
+            .all(|c| c.position.is_finite() && c.yaw.is_finite()));
+        assert!(cams[0].position.distance(r.keys()[0].position) < 1e-9);
+    }
+    // avenue: times from speed; 100 m at 1.4 m/s then 50 m at 1 m/s, then a 45°+25° turn in
+    // place at 45°/s.
+    let f = RouteFile::read(&routes_dir().join("avenue.toml")).unwrap();
+    let r = f.to_route(None).unwrap();
+    assert!((r.keys()[1].time - 100.0 / 1.4).abs() < 1e-9);
+    assert!((r.keys()[2].time - (100.0 / 1.4 + 50.0)).abs() < 1e-9);
+    assert_eq!(f.frame_spec(), FrameSpec::Count(120));
+}
+
+#[test]
+fn route_file_errors_name_the_problem() {
+    let both = r#"
+        [[keys]]
+        position = [0.0, 0.0, 1.0]
+        look_at = [1.0, 0.0, 1.0]
+        yaw_deg = 3.0
+        [[keys]]
+        position = [1.0, 0.0, 1.0]
+        yaw_deg = 0.0
+    "#;
+    let e = RouteFile::from_toml(both)
+        .unwrap()
+        .to_route(None)
+        .unwrap_err();
+    assert!(e.to_string().contains("key frame 0") && e.to_string().contains("not both"));
+    let world = r#"
+        frame = "world"
+        [[keys]]
+        position = [0.0, 0.0, 1.0]
+        yaw_deg = 0.0
+        [[keys]]
+        position = [1.0, 0.0, 1.0]
+        yaw_deg = 0.0
+    "#;
+    let f = RouteFile::from_toml(world).unwrap();
+    assert!(f.to_route(None).unwrap_err().to_string().contains("world"));
+    let frame = LocalFrame {
+        origin: DVec3::new(500.0, 600.0, 0.0),
+    };
+    let r = f.to_route(Some(&frame)).unwrap();
+    assert_eq!(r.keys()[0].position, DVec3::new(-500.0, -600.0, 1.0));
+    assert!(RouteFile::from_toml("keys = 3").is_err());
+    let unknown = "nmae = \"x\"\nkeys = []";
+    assert!(RouteFile::from_toml(unknown).is_err());
+}
+
+#[test]
+fn route_file_round_trips_a_generated_route() {
+    let r = zigzag();
+    let f = RouteFile::from_route(&r, Some(50));
+    let text = toml::to_string(&f).unwrap();
+    let back = RouteFile::from_toml(&text).unwrap().to_route(None).unwrap();
+    for (a, b) in r.sample(50).iter().zip(back.sample(50).iter()) {
+        assert!(a.position.distance(b.position) < 1e-6);
+        assert!(same_direction_loose(a, b));
+    }
+}
+
+fn same_direction_loose(a: &Camera, b: &Camera) -> bool {
+    a.forward().distance(b.forward()) < 1e-6 && a.up().distance(b.up()) < 1e-6
+}
+
+/// A grid of streets 100 m apart over [0, 400]² world metres, origin at (200, 200).
+fn grid() -> (Vec<LineString<f64>>, LocalFrame) {
+    let mut lines = Vec::new();
+    for i in 0..5 {
+        let v = 100.0 * i as f64;
+        lines.push(LineString::from(
+            (0..5).map(|j| (v, 100.0 * j as f64)).collect::<Vec<_>>(),
+        ));
+        lines.push(LineString::from(
+            (0..5).map(|j| (100.0 * j as f64, v)).collect::<Vec<_>>(),
+        ));
+    }
+    let frame = LocalFrame {
+        origin: DVec3::new(200.0, 200.0, 0.0),
+    };
+    (lines, frame)
+}
+
+#[test]
+fn paper_route_walks_streets_rises_and_lands() {
+    let (lines, frame) = grid();
+    let g = StreetGraph::from_world_lines(&lines, &frame);
+    let bounds = Aabb3::new(
+        DVec3::new(-200.0, -200.0, 0.0),
+        DVec3::new(200.0, 200.0, 40.0),
+    );
+    let p = PaperRouteParams::default();
+    let r = paper_route(&bounds, Some(&g), &p, Lens::default()).unwrap();
+    let cams = r.sample(300);
+    // Starts outside the box at eye height.
+    assert!(cams[0].position.y < bounds.min.y);
+    assert!((cams[0].position.z - p.eye_height).abs() < 1e-9);
+    // The walk's keys lie on streets (grid lines): x or y a multiple of 100 (local -200..200).
+    let walk_end = r.keys().iter().position(|k| k.corner).unwrap();
+    for k in &r.keys()[1..=walk_end] {
+        let on = |v: f64| ((v + 200.0) / 100.0 - ((v + 200.0) / 100.0).round()).abs() < 1e-9;
+        assert!(on(k.position.x) || on(k.position.y), "{k:?}");
+        assert!((k.position.z - p.eye_height).abs() < 1e-9);
+    }
+    // The walk ends at the street node nearest the centre: (0, 0).
+    assert!(r.keys()[walk_end].position.truncate().length() < 1e-9);
+    // The top of the rise is right above it, above the roofs, looking straight down.
+    let top = r.keys()[walk_end + 1];
+    assert!(top.position.truncate().length() < 1e-9);
+    assert!(top.position.z > bounds.max.z);
+    let c = r.camera_at(top.time);
+    assert!((c.forward().z + 1.0).abs() < 1e-9);
+    // The rise is vertical: every frame between the walk's end and the top is above (0, 0).
+    let (t0, t1) = (r.keys()[walk_end].time, top.time);
+    for i in 0..=50 {
+        let c = r.camera_at(t0 + (t1 - t0) * i as f64 / 50.0);
+        assert!(c.position.truncate().length() < 1e-9, "{c:?}");
+    }
+    // Lands at eye height away from the centre, looking down.
+    let last = cams.last().unwrap();
+    assert!((last.position.z - p.eye_height).abs() < 1e-9);
+    assert!(last.position.truncate().length() > 50.0);
+    assert!(last.forward().z < -0.5);
+    // The walk takes the street path: its length is the Manhattan distance from the entry node.
+    let walk: f64 = r.keys()[1..=walk_end]
+        .windows(2)
+        .map(|w| w[0].position.distance(w[1].position))
+        .sum();
+    assert!((walk - 200.0).abs() < 1e-6, "walk {walk}");
+    assert!(cams
+        .iter()
+        .all(|c| c.position.is_finite() && c.yaw.is_finite()));
+}
+
+#[test]
+fn paper_route_without_streets_goes_straight_in() {
+    let bounds = Aabb3::new(
+        DVec3::new(-100.0, -50.0, 0.0),
+        DVec3::new(100.0, 50.0, 20.0),
+    );
+    let r = paper_route(&bounds, None, &PaperRouteParams::default(), Lens::default()).unwrap();
+    assert_eq!(r.keys()[1].position.truncate(), DVec2::ZERO);
+    assert!(paper_route(
+        &Aabb3::EMPTY,
+        None,
+        &PaperRouteParams::default(),
+        Lens::default()
+    )
+    .is_err());
+}
+
+#[test]
+fn street_walk_and_orbit() {
+    let (lines, frame) = grid();
+    let g = StreetGraph::from_world_lines(&lines, &frame);
+    let r = street_walk(
+        &g,
+        DVec2::new(-190.0, -190.0),
+        DVec2::new(190.0, 110.0),
+        1.7,
+        1.4,
+        Lens::default(),
+    )
+    .unwrap();
+    // From (-200,-200) to (200,100): 700 m at 1.4 m/s.
+    assert!((r.duration() - 700.0 / 1.4).abs() < 1e-6);
+    let bounds = Aabb3::new(
+        DVec3::new(-200.0, -200.0, 0.0),
+        DVec3::new(200.0, 200.0, 40.0),
+    );
+    let o = orbit_route(&bounds, 1.5, 100.0, 60.0, Lens::default()).unwrap();
+    for c in o.sample(97) {
+        // Always at the orbit height, roughly at the radius, looking towards the centre.
+        assert!((c.position.z - 140.0).abs() < 1e-6);
+        let r = c.position.truncate().length();
+        assert!((r - 300.0).abs() < 5.0, "radius {r}");
+        let to_centre = (DVec3::ZERO - c.position).normalize();
+        assert!(c.forward().dot(to_centre) > 0.99);
+    }
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(64))]
+
+    /// Any random route hits its keys, stays finite and is reproducible.
+    #[test]
+    fn random_routes_hit_keys(
+        pts in prop::collection::vec(
+            ((-500.0f64..500.0, -500.0f64..500.0, 0.0f64..300.0), (-4.0f64..4.0, -1.6f64..1.6), 0.1f64..5.0),
+            2..8,
+        )
+    ) {
+        let mut t = 0.0;
+        let keys: Vec<KeyFrame> = pts.iter().map(|((x, y, z), (yaw, pitch), dt)| {
+            t += dt;
+            KeyFrame::new(t, DVec3::new(*x, *y, *z), *yaw, *pitch)
+        }).collect();
+        let r = CameraRoute::new("p", keys.clone(), Lens::default()).unwrap();
+        for k in &keys {
+            let c = r.camera_at(k.time);
+            prop_assert!(c.position.distance(k.position) < 1e-6);
+            let f = k.orientation * DVec3::X;
+            prop_assert!(c.forward().distance(f) < 1e-6);
+        }
+        let cams = r.sample(64);
+        prop_assert!(cams.iter().all(|c| c.position.is_finite() && c.yaw.is_finite() && c.pitch.is_finite()));
+        prop_assert_eq!(cams, r.sample(64));
+    }
+}
