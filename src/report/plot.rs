@@ -119,6 +119,18 @@ fn padded_range(values: impl Iterator<Item = f64>) -> (f64, f64) {
     (lo - pad, hi + pad)
 }
 
+/// Tick labels that stay readable from microseconds to millions of triangles.
+fn fmt_tick(v: &f64) -> String {
+    let a = v.abs();
+    if a == 0.0 || a >= 100.0 {
+        format!("{v:.0}")
+    } else if a >= 0.1 {
+        format!("{v:.2}")
+    } else {
+        format!("{v:.1e}")
+    }
+}
+
 fn draw<DB: DrawingBackend>(
     backend: DB,
     title: &str,
@@ -149,6 +161,8 @@ fn draw<DB: DrawingBackend>(
         .configure_mesh()
         .x_desc(x_label)
         .y_desc(y_label)
+        .x_label_formatter(&fmt_tick)
+        .y_label_formatter(&fmt_tick)
         .label_style(("sans-serif", 14))
         .draw()
         .map_err(e)?;
