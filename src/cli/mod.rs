@@ -39,7 +39,23 @@ enum Command {
 
 pub fn main() -> std::process::ExitCode {
     let cli = Cli::parse();
-    let result = match cli.command {
+    match dispatch(cli.command) {
+        Ok(()) => std::process::ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("error: {e:#}");
+            std::process::ExitCode::FAILURE
+        }
+    }
+}
+
+/// Runs a command line as if it had been typed (used by `demo`).
+fn run_argv(argv: &[String]) -> anyhow::Result<()> {
+    let cli = Cli::try_parse_from(argv)?;
+    dispatch(cli.command)
+}
+
+fn dispatch(command: Command) -> anyhow::Result<()> {
+    match command {
         Command::Import(a) => import::run(a),
         Command::Generate(a) => generate::run(a),
         Command::Blocks(a) => blocks::run(a),
@@ -47,12 +63,5 @@ pub fn main() -> std::process::ExitCode {
         Command::OcclusionBench(a) => occlusion_bench::run(a),
         Command::Walk(a) => walk::run(a),
         Command::Demo(a) => demo::run(a),
-    };
-    match result {
-        Ok(()) => std::process::ExitCode::SUCCESS,
-        Err(e) => {
-            eprintln!("error: {e:#}");
-            std::process::ExitCode::FAILURE
-        }
     }
 }
