@@ -294,6 +294,7 @@ pub fn robust_interior_point(poly: &Polygon<f64>) -> Option<Coord<f64>> {
 mod tests {
     use super::*;
     use geo_types::coord;
+    use geo_types::polygon;
 
     fn square() -> Vec<Coord<f64>> {
         vec![
