@@ -42,7 +42,7 @@ impl Default for CullerOptions {
             max_occluders: 256,
             skip_height_factor: 3.0,
             occluders: OccluderOptions::default(),
-            window_pad: 0.0,
+            window_pad: 60.0,
         }
     }
 }
