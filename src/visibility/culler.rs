@@ -30,7 +30,9 @@ pub struct CullerOptions {
     /// How occluders are extracted.
     pub occluders: OccluderOptions,
     /// Shadows are drawn only into cells within this many metres of the frustum's plan-view
-    /// footprint (boxes reaching further out are never hidden).
+    /// footprint (boxes reaching further out are never hidden). The default, 60 m, keeps blocks
+    /// that straddle the frustum's sides hideable: on the synthetic city it gives back the
+    /// effectiveness of drawing the whole map within 0.3 %.
     pub window_pad: f64,
 }
 
