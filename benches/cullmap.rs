@@ -5,7 +5,7 @@
 use blockwalk::visibility::bench::{
     block_bounds, random_views, BenchOptions, ListIndex, SyntheticCity, ViewKind,
 };
-use blockwalk::visibility::{CullerOptions, OcclusionCuller, Resolution};
+use blockwalk::visibility::{CullerOptions, OccluderShadow, OcclusionCuller, Resolution};
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion};
 use glam::DVec2;
 
@@ -44,6 +44,50 @@ fn cullmap(c: &mut Criterion) {
                 let st = culler.build(&views[k % views.len()].camera, &mut map);
                 k += 1;
                 st.cells_covered
+            })
+        });
+    }
+    g.finish();
+
+    // Shadow drawing alone, the span fill against the reference rasterisation (whole map, no
+    // window) and with the frustum window, for the first street view's occluders.
+    let cam = views[0].camera;
+    let mut occ = Vec::new();
+    base.select(&cam, &mut occ);
+    let shadows: Vec<OccluderShadow> = occ
+        .iter()
+        .filter_map(|o| OccluderShadow::new(cam.position, o).ok())
+        .collect();
+    let mut g = c.benchmark_group("cullmap_draw_shadows");
+    g.sample_size(10);
+    for res in [256u32, 1024] {
+        let mut map = base
+            .with_resolution(Resolution::Cells(res))
+            .unwrap()
+            .cull_map_for(&cam);
+        map.clear_window();
+        g.bench_with_input(BenchmarkId::new("reference", res), &res, |b, _| {
+            b.iter(|| {
+                map.clear();
+                shadows.iter().map(|s| map.draw_reference(s)).sum::<u64>()
+            })
+        });
+        g.bench_with_input(BenchmarkId::new("span_fill", res), &res, |b, _| {
+            b.iter(|| {
+                map.clear();
+                shadows.iter().map(|s| map.draw(s)).sum::<u64>()
+            })
+        });
+        let pts: Vec<DVec2> = cam
+            .frustum()
+            .corners()
+            .map(|c| c.iter().map(|p| p.truncate()).collect())
+            .unwrap_or_default();
+        map.set_window(&pts, base.options().window_pad);
+        g.bench_with_input(BenchmarkId::new("span_fill_window", res), &res, |b, _| {
+            b.iter(|| {
+                map.clear();
+                shadows.iter().map(|s| map.draw(s)).sum::<u64>()
             })
         });
     }

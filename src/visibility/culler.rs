@@ -29,6 +29,11 @@ pub struct CullerOptions {
     pub skip_height_factor: f64,
     /// How occluders are extracted.
     pub occluders: OccluderOptions,
+    /// Shadows are drawn only into cells within this many metres of the frustum's plan-view
+    /// footprint (boxes reaching further out are never hidden). The default, 60 m, keeps blocks
+    /// that straddle the frustum's sides hideable: on the synthetic city it gives back the
+    /// effectiveness of drawing the whole map within 0.3 %.
+    pub window_pad: f64,
 }
 
 impl Default for CullerOptions {
@@ -39,6 +44,7 @@ impl Default for CullerOptions {
             max_occluders: 256,
             skip_height_factor: 3.0,
             occluders: OccluderOptions::default(),
+            window_pad: 60.0,
         }
     }
 }
@@ -236,6 +242,15 @@ impl OcclusionCuller {
     pub fn build(&self, camera: &Camera, map: &mut CullMap) -> OcclusionStats {
         let t0 = Instant::now();
         map.clear();
+        // Shadows are drawn only over the frustum's plan-view footprint (its eight corners'
+        // hull); without corners (a degenerate frustum) the whole map is used.
+        match camera.frustum().corners() {
+            Some(c) => {
+                let pts: Vec<DVec2> = c.iter().map(|p| p.truncate()).collect();
+                map.set_window(&pts, self.opts.window_pad);
+            }
+            None => map.clear_window(),
+        }
         let mut occ = Vec::new();
         let (candidates, skipped) = self.select(camera, &mut occ);
         let mut st = OcclusionStats {

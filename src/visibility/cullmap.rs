@@ -81,6 +81,26 @@ impl Grid {
         self.origin.y + j as f64 * self.cell
     }
 
+    /// The cell columns `[i0, i1)` whose both boundaries lie in `[lo, hi]` (exactly, after the
+    /// rounding of [`Grid::x`]); `None` when there are none.
+    pub fn columns_within(&self, lo: f64, hi: f64) -> Option<(usize, usize)> {
+        let mut i0 = ((lo - self.origin.x) / self.cell).ceil().max(0.0) as usize;
+        while i0 > 0 && self.x(i0 - 1) >= lo {
+            i0 -= 1;
+        }
+        while i0 <= self.nx && self.x(i0) < lo {
+            i0 += 1;
+        }
+        let mut i1 = (((hi - self.origin.x) / self.cell).floor().max(0.0) as usize).min(self.nx);
+        while i1 < self.nx && self.x(i1 + 1) <= hi {
+            i1 += 1;
+        }
+        while i1 > 0 && self.x(i1) > hi {
+            i1 -= 1;
+        }
+        (i1 > i0 && self.x(i1) <= hi).then_some((i0, i1))
+    }
+
     /// The upper-right corner.
     pub fn max(&self) -> DVec2 {
         DVec2::new(self.x(self.nx), self.y(self.ny))
@@ -144,6 +164,132 @@ pub struct CullMap {
     margin: f64,
     /// Amount subtracted from every plane height before it is stored, metres.
     height_margin: f64,
+    /// Cells that [`CullMap::draw`] may write (its bounding box).
+    window: CellRect,
+    /// Per row, the columns `[i0, i1)` of the window.
+    row_window: Vec<(usize, usize)>,
+    /// Bounding box of the cells written since the last [`CullMap::clear`].
+    dirty: CellRect,
+    /// Bounding box of the cells above −∞ in the pyramid's levels.
+    built: CellRect,
+}
+
+/// A half-open rectangle of cells `[i0, i1) × [j0, j1)`; empty when `i0 >= i1` or `j0 >= j1`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+struct CellRect {
+    i0: usize,
+    i1: usize,
+    j0: usize,
+    j1: usize,
+}
+
+impl CellRect {
+    const EMPTY: Self = Self {
+        i0: usize::MAX,
+        i1: 0,
+        j0: usize::MAX,
+        j1: 0,
+    };
+
+    fn full(g: &Grid) -> Self {
+        Self {
+            i0: 0,
+            i1: g.nx,
+            j0: 0,
+            j1: g.ny,
+        }
+    }
+
+    fn is_empty(&self) -> bool {
+        self.i0 >= self.i1 || self.j0 >= self.j1
+    }
+
+    #[inline]
+    fn include(&mut self, i0: usize, i1: usize, j: usize) {
+        self.i0 = self.i0.min(i0);
+        self.i1 = self.i1.max(i1);
+        self.j0 = self.j0.min(j);
+        self.j1 = self.j1.max(j + 1);
+    }
+
+    fn union(&self, o: &Self) -> Self {
+        if self.is_empty() {
+            return *o;
+        }
+        if o.is_empty() {
+            return *self;
+        }
+        Self {
+            i0: self.i0.min(o.i0),
+            i1: self.i1.max(o.i1),
+            j0: self.j0.min(o.j0),
+            j1: self.j1.max(o.j1),
+        }
+    }
+}
+
+/// The y-range of the shadow's region (without margin) clipped to the box `[min, max]`, by
+/// clipping the box's outline with each half-plane; `None` when nothing is left.
+fn region_y_range(s: &OccluderShadow, min: DVec2, max: DVec2) -> Option<(f64, f64)> {
+    let mut poly: Vec<DVec2> = vec![min, DVec2::new(max.x, min.y), max, DVec2::new(min.x, max.y)];
+    let mut next = Vec::with_capacity(8);
+    for h in &s.region {
+        if h.c == f64::INFINITY {
+            continue;
+        }
+        next.clear();
+        for k in 0..poly.len() {
+            let (p, q) = (poly[k], poly[(k + 1) % poly.len()]);
+            let (dp, dq) = (h.eval(p), h.eval(q));
+            if dp >= 0.0 {
+                next.push(p);
+            }
+            if (dp >= 0.0) != (dq >= 0.0) {
+                let t = dp / (dp - dq);
+                if t.is_finite() {
+                    next.push(p + (q - p) * t.clamp(0.0, 1.0));
+                }
+            }
+        }
+        std::mem::swap(&mut poly, &mut next);
+        if poly.is_empty() {
+            return None;
+        }
+    }
+    let (lo, hi) = poly
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), p| {
+            (a.min(p.y), b.max(p.y))
+        });
+    (lo <= hi).then_some((lo, hi))
+}
+
+/// Convex hull (counter-clockwise, no repeated first point) of the finite points.
+fn convex_hull(points: &[DVec2]) -> Vec<DVec2> {
+    let mut p: Vec<DVec2> = points.iter().copied().filter(|p| p.is_finite()).collect();
+    p.sort_by(|a, b| a.x.total_cmp(&b.x).then(a.y.total_cmp(&b.y)));
+    p.dedup();
+    if p.len() < 3 {
+        return p;
+    }
+    let turn = |o: DVec2, a: DVec2, b: DVec2| (a - o).perp_dot(b - o);
+    let mut h: Vec<DVec2> = Vec::with_capacity(2 * p.len());
+    for pass in 0..2 {
+        let start = h.len();
+        let iter: Box<dyn Iterator<Item = &DVec2>> = if pass == 0 {
+            Box::new(p.iter())
+        } else {
+            Box::new(p.iter().rev())
+        };
+        for &q in iter {
+            while h.len() >= start + 2 && turn(h[h.len() - 2], h[h.len() - 1], q) <= 0.0 {
+                h.pop();
+            }
+            h.push(q);
+        }
+        h.pop();
+    }
+    h
 }
 
 impl CullMap {
@@ -158,7 +304,60 @@ impl CullMap {
             grid,
             margin: 1e-9 * scale + 1e-7,
             height_margin: 1e-4,
+            window: CellRect::full(&grid),
+            row_window: vec![(0, grid.nx); grid.ny],
+            dirty: CellRect::full(&grid),
+            built: CellRect::full(&grid),
         })
+    }
+
+    /// Lets [`CullMap::draw`] write every cell (the default).
+    pub fn clear_window(&mut self) {
+        let g = self.grid;
+        self.window = CellRect::full(&g);
+        self.row_window.fill((0, g.nx));
+    }
+
+    /// Restricts [`CullMap::draw`] to the cells that meet the convex hull of `points` grown by
+    /// `pad` metres (the frustum's plan-view footprint, seed 004 §3.2.4: cells nobody looks at
+    /// need no shadow). Drawing fewer cells only ever hides less, so any window is conservative;
+    /// boxes that stick out of the window are not hidden.
+    pub fn set_window(&mut self, points: &[DVec2], pad: f64) {
+        let g = self.grid;
+        let hull = convex_hull(points);
+        let pad = if pad.is_finite() { pad.max(0.0) } else { 0.0 };
+        self.window = CellRect::EMPTY;
+        for j in 0..g.ny {
+            let (y0, y1) = (g.y(j) - pad, g.y(j + 1) + pad);
+            // x-extent of the hull within the slab [y0, y1].
+            let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
+            for k in 0..hull.len() {
+                let (p, q) = (hull[k], hull[(k + 1) % hull.len()]);
+                if p.y >= y0 && p.y <= y1 {
+                    lo = lo.min(p.x);
+                    hi = hi.max(p.x);
+                }
+                for y in [y0, y1] {
+                    if (p.y - y) * (q.y - y) < 0.0 {
+                        let x = p.x + (q.x - p.x) * ((y - p.y) / (q.y - p.y));
+                        lo = lo.min(x);
+                        hi = hi.max(x);
+                    }
+                }
+            }
+            let r = if lo <= hi {
+                let c = |x: f64| ((x - g.origin.x) / g.cell).floor();
+                let i0 = (c(lo - pad) - 1.0).clamp(0.0, g.nx as f64) as usize;
+                let i1 = (c(hi + pad) + 2.0).clamp(0.0, g.nx as f64) as usize;
+                (i0, i1.max(i0))
+            } else {
+                (0, 0)
+            };
+            self.row_window[j] = r;
+            if r.0 < r.1 {
+                self.window.include(r.0, r.1, j);
+            }
+        }
     }
 
     /// The grid.
@@ -176,14 +375,86 @@ impl CullMap {
         self.values[j * self.grid.nx + i]
     }
 
-    /// Resets every cell to −∞.
+    /// Resets every cell to −∞ (only the rows and columns written since the last clear).
     pub fn clear(&mut self) {
-        self.values.fill(f32::NEG_INFINITY);
+        let (d, nx) = (self.dirty, self.grid.nx);
+        if !d.is_empty() {
+            for j in d.j0..d.j1 {
+                self.values[j * nx + d.i0..j * nx + d.i1].fill(f32::NEG_INFINITY);
+            }
+        }
+        self.dirty = CellRect::EMPTY;
     }
 
-    /// Draws one shadow, keeping the maximum per cell, into cells the shadow covers completely.
-    /// Returns the number of cells covered.
+    /// Draws one shadow, keeping the maximum per cell, into cells the shadow covers completely
+    /// and that lie in the window (see [`CullMap::set_window`]). Returns the number of cells
+    /// covered.
+    ///
+    /// Scanline span fill: only the rows the shadow's region (clipped to the window) can reach
+    /// are visited; per row the covered columns are the intersection of the shadow's x-intervals
+    /// on the row's two boundary lines (a cell lies in a convex region iff its four corners do),
+    /// and the plane's minimum over a cell is at its left or right column boundary according to
+    /// the sign of the x slope, the same for the whole shadow.
     pub fn draw(&mut self, s: &OccluderShadow) -> u64 {
+        let g = self.grid;
+        let w = self.window;
+        if w.j0 >= w.j1 {
+            return 0;
+        }
+        let (x_lo, x_hi) = (g.x(0), g.x(g.nx));
+        // Rows the region can reach inside the window box (one row of slack each side).
+        let Some((ymin, ymax)) = region_y_range(
+            s,
+            DVec2::new(g.x(w.i0), g.y(w.j0)),
+            DVec2::new(g.x(w.i1), g.y(w.j1)),
+        ) else {
+            return 0;
+        };
+        let fj = |y: f64| ((y - g.origin.y) / g.cell).floor();
+        let j0 = (fj(ymin) - 1.0).max(w.j0 as f64) as usize;
+        let j1 = ((fj(ymax) + 2.0).min(w.j1 as f64).max(0.0) as usize).max(j0);
+        let p = s.plane;
+        // Column boundary offset (0 or 1) holding the plane's minimum over a cell.
+        let right = (p.zx < 0.0) as usize;
+        let mut covered = 0u64;
+        let mut prev = s.row_interval(g.y(j0), self.margin, x_lo, x_hi);
+        for j in j0..j1 {
+            let next = s.row_interval(g.y(j + 1), self.margin, x_lo, x_hi);
+            if let (Some((a0, a1)), Some((b0, b1))) = (prev, next) {
+                let lo = a0.max(b0);
+                let hi = a1.min(b1);
+                if lo < hi {
+                    if let Some((i0, i1)) = g.columns_within(lo, hi) {
+                        let (r0, r1) = self.row_window[j];
+                        let (i0, i1) = (i0.max(r0), i1.min(r1));
+                        if i0 < i1 {
+                            let (y0, y1) = (g.y(j), g.y(j + 1));
+                            let zy = (p.zy * y0).min(p.zy * y1);
+                            let base = p.z0 + zy - self.height_margin;
+                            let row = &mut self.values[j * g.nx..(j + 1) * g.nx];
+                            for (i, cell) in row.iter_mut().enumerate().take(i1).skip(i0) {
+                                let z = base + p.zx * g.x(i + right);
+                                let z = z - 1e-9 * z.abs();
+                                let zf = f32_down(z);
+                                if zf > *cell {
+                                    *cell = zf;
+                                }
+                            }
+                            covered += (i1 - i0) as u64;
+                            self.dirty.include(i0, i1, j);
+                        }
+                    }
+                }
+            }
+            prev = next;
+        }
+        covered
+    }
+
+    /// Reference rasterisation: the same cells and values as [`CullMap::draw`] over the whole
+    /// map (no window), visiting every row and taking each cell's minimum with `min`. Kept to
+    /// check the fast path cell by cell.
+    pub fn draw_reference(&mut self, s: &OccluderShadow) -> u64 {
         let g = self.grid;
         let (x_lo, x_hi) = (g.x(0), g.x(g.nx));
         let p = s.plane;
@@ -231,12 +502,26 @@ impl CullMap {
             }
             prev = next;
         }
+        self.dirty = CellRect::full(&g);
         covered
     }
 
     /// Rebuilds the min pyramid from the cells; call after drawing, before [`CullMap::box_hidden`].
+    ///
+    /// Only the part of the pyramid over the cells written since the last clear, and over those
+    /// of the previous build, is recomputed; everything else is −∞ in both.
     pub fn build_pyramid(&mut self) {
+        let region = self.dirty.union(&self.built);
+        if !region.is_empty() {
+            self.pyramid.build_region(&self.values, region);
+        }
+        self.built = self.dirty;
+    }
+
+    /// Rebuilds the whole min pyramid from the cells (reference for the partial rebuild).
+    pub fn build_pyramid_full(&mut self) {
         self.pyramid.build(&self.values);
+        self.built = CellRect::full(&self.grid);
     }
 
     /// The min pyramid (valid after [`CullMap::build_pyramid`]).
@@ -318,6 +603,38 @@ impl MinPyramid {
                             if ci < *cw && cj < *ch {
                                 m = m.min(child[cj * cw + ci]);
                             }
+                        }
+                    }
+                    vals[j * w + i] = m;
+                }
+            }
+        }
+    }
+
+    /// As `build`, recomputing only the cells over `r` at every level.
+    fn build_region(&mut self, base: &[f32], r: CellRect) {
+        let nx = self.levels[0].0;
+        for j in r.j0..r.j1 {
+            let s = j * nx;
+            self.levels[0].2[s + r.i0..s + r.i1].copy_from_slice(&base[s + r.i0..s + r.i1]);
+        }
+        for l in 1..self.levels.len() {
+            let (lo, hi) = self.levels.split_at_mut(l);
+            let (cw, ch, child) = (lo[l - 1].0, lo[l - 1].1, &lo[l - 1].2);
+            let (w, vals) = (hi[0].0, &mut hi[0].2);
+            let (i0, i1) = (r.i0 >> l, ((r.i1 - 1) >> l) + 1);
+            let (j0, j1) = (r.j0 >> l, ((r.j1 - 1) >> l) + 1);
+            for j in j0..j1 {
+                for i in i0..i1 {
+                    let (ci, cj) = (2 * i, 2 * j);
+                    let mut m = child[cj * cw + ci];
+                    if ci + 1 < cw {
+                        m = m.min(child[cj * cw + ci + 1]);
+                    }
+                    if cj + 1 < ch {
+                        m = m.min(child[(cj + 1) * cw + ci]);
+                        if ci + 1 < cw {
+                            m = m.min(child[(cj + 1) * cw + ci + 1]);
                         }
                     }
                     vals[j * w + i] = m;
@@ -539,6 +856,109 @@ mod tests {
             }
             assert!(hidden > 0, "test would be vacuous");
         }
+    }
+
+    fn random_shadow(rng: &mut rand_chacha::ChaCha8Rng) -> Option<OccluderShadow> {
+        let a = DVec2::new(rng.random_range(-90.0..90.0), rng.random_range(-90.0..90.0));
+        let b = a + DVec2::new(rng.random_range(-40.0..40.0), rng.random_range(-40.0..40.0));
+        let occ = Occluder {
+            a,
+            b,
+            height: rng.random_range(1.0..40.0),
+        };
+        let v = DVec3::new(
+            rng.random_range(-120.0..120.0),
+            rng.random_range(-120.0..120.0),
+            rng.random_range(0.0..50.0),
+        );
+        OccluderShadow::new(v, &occ).ok()
+    }
+
+    /// The span fill writes exactly the cells and values of the reference rasterisation, and
+    /// the partial pyramid equals a full rebuild, over several frames (clears in between).
+    #[test]
+    fn span_fill_equals_reference_cell_by_cell() {
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(21);
+        let mut drawn = 0u64;
+        for n in [7u32, 16, 64, 201] {
+            let mut fast = map(n);
+            let mut refm = map(n);
+            for _frame in 0..6 {
+                fast.clear();
+                refm.clear();
+                for _ in 0..12 {
+                    let Some(s) = random_shadow(&mut rng) else {
+                        continue;
+                    };
+                    let c = fast.draw(&s);
+                    assert_eq!(c, refm.draw_reference(&s));
+                    drawn += c;
+                }
+                let (a, b) = (fast.values(), refm.values());
+                for k in 0..a.len() {
+                    assert_eq!(a[k].to_bits(), b[k].to_bits(), "n {n} cell {k}");
+                }
+                fast.build_pyramid();
+                refm.build_pyramid_full();
+                for l in 0..fast.pyramid.levels.len() {
+                    assert_eq!(
+                        fast.pyramid.levels[l].2, refm.pyramid.levels[l].2,
+                        "level {l}"
+                    );
+                }
+            }
+        }
+        assert!(drawn > 1000, "vacuous: {drawn}");
+    }
+
+    /// With a window, drawn cells are exactly the reference's cells inside the window's rows
+    /// and columns, and nothing outside it.
+    #[test]
+    fn window_only_restricts_cells() {
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(5);
+        let mut m = map(64);
+        let mut refm = map(64);
+        let tri = [
+            DVec2::new(-30.0, -10.0),
+            DVec2::new(80.0, -70.0),
+            DVec2::new(70.0, 60.0),
+        ];
+        m.set_window(&tri, 0.0);
+        let g = *m.grid();
+        let (mut inside, mut outside) = (0, 0);
+        for _ in 0..40 {
+            let Some(s) = random_shadow(&mut rng) else {
+                continue;
+            };
+            m.draw(&s);
+            refm.draw_reference(&s);
+        }
+        for j in 0..g.ny {
+            let (r0, r1) = m.row_window[j];
+            for i in 0..g.nx {
+                let (a, b) = (m.value(i, j), refm.value(i, j));
+                if i >= r0 && i < r1 {
+                    assert_eq!(a.to_bits(), b.to_bits());
+                    inside += (b > f32::NEG_INFINITY) as u32;
+                } else {
+                    assert_eq!(a, f32::NEG_INFINITY);
+                    outside += (b > f32::NEG_INFINITY) as u32;
+                }
+                // Every cell meeting the triangle is in the window.
+                let c = DVec2::new(g.x(i) + g.cell / 2.0, g.y(j) + g.cell / 2.0);
+                let in_tri = (0..3).all(|k| {
+                    let (p, q) = (tri[k], tri[(k + 1) % 3]);
+                    (q - p).perp_dot(c - p) >= 0.0
+                });
+                if in_tri {
+                    assert!(
+                        i >= r0 && i < r1,
+                        "cell {i},{j} in the triangle, not the window"
+                    );
+                }
+            }
+        }
+        assert!(inside > 0 && outside > 0, "{inside} {outside}");
     }
 
     #[test]
