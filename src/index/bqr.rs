@@ -77,6 +77,12 @@ struct Node {
     subtree_end: u32,
     block_start: u32,
     block_end: u32,
+    /// The node a traversal tests in this one's place: itself, or the end of the chain of
+    /// single-child nodes below it that hold no object and whose volumes are copies of its
+    /// own (a chain is tested once, at its deepest node).
+    pass: u32,
+    /// Leaf whose sphere holds its box: box ∩ sphere is the box, one test suffices.
+    box_only: bool,
 }
 
 #[derive(Clone, Debug)]
@@ -132,6 +138,8 @@ impl Builder<'_> {
             subtree_end: 0,
             block_start,
             block_end: 0,
+            pass: idx,
+            box_only: false,
         });
         // A quadrant with one block is indivisible (seed 003 §4); several blocks with the same
         // centre can never be separated: stop at the depth limit with a multi-block leaf.
@@ -205,7 +213,7 @@ impl Builder<'_> {
         n.kind = BqrNodeKind::Inner;
         n.children = children;
         n.aabb = aabb;
-        n.sphere = sphere.expect("an inner node has at least one child");
+        n.sphere = tighter(sphere.expect("an inner node has at least one child"), &aabb);
         n.block_end = self.order.len() as u32;
         n.subtree_end = end;
         idx
@@ -252,14 +260,16 @@ impl BqrTree {
             .map(|&i| bounds[i as usize].clone())
             .collect();
         let n = b.nodes.len();
-        Ok(Self {
+        let mut tree = Self {
             nodes: b.nodes,
             blocks,
             max_depth: params.max_depth,
             objects: Vec::new(),
             node_objects: vec![Vec::new(); n],
             object_count: 0,
-        })
+        };
+        tree.refresh_all();
+        Ok(tree)
     }
 
     /// Blocks in tree order (depth-first, a subtree's blocks contiguous).
@@ -334,6 +344,8 @@ impl BqrTree {
                 subtree_end: 1,
                 block_start: 0,
                 block_end: 0,
+                pass: 0,
+                box_only: true,
             });
             self.node_objects.push(Vec::new());
         }
@@ -348,9 +360,12 @@ impl BqrTree {
         let mut n = node;
         while n != NONE {
             let nd = &mut self.nodes[n as usize];
-            nd.sphere = nd.sphere.merge(s);
             nd.aabb = nd.aabb.union(aabb);
-            n = nd.parent;
+            nd.sphere = tighter(nd.sphere.merge(s), &nd.aabb);
+            let parent = nd.parent;
+            // Children are refreshed before their parent: the chains stay right.
+            self.refresh(n as usize);
+            n = parent;
         }
         Ok(())
     }
@@ -424,11 +439,41 @@ impl BqrTree {
             }
             let n = &mut self.nodes[i];
             n.aabb = aabb;
-            n.sphere = sphere.unwrap_or(BoundingSphere {
-                center: n.sphere.center,
-                radius: 0.0,
-            });
+            n.sphere = match sphere {
+                Some(s) => tighter(s, &aabb),
+                None => BoundingSphere {
+                    center: n.sphere.center,
+                    radius: 0.0,
+                },
+            };
         }
+        self.refresh_all();
+    }
+
+    /// Recomputes `pass` and `box_only` of every node (children before parents).
+    fn refresh_all(&mut self) {
+        for i in (0..self.nodes.len()).rev() {
+            self.refresh(i);
+        }
+    }
+
+    /// Recomputes `pass` and `box_only` of node `i` from its children's (already current).
+    fn refresh(&mut self, i: usize) {
+        let pass = self
+            .single_child_copy(i)
+            .map_or(i as u32, |c| self.nodes[c].pass);
+        let n = &self.nodes[i];
+        // Testing the box alone is always conservative (box ⊇ box ∩ sphere); the flag only
+        // says that the sphere would cut nothing off, so a rounding tolerance is harmless.
+        let r2 = (n.sphere.radius * (1.0 + 1e-9)).powi(2);
+        let box_only = n.kind == BqrNodeKind::Leaf
+            && n.aabb
+                .corners()
+                .iter()
+                .all(|&p| (p - n.sphere.center).length_squared() <= r2);
+        let n = &mut self.nodes[i];
+        n.pass = pass;
+        n.box_only = box_only;
     }
 
     fn single_child_copy(&self, i: usize) -> Option<usize> {
@@ -552,6 +597,32 @@ impl BqrTree {
             if i == 0 {
                 assert_eq!(n.parent, NONE, "root has a parent");
             }
+            // A pass-through chain ends in the subtree at a node with the same volumes, and
+            // every node skipped on the way has one child and no object.
+            let p = n.pass as usize;
+            assert!(
+                p >= i && p < n.subtree_end as usize,
+                "node {i}: pass {p} outside its subtree"
+            );
+            assert!(
+                self.nodes[p].sphere == n.sphere && self.nodes[p].aabb == n.aabb,
+                "node {i}: pass {p} has other volumes"
+            );
+            let mut k = i;
+            while k != p {
+                assert!(
+                    self.node_objects[k].is_empty(),
+                    "node {k}: skipped with objects"
+                );
+                let kids: Vec<u32> = self.nodes[k]
+                    .children
+                    .iter()
+                    .copied()
+                    .filter(|&c| c != NONE)
+                    .collect();
+                assert_eq!(kids.len(), 1, "node {k}: skipped with several children");
+                k = kids[0] as usize;
+            }
             match n.kind {
                 BqrNodeKind::Leaf => {
                     assert!(
@@ -588,10 +659,18 @@ impl BqrTree {
                         next_block = cn.block_end;
                         next_node = cn.subtree_end;
                         if self.object_count == 0 && !cn.aabb.is_empty() {
+                            // The parent's sphere is the merged children's spheres or the
+                            // sphere around its box, whichever is smaller: it holds the
+                            // child's sphere or the child's box.
                             let d = (cn.sphere.center - n.sphere.center).length();
+                            let holds_sphere =
+                                d + cn.sphere.radius <= n.sphere.radius + tol(&n.sphere);
+                            let holds_box = cn.aabb.corners().iter().all(|&p| {
+                                (p - n.sphere.center).length() <= n.sphere.radius + tol(&n.sphere)
+                            });
                             assert!(
-                                d + cn.sphere.radius <= n.sphere.radius + tol(&n.sphere),
-                                "node {i}: sphere does not hold child {c}'s sphere"
+                                holds_sphere || holds_box,
+                                "node {i}: sphere holds neither child {c}'s sphere nor box"
                             );
                         }
                     }
@@ -664,13 +743,10 @@ struct Traversal<'t, 'q, 'o, 'c> {
 impl Traversal<'_, '_, '_, '_> {
     fn visit(&mut self, i: usize, mask: PlaneMask, sink: &mut Sink<'_, '_>) {
         let tree = self.tree;
-        let mut i = i;
         // An inner node with one child and no object of its own has exactly its child's
-        // sphere and box (copied, not merged, at build): pass through to the child without a
-        // test. The structure is the paper's; only redundant tests are skipped.
-        while let Some(c) = tree.single_child_copy(i) {
-            i = c;
-        }
+        // sphere and box (copied, not merged, at build): pass through to the chain's deepest
+        // node without a test. The structure is the paper's; only redundant tests are skipped.
+        let i = tree.nodes[i].pass as usize;
         let n = &tree.nodes[i];
         sink.stats.nodes_visited += 1;
         let mut m = mask;
@@ -692,9 +768,17 @@ impl Traversal<'_, '_, '_, '_> {
             }
         } else {
             match n.kind {
-                BqrNodeKind::Leaf => self
-                    .frustum
-                    .test_aabb_sphere_masked(&n.aabb, &n.sphere, &mut m, tests),
+                BqrNodeKind::Leaf => {
+                    // Box first (a block's box rejects more than its sphere, and cheaper);
+                    // the sphere only on the planes the box still crosses, and only when it
+                    // can cut something off the box.
+                    let r = self.frustum.test_aabb_masked(&n.aabb, &mut m, tests);
+                    if r == Containment::Intersecting && !n.box_only {
+                        self.frustum.test_sphere_masked(&n.sphere, &mut m, tests)
+                    } else {
+                        r
+                    }
+                }
                 BqrNodeKind::Inner => self.frustum.test_sphere_masked(&n.sphere, &mut m, tests),
             }
         };
@@ -752,18 +836,42 @@ impl Traversal<'_, '_, '_, '_> {
             }
         }
         if n.kind == BqrNodeKind::Inner {
-            // Nearest child first (front to back), by distance from the eye to the child's box.
-            let mut order: [(f64, u32); 4] = [(f64::INFINITY, NONE); 4];
-            let mut k = 0;
-            for &c in n.children.iter().filter(|&&c| c != NONE) {
-                order[k] = (box_distance_2(&tree.nodes[c as usize].aabb, self.eye), c);
-                k += 1;
-            }
-            order[..k].sort_unstable_by(|a, b| a.0.total_cmp(&b.0));
-            for &(_, c) in &order[..k] {
-                self.visit(c as usize, m, sink);
+            // Nearest child first (front to back), by quadrant: the eye's own quadrant, then
+            // the one across the nearer split line, then the other side one, then the
+            // opposite one. No distances, no sort.
+            let mid = (n.quad_min + n.quad_max) * 0.5;
+            let d = self.eye.truncate() - mid;
+            let own = usize::from(d.x >= 0.0) + 2 * usize::from(d.y >= 0.0);
+            let (near, far) = if d.x.abs() <= d.y.abs() {
+                (1, 2)
+            } else {
+                (2, 1)
+            };
+            for q in [own, own ^ near, own ^ far, own ^ 3] {
+                let c = n.children[q];
+                if c != NONE {
+                    self.visit(c as usize, m, sink);
+                }
             }
         }
+    }
+}
+
+/// The smaller of `merged` (the sphere around the children's spheres, seed 003 §4) and the
+/// sphere around the corners of `aabb`, the box of the node's whole content. Both hold every
+/// block and object of the subtree, so either is conservative; the box's sphere is often the
+/// smaller one, as the merged spheres accumulate slack level after level.
+fn tighter(merged: BoundingSphere, aabb: &Aabb3) -> BoundingSphere {
+    if aabb.is_empty() {
+        return merged;
+    }
+    let mut around = BoundingSphere::from_aabb(aabb);
+    // Round up so that floating error never leaves a corner outside.
+    around.radius *= 1.0 + 1e-12;
+    if around.radius < merged.radius {
+        around
+    } else {
+        merged
     }
 }
 
