@@ -293,7 +293,7 @@ pub fn robust_interior_point(poly: &Polygon<f64>) -> Option<Coord<f64>> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use geo_types::coord;
+    use geo_types::{coord, polygon};
 
     fn square() -> Vec<Coord<f64>> {
         vec![
