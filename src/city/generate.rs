@@ -803,12 +803,11 @@ mod tests {
             }
             let t = prism_triangles(&b.footprint);
             tris += t;
-            let v = t; // monotone in the vertex count
             let a = polygon_area(&b.footprint);
             if a < 150.0 {
-                small = (small.0 + v, small.1 + 1);
+                small = (small.0 + t, small.1 + 1);
             } else if a > 450.0 {
-                big = (big.0 + v, big.1 + 1);
+                big = (big.0 + t, big.1 + 1);
             }
             if t == 12 {
                 boxes += 1;
