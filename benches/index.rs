@@ -32,11 +32,11 @@
 //! | 10k | before | 1.29 | 1.45 |
 //! | 10k | after | 1.22 | 1.21 |
 //! | 100k | before | 1.33 | 1.53 |
+//! | 100k | after | 1.25 | 1.25 |
 //!
-//! Median time per view, before, same command (dev profile at opt-level 3): 10k: BqR 64 µs,
-//! VAMSplit 35 µs (1.83); 100k: BqR 118 µs, VAMSplit 56 µs (2.12). The after timings were not
-//! taken with the same profile on this machine (the two versions must be compared on one
-//! build profile); rerun this bench for them. Against the paper's Table 1 (BqR/VAMSplit =
+//! Median time per view, same command, dev profile at opt-level 3 (busy shared machine):
+//! 10k: BqR 64 → 34 µs, VAMSplit 35 / 31 µs (ratio 1.83 → 1.10); 100k: BqR 118 → 79 µs,
+//! VAMSplit 56 / 46 µs (ratio 2.12 → 1.71). Against the paper's Table 1 (BqR/VAMSplit =
 //! 0.638 in frame time) the BqR-tree here is still slower than the VAMSplit R-tree: with one
 //! block per leaf it has about ten times the nodes, and its spheres, loose around flat city
 //! blocks, are rarely found fully inside the frustum.
