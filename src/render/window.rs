@@ -444,7 +444,7 @@ impl App {
             );
             state.gpu.queue.submit([]);
         }
-        texture.present();
+        state.gpu.queue.present(texture);
         self.summary.frames += 1;
         self.summary.blocks = frame.timings.blocks;
         self.summary.triangles = frame.timings.triangles;
