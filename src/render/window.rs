@@ -22,7 +22,7 @@
 //! ```text
 //! NODEVICE_SELECT=1 WGPU_BACKEND=vulkan xvfb-run -s "-screen 0 1280x720x24" \
 //!   cargo run --features window -- view data/bubenec/buildings.shp \
-//!   --streets data/bubenec/streets.shp --route paper --frames 30 --screenshot view.png
+//!   --streets data/bubenec/streets.shp --route orbit --frames 3 --screenshot view.png
 //! ```
 
 use super::{Gpu, MeshRenderer, RenderError, RenderOptions};
