@@ -9,6 +9,7 @@ mod demo;
 mod generate;
 mod import;
 mod occlusion_bench;
+mod view;
 mod walk;
 
 /// Cadastral maps to navigable 3D cities.
@@ -35,6 +36,8 @@ enum Command {
     Walk(walk::Args),
     /// The main job on the bundled real data.
     Demo(demo::Args),
+    /// Fly through the city in a window (feature `window`).
+    View(view::Args),
 }
 
 pub fn main() -> std::process::ExitCode {
@@ -63,5 +66,6 @@ fn dispatch(command: Command) -> anyhow::Result<()> {
         Command::OcclusionBench(a) => occlusion_bench::run(a),
         Command::Walk(a) => walk::run(a),
         Command::Demo(a) => demo::run(a),
+        Command::View(a) => view::run(a),
     }
 }

@@ -17,6 +17,8 @@
 //! colour; the ground plane writes its depth too.
 
 mod mesh;
+#[cfg(feature = "window")]
+pub mod window;
 
 pub use mesh::{Frame, FrameTimings, MeshRenderer, RenderOptions, Shading};
 

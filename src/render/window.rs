@@ -1,0 +1,570 @@
+//! An interactive window over the city (feature `window`): winit 0.30 + a wgpu surface.
+//!
+//! Every frame the viewer culls the blocks with one spatial structure (frustum culling, seed 004
+//! §2 / seed 003 §4), optionally through the occlusion culler (occluder shadows and a cull map,
+//! seed 004 §3), draws the survivors with [`MeshRenderer`] and shows the image in the window.
+//!
+//! The frame is drawn by the same [`MeshRenderer`] as the headless tools (so what the window shows
+//! is exactly what `blockwalk walk --render` writes), read back and written into the surface
+//! texture with `Queue::write_texture`, swapping red and blue for `Bgra8` surfaces. This costs a
+//! read-back per frame, which keeps the renderer unchanged and is fine at window sizes.
+//!
+//! Controls: WASD or arrow keys move, dragging with the left mouse button looks around, Q/E or
+//! PageDown/PageUp move down/up, Shift moves five times faster, P plays or pauses the route (the
+//! camera then follows [`CameraRoute::camera_at`]), Esc quits. The title shows frames per
+//! second, blocks and triangles drawn, and the structure.
+//!
+//! ## Non-interactive check
+//! [`ViewerOptions::screenshot`] renders [`ViewerOptions::frames`] frames evenly along the route,
+//! saves the last one as PNG and closes the window. Without a display, under Xvfb with the
+//! lavapipe software Vulkan driver:
+//!
+//! ```text
+//! NODEVICE_SELECT=1 WGPU_BACKEND=vulkan xvfb-run -s "-screen 0 1280x720x24" \
+//!   cargo run --features window -- view data/bubenec/buildings.shp \
+//!   --streets data/bubenec/streets.shp --route orbit --frames 3 --screenshot view.png
+//! ```
+
+use super::{Gpu, MeshRenderer, RenderError, RenderOptions};
+use crate::blocks::BlockId;
+use crate::city::Mesh;
+use crate::geom::Camera;
+use crate::index::CityIndex;
+use crate::report::walk::OcclusionProvider;
+use crate::route::CameraRoute;
+use glam::DVec3;
+use std::collections::HashSet;
+use std::path::PathBuf;
+use std::sync::Arc;
+use std::time::Instant;
+use winit::application::ApplicationHandler;
+use winit::dpi::PhysicalSize;
+use winit::event::{ElementState, MouseButton, WindowEvent};
+use winit::event_loop::{ActiveEventLoop, ControlFlow, EventLoop};
+use winit::keyboard::{KeyCode, PhysicalKey};
+use winit::window::{Window, WindowId};
+
+/// What can go wrong in the viewer.
+#[derive(Debug, thiserror::Error)]
+pub enum WindowError {
+    /// No display (no X11 or Wayland server), or the window could not be created.
+    #[error("cannot open a window: {0} (is a display available? try xvfb-run)")]
+    Display(String),
+    /// The GPU side failed (no adapter, device, read-back).
+    #[error(transparent)]
+    Render(#[from] RenderError),
+    /// The window surface cannot be used.
+    #[error("window surface: {0}")]
+    Surface(String),
+    /// The screenshot could not be written.
+    #[error("screenshot {path}: {message}")]
+    Screenshot {
+        /// Where it should have gone.
+        path: PathBuf,
+        /// Why it failed.
+        message: String,
+    },
+}
+
+/// What the viewer shows.
+pub struct ViewerScene {
+    /// City name (for the title).
+    pub name: String,
+    /// One mesh per building, with its block (local frame).
+    pub meshes: Vec<(BlockId, Mesh)>,
+    /// The structure that frustum-culls the blocks.
+    pub index: Box<dyn CityIndex>,
+    /// The occlusion culler, when occlusion culling is on.
+    pub occlusion: Option<Box<dyn OcclusionProvider>>,
+    /// The route that P plays (and the start pose).
+    pub route: CameraRoute,
+}
+
+impl std::fmt::Debug for ViewerScene {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("ViewerScene")
+            .field("name", &self.name)
+            .field("meshes", &self.meshes.len())
+            .field("index", &self.index.name())
+            .field("occlusion", &self.occlusion.as_ref().map(|o| o.name()))
+            .field("route", &self.route.name)
+            .finish()
+    }
+}
+
+/// Window size and the non-interactive mode.
+#[derive(Clone, Debug)]
+pub struct ViewerOptions {
+    /// Initial window width, pixels.
+    pub width: u32,
+    /// Initial window height, pixels.
+    pub height: u32,
+    /// When set: render [`Self::frames`] frames along the route, save the last as PNG here, quit.
+    pub screenshot: Option<PathBuf>,
+    /// Frames along the route in screenshot mode (at least 1).
+    pub frames: usize,
+    /// Base flying speed, metres per second (Shift: five times).
+    pub speed: f64,
+}
+
+impl Default for ViewerOptions {
+    /// 1280 × 720, interactive, 30 frames for a screenshot, 20 m/s.
+    fn default() -> Self {
+        Self {
+            width: 1280,
+            height: 720,
+            screenshot: None,
+            frames: 30,
+            speed: 20.0,
+        }
+    }
+}
+
+/// What a viewer session did.
+#[derive(Clone, Debug, Default, serde::Serialize)]
+pub struct ViewerSummary {
+    /// Frames shown.
+    pub frames: usize,
+    /// Mean frames per second over the session.
+    pub fps: f64,
+    /// Blocks drawn in the last frame.
+    pub blocks: u32,
+    /// Triangles drawn in the last frame.
+    pub triangles: u64,
+    /// Adapter used.
+    pub adapter: String,
+    /// The screenshot written, if any.
+    pub screenshot: Option<PathBuf>,
+}
+
+/// Opens the window and runs until it is closed (or the screenshot is written).
+pub fn run_viewer(
+    scene: ViewerScene,
+    options: ViewerOptions,
+) -> Result<ViewerSummary, WindowError> {
+    if options.width == 0 || options.height == 0 {
+        return Err(WindowError::Display(format!(
+            "window size {}x{} is empty",
+            options.width, options.height
+        )));
+    }
+    let event_loop = EventLoop::new().map_err(|e| WindowError::Display(e.to_string()))?;
+    event_loop.set_control_flow(ControlFlow::Poll);
+    let mut camera = scene.route.camera_at(scene.route.start());
+    camera.aspect = options.width as f64 / options.height as f64;
+    let mut app = App {
+        playing: options.screenshot.is_some(),
+        scene,
+        options,
+        state: None,
+        error: None,
+        camera,
+        route_t: 0.0,
+        keys: HashSet::new(),
+        dragging: false,
+        last_cursor: None,
+        last_tick: Instant::now(),
+        started: Instant::now(),
+        title_at: Instant::now(),
+        title_frames: 0,
+        visible: Vec::new(),
+        summary: ViewerSummary::default(),
+    };
+    app.route_t = app.scene.route.start();
+    event_loop
+        .run_app(&mut app)
+        .map_err(|e| WindowError::Display(e.to_string()))?;
+    if let Some(e) = app.error {
+        return Err(e);
+    }
+    let secs = app.started.elapsed().as_secs_f64();
+    app.summary.fps = if secs > 0.0 {
+        app.summary.frames as f64 / secs
+    } else {
+        0.0
+    };
+    Ok(app.summary)
+}
+
+/// GPU objects tied to the window.
+struct GpuState {
+    window: Arc<Window>,
+    surface: wgpu::Surface<'static>,
+    config: wgpu::SurfaceConfiguration,
+    gpu: Gpu,
+    renderer: MeshRenderer,
+    /// Swap red and blue when writing into the surface.
+    bgra: bool,
+}
+
+struct App {
+    scene: ViewerScene,
+    options: ViewerOptions,
+    state: Option<GpuState>,
+    error: Option<WindowError>,
+    camera: Camera,
+    playing: bool,
+    route_t: f64,
+    keys: HashSet<KeyCode>,
+    dragging: bool,
+    last_cursor: Option<(f64, f64)>,
+    last_tick: Instant,
+    started: Instant,
+    title_at: Instant,
+    title_frames: usize,
+    visible: Vec<BlockId>,
+    summary: ViewerSummary,
+}
+
+impl App {
+    fn fail(&mut self, event_loop: &ActiveEventLoop, e: WindowError) {
+        if self.error.is_none() {
+            self.error = Some(e);
+        }
+        event_loop.exit();
+    }
+
+    /// Window, instance with the window's display, surface, adapter able to present to it,
+    /// device, renderer.
+    fn init(&self, event_loop: &ActiveEventLoop) -> Result<GpuState, WindowError> {
+        let attrs = Window::default_attributes()
+            .with_title(format!("blockwalk — {}", self.scene.name))
+            .with_inner_size(PhysicalSize::new(self.options.width, self.options.height));
+        let window = Arc::new(
+            event_loop
+                .create_window(attrs)
+                .map_err(|e| WindowError::Display(e.to_string()))?,
+        );
+        let instance = wgpu::Instance::new(
+            wgpu::InstanceDescriptor::new_with_display_handle_from_env(Box::new(window.clone())),
+        );
+        let surface = instance
+            .create_surface(window.clone())
+            .map_err(|e| WindowError::Surface(e.to_string()))?;
+        let adapter = pollster::block_on(instance.request_adapter(&wgpu::RequestAdapterOptions {
+            power_preference: wgpu::PowerPreference::HighPerformance,
+            force_fallback_adapter: false,
+            compatible_surface: Some(&surface),
+            apply_limit_buckets: false,
+        }))
+        .map_err(|e| RenderError::NoAdapter(e.to_string()))?;
+        let gpu = Gpu::from_adapter(adapter)?;
+        let caps = surface.get_capabilities(&gpu.adapter);
+        if !caps.usages.contains(wgpu::TextureUsages::COPY_DST) {
+            return Err(WindowError::Surface(format!(
+                "the surface on {} cannot be written to (usages {:?})",
+                gpu.adapter_name(),
+                caps.usages
+            )));
+        }
+        // The renderer writes plain (non-sRGB) RGBA8: take a surface format with the same bytes.
+        let (format, bgra) = [
+            (wgpu::TextureFormat::Rgba8Unorm, false),
+            (wgpu::TextureFormat::Bgra8Unorm, true),
+            (wgpu::TextureFormat::Rgba8UnormSrgb, false),
+            (wgpu::TextureFormat::Bgra8UnormSrgb, true),
+        ]
+        .into_iter()
+        .find(|(f, _)| caps.formats.contains(f))
+        .ok_or_else(|| {
+            WindowError::Surface(format!(
+                "no 8-bit RGBA/BGRA surface format among {:?}",
+                caps.formats
+            ))
+        })?;
+        let size = window.inner_size();
+        let (width, height) = (size.width.max(1), size.height.max(1));
+        let mut config = surface
+            .get_default_config(&gpu.adapter, width, height)
+            .ok_or_else(|| {
+                WindowError::Surface(format!("surface not supported by {}", gpu.adapter_name()))
+            })?;
+        config.format = format;
+        config.usage = wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::COPY_DST;
+        config.present_mode = wgpu::PresentMode::Fifo;
+        surface.configure(&gpu.device, &config);
+        let renderer = self.make_renderer(&gpu, width, height)?;
+        Ok(GpuState {
+            window,
+            surface,
+            config,
+            gpu,
+            renderer,
+            bgra,
+        })
+    }
+
+    fn make_renderer(
+        &self,
+        gpu: &Gpu,
+        width: u32,
+        height: u32,
+    ) -> Result<MeshRenderer, RenderError> {
+        let refs: Vec<(BlockId, &Mesh)> = self.scene.meshes.iter().map(|(b, m)| (*b, m)).collect();
+        MeshRenderer::with_options(gpu, &refs, RenderOptions { width, height })
+    }
+
+    fn resize(&mut self, size: PhysicalSize<u32>) -> Result<(), WindowError> {
+        if size.width == 0 || size.height == 0 {
+            return Ok(());
+        }
+        let Some(state) = self.state.as_ref() else {
+            return Ok(());
+        };
+        if state.config.width == size.width && state.config.height == size.height {
+            return Ok(());
+        }
+        let renderer = self.make_renderer(&state.gpu, size.width, size.height)?;
+        let Some(state) = self.state.as_mut() else {
+            return Ok(());
+        };
+        state.config.width = size.width;
+        state.config.height = size.height;
+        state.surface.configure(&state.gpu.device, &state.config);
+        state.renderer = renderer;
+        self.camera.aspect = size.width as f64 / size.height as f64;
+        Ok(())
+    }
+
+    /// Moves the camera by the keys held (or along the route when playing).
+    fn update_camera(&mut self, dt: f64) {
+        let route = &self.scene.route;
+        if let Some(_path) = &self.options.screenshot {
+            let n = self.options.frames.max(1);
+            let i = self.summary.frames.min(n - 1);
+            let f = if n > 1 {
+                i as f64 / (n - 1) as f64
+            } else {
+                0.0
+            };
+            self.route_t = route.start() + route.duration() * f;
+        } else if self.playing {
+            self.route_t += dt;
+            if self.route_t > route.start() + route.duration() {
+                self.route_t = route.start();
+            }
+        }
+        if self.playing || self.options.screenshot.is_some() {
+            let aspect = self.camera.aspect;
+            self.camera = route.camera_at(self.route_t);
+            self.camera.aspect = aspect;
+            return;
+        }
+        let held = |k: &[KeyCode]| k.iter().any(|k| self.keys.contains(k));
+        let fast = held(&[KeyCode::ShiftLeft, KeyCode::ShiftRight]);
+        let speed = self.options.speed * if fast { 5.0 } else { 1.0 };
+        let (s, c) = self.camera.yaw.sin_cos();
+        let ahead = DVec3::new(c, s, 0.0);
+        let right = DVec3::new(s, -c, 0.0);
+        let mut d = DVec3::ZERO;
+        if held(&[KeyCode::KeyW, KeyCode::ArrowUp]) {
+            d += ahead;
+        }
+        if held(&[KeyCode::KeyS, KeyCode::ArrowDown]) {
+            d -= ahead;
+        }
+        if held(&[KeyCode::KeyD, KeyCode::ArrowRight]) {
+            d += right;
+        }
+        if held(&[KeyCode::KeyA, KeyCode::ArrowLeft]) {
+            d -= right;
+        }
+        if held(&[KeyCode::KeyE, KeyCode::PageUp]) {
+            d.z += 1.0;
+        }
+        if held(&[KeyCode::KeyQ, KeyCode::PageDown]) {
+            d.z -= 1.0;
+        }
+        if d != DVec3::ZERO {
+            self.camera.position += d.normalize() * speed * dt;
+        }
+    }
+
+    /// One frame: cull, draw, present; in screenshot mode save the last frame and quit.
+    fn redraw(&mut self, event_loop: &ActiveEventLoop) -> Result<(), WindowError> {
+        let now = Instant::now();
+        let dt = (now - self.last_tick).as_secs_f64().min(0.25);
+        self.last_tick = now;
+        self.update_camera(dt);
+        let Some(state) = self.state.as_ref() else {
+            return Ok(());
+        };
+        self.visible.clear();
+        match &self.scene.occlusion {
+            Some(occ) => {
+                occ.cull(self.scene.index.as_ref(), &self.camera, &mut self.visible);
+            }
+            None => {
+                self.scene
+                    .index
+                    .cull(&self.camera.frustum(), &mut self.visible);
+            }
+        }
+        let frame = state
+            .renderer
+            .draw(&state.gpu, &self.camera, &self.visible)?;
+        let texture = match state.surface.get_current_texture() {
+            wgpu::CurrentSurfaceTexture::Success(t)
+            | wgpu::CurrentSurfaceTexture::Suboptimal(t) => t,
+            wgpu::CurrentSurfaceTexture::Timeout | wgpu::CurrentSurfaceTexture::Occluded => {
+                return Ok(());
+            }
+            wgpu::CurrentSurfaceTexture::Outdated | wgpu::CurrentSurfaceTexture::Lost => {
+                state.surface.configure(&state.gpu.device, &state.config);
+                return Ok(());
+            }
+            wgpu::CurrentSurfaceTexture::Validation => {
+                return Err(WindowError::Surface(
+                    "validation error acquiring a frame".into(),
+                ));
+            }
+        };
+        let tex_size = texture.texture.size();
+        if tex_size.width == frame.width && tex_size.height == frame.height {
+            let mut bytes = frame.rgba.clone();
+            if state.bgra {
+                for p in bytes.chunks_exact_mut(4) {
+                    p.swap(0, 2);
+                }
+            }
+            state.gpu.queue.write_texture(
+                wgpu::TexelCopyTextureInfo {
+                    texture: &texture.texture,
+                    mip_level: 0,
+                    origin: wgpu::Origin3d::ZERO,
+                    aspect: wgpu::TextureAspect::All,
+                },
+                &bytes,
+                wgpu::TexelCopyBufferLayout {
+                    offset: 0,
+                    bytes_per_row: Some(frame.width * 4),
+                    rows_per_image: Some(frame.height),
+                },
+                tex_size,
+            );
+            state.gpu.queue.submit([]);
+        }
+        state.gpu.queue.present(texture);
+        self.summary.frames += 1;
+        self.summary.blocks = frame.timings.blocks;
+        self.summary.triangles = frame.timings.triangles;
+        self.title_frames += 1;
+        let since = self.title_at.elapsed().as_secs_f64();
+        if since >= 0.5 {
+            let fps = self.title_frames as f64 / since;
+            state.window.set_title(&format!(
+                "blockwalk — {} — {:.1} fps — {} blocks, {} triangles — {}{}{}",
+                self.scene.name,
+                fps,
+                frame.timings.blocks,
+                frame.timings.triangles,
+                self.scene.index.name(),
+                if self.scene.occlusion.is_some() {
+                    " + occlusion"
+                } else {
+                    ""
+                },
+                if self.playing { " — playing" } else { "" },
+            ));
+            self.title_at = Instant::now();
+            self.title_frames = 0;
+        }
+        if let Some(path) = &self.options.screenshot {
+            if self.summary.frames >= self.options.frames.max(1) {
+                frame.save_png(path).map_err(|e| WindowError::Screenshot {
+                    path: path.clone(),
+                    message: e.to_string(),
+                })?;
+                self.summary.screenshot = Some(path.clone());
+                event_loop.exit();
+            }
+        }
+        Ok(())
+    }
+}
+
+impl ApplicationHandler for App {
+    fn resumed(&mut self, event_loop: &ActiveEventLoop) {
+        if self.state.is_some() {
+            return;
+        }
+        match self.init(event_loop) {
+            Ok(state) => {
+                let size = state.window.inner_size();
+                self.camera.aspect = size.width.max(1) as f64 / size.height.max(1) as f64;
+                self.summary.adapter = state.gpu.adapter_name();
+                state.window.request_redraw();
+                self.state = Some(state);
+                self.started = Instant::now();
+                self.last_tick = Instant::now();
+            }
+            Err(e) => self.fail(event_loop, e),
+        }
+    }
+
+    fn window_event(&mut self, event_loop: &ActiveEventLoop, _id: WindowId, event: WindowEvent) {
+        match event {
+            WindowEvent::CloseRequested => event_loop.exit(),
+            WindowEvent::Resized(size) => {
+                if let Err(e) = self.resize(size) {
+                    self.fail(event_loop, e);
+                }
+            }
+            WindowEvent::RedrawRequested => {
+                if let Err(e) = self.redraw(event_loop) {
+                    self.fail(event_loop, e);
+                }
+            }
+            WindowEvent::KeyboardInput { event, .. } => {
+                let PhysicalKey::Code(code) = event.physical_key else {
+                    return;
+                };
+                match event.state {
+                    ElementState::Pressed => {
+                        if code == KeyCode::Escape {
+                            event_loop.exit();
+                        } else if code == KeyCode::KeyP && !event.repeat {
+                            self.playing = !self.playing;
+                            if !self.playing {
+                                // Keep flying from where the route left the camera.
+                                self.last_cursor = None;
+                            }
+                        }
+                        self.keys.insert(code);
+                    }
+                    ElementState::Released => {
+                        self.keys.remove(&code);
+                    }
+                }
+            }
+            WindowEvent::MouseInput {
+                state,
+                button: MouseButton::Left,
+                ..
+            } => {
+                self.dragging = state == ElementState::Pressed;
+                if !self.dragging {
+                    self.last_cursor = None;
+                }
+            }
+            WindowEvent::CursorMoved { position, .. } => {
+                if self.dragging && !self.playing {
+                    if let Some((x, y)) = self.last_cursor {
+                        let k = 0.004;
+                        self.camera.yaw -= (position.x - x) * k;
+                        self.camera.pitch =
+                            (self.camera.pitch - (position.y - y) * k).clamp(-1.55, 1.55);
+                    }
+                }
+                self.last_cursor = Some((position.x, position.y));
+            }
+            _ => {}
+        }
+    }
+
+    fn about_to_wait(&mut self, _event_loop: &ActiveEventLoop) {
+        if let Some(state) = &self.state {
+            state.window.request_redraw();
+        }
+    }
+}
