@@ -238,18 +238,14 @@ pub fn block_bounds(
         .collect()
 }
 
+/// True when `p` is inside or on the ring (the exact odd-crossing test of `geom::predicates`).
 fn point_in_ring(p: DVec2, ring: &[DVec2]) -> bool {
-    let mut inside = false;
-    for w in ring.windows(2) {
-        let (a, b) = (w[0], w[1]);
-        if (a.y > p.y) != (b.y > p.y) {
-            let x = a.x + (p.y - a.y) / (b.y - a.y) * (b.x - a.x);
-            if p.x < x {
-                inside = !inside;
-            }
-        }
-    }
-    inside
+    use crate::geom::predicates::{self, Location};
+    let r: Vec<geo_types::Coord<f64>> = ring
+        .iter()
+        .map(|c| geo_types::Coord { x: c.x, y: c.y })
+        .collect();
+    predicates::point_in_ring(geo_types::Coord { x: p.x, y: p.y }, &r) != Location::Outside
 }
 
 /// Random views over the city (deterministic for a seed): street views at `eye_height` on the
