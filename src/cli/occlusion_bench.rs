@@ -56,17 +56,6 @@ pub struct Args {
     pub plot: Option<PathBuf>,
 }
 
-fn parse_size(s: &str) -> anyhow::Result<(u32, u32)> {
-    let (w, h) = s
-        .split_once(['x', 'X'])
-        .with_context(|| format!("--oracle {s}: expected WxH"))?;
-    let (w, h): (u32, u32) = (w.trim().parse()?, h.trim().parse()?);
-    if w == 0 || h == 0 || w > 8192 || h > 8192 {
-        bail!("--oracle {s}: each side must be in 1..=8192");
-    }
-    Ok((w, h))
-}
-
 /// The city, its blocks and one mesh per block.
 type Scene = (City, BlockLayout, Vec<(BlockId, Mesh)>);
 
@@ -115,7 +104,7 @@ fn load(args: &Args) -> anyhow::Result<Scene> {
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
-    let oracle_size = parse_size(&args.oracle)?;
+    let oracle_size = super::walk::parse_size("--oracle", &args.oracle)?;
     if args.resolution.is_empty() {
         bail!("--resolution: give at least one");
     }

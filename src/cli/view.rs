@@ -63,7 +63,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     use blockwalk::report::walk::{OcclusionProvider, WalkScene};
     use blockwalk::visibility::{CullerOptions, OcclusionCuller};
 
-    let (width, height) = parse_size(&args.size)?;
+    let (width, height) = super::walk::parse_size("--size", &args.size)?;
     let occlusion = match args.occlusion.as_str() {
         "on" => true,
         "off" => false,
@@ -143,25 +143,4 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         }
     }
     Ok(())
-}
-
-#[cfg(feature = "window")]
-fn parse_size(s: &str) -> anyhow::Result<(u32, u32)> {
-    use anyhow::Context;
-    let (w, h) = s
-        .split_once(['x', 'X'])
-        .with_context(|| format!("--size {s}: expected WIDTHxHEIGHT, e.g. 1280x720"))?;
-    let w: u32 = w
-        .trim()
-        .parse()
-        .with_context(|| format!("--size {s}: bad width"))?;
-    let h: u32 = h
-        .trim()
-        .parse()
-        .with_context(|| format!("--size {s}: bad height"))?;
-    anyhow::ensure!(
-        w > 0 && h > 0 && w <= 8192 && h <= 8192,
-        "--size {s}: out of range"
-    );
-    Ok((w, h))
 }

@@ -56,21 +56,22 @@ pub struct Args {
     pub json: bool,
 }
 
-fn parse_size(s: &str) -> anyhow::Result<(u32, u32)> {
+/// Parses `WIDTHxHEIGHT` (also used by `view`).
+pub fn parse_size(flag: &str, s: &str) -> anyhow::Result<(u32, u32)> {
     let (w, h) = s
         .split_once(['x', 'X'])
-        .with_context(|| format!("--size {s}: expected WIDTHxHEIGHT, e.g. 1280x720"))?;
+        .with_context(|| format!("{flag} {s}: expected WIDTHxHEIGHT, e.g. 1280x720"))?;
     let w: u32 = w
         .trim()
         .parse()
-        .with_context(|| format!("--size {s}: bad width"))?;
+        .with_context(|| format!("{flag} {s}: bad width"))?;
     let h: u32 = h
         .trim()
         .parse()
-        .with_context(|| format!("--size {s}: bad height"))?;
+        .with_context(|| format!("{flag} {s}: bad height"))?;
     anyhow::ensure!(
         w > 0 && h > 0 && w <= 8192 && h <= 8192,
-        "--size {s}: out of range"
+        "{flag} {s}: each side must be in 1..=8192"
     );
     Ok((w, h))
 }
@@ -165,7 +166,7 @@ fn build_scene(args: &Args, occlusion: OcclusionMode) -> anyhow::Result<WalkScen
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
-    let size = parse_size(&args.size)?;
+    let size = parse_size("--size", &args.size)?;
     let occlusion = parse_occlusion(&args.occlusion)?;
     let scene = build_scene(&args, occlusion)?;
     let (route, file_frames) = choose_route(&args.route, &scene, size.0 as f64 / size.1 as f64)?;
