@@ -2,18 +2,17 @@
 //! index traversal with cull map tests, on a synthetic street grid of about 80,000 buildings
 //! (55 × 55 blocks) from street level, at several resolutions.
 
-use blockwalk::visibility::bench::{
-    block_bounds, random_views, BenchOptions, ListIndex, SyntheticCity, ViewKind,
-};
+use blockwalk::index::{block_bounds, FlatList};
+use blockwalk::visibility::synthetic::SyntheticCity;
+use blockwalk::visibility::views::{random_views, ViewKind, ViewOptions};
 use blockwalk::visibility::{CullerOptions, OccluderShadow, OcclusionCuller, Resolution};
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion};
 use glam::DVec2;
 
 fn cullmap(c: &mut Criterion) {
     let s = SyntheticCity::generate(55, 55, 1, DVec2::new(500_000.0, 6_600_000.0));
-    let refs = s.mesh_refs();
-    let index = ListIndex::new(block_bounds(&s.city, &s.layout, &refs));
-    let opts = BenchOptions {
+    let index = FlatList::build(&block_bounds(&s.city, &s.layout)).unwrap();
+    let opts = ViewOptions {
         views: 32,
         street_fraction: 1.0,
         ..Default::default()

@@ -43,8 +43,7 @@
 
 use blockwalk::geom::{Camera, Frustum};
 use blockwalk::index::{
-    build_by_name, synthetic::block_grid, synthetic::grid_extent_m, BlockBounds, CityIndex,
-    CullQuery, STRUCTURES,
+    synthetic::block_grid, synthetic::grid_extent_m, BlockBounds, CityIndex, CullQuery, Structure,
 };
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion};
 use glam::DVec3;
@@ -105,7 +104,7 @@ fn cull_all(
     for (f, eye) in views {
         out.clear();
         let q = CullQuery::with_eye(f, *eye);
-        n += index.cull_query(&q, &mut |_| true, out).blocks_accepted;
+        n += index.cull(&q, None, out).blocks_accepted;
     }
     n
 }
@@ -117,20 +116,13 @@ fn bench_build(c: &mut Criterion) {
         .warm_up_time(Duration::from_millis(300));
     for n in sizes() {
         let bounds: Vec<BlockBounds> = block_grid(n, 42);
-        for s in ["bqr", "vamsplit", "rstar"] {
-            g.bench_with_input(BenchMarkIdHelper::id(s, n), &bounds, |b, bounds| {
-                b.iter(|| black_box(build_by_name(s, bounds).unwrap().len()))
+        for s in [Structure::Bqr, Structure::Vamsplit, Structure::Rstar] {
+            g.bench_with_input(BenchmarkId::new(s.name(), n), &bounds, |b, bounds| {
+                b.iter(|| black_box(s.build(bounds).unwrap().len()))
             });
         }
     }
     g.finish();
-}
-
-struct BenchMarkIdHelper;
-impl BenchMarkIdHelper {
-    fn id(s: &str, n: usize) -> BenchmarkId {
-        BenchmarkId::new(s, n)
-    }
 }
 
 fn bench_cull(c: &mut Criterion) {
@@ -148,13 +140,13 @@ fn bench_cull(c: &mut Criterion) {
         for n in sizes() {
             let bounds = block_grid(n, 42);
             let views = views_of(n);
-            for s in STRUCTURES {
-                if s == "none" || (s == "flat" && n > 100_000) {
+            for s in Structure::ALL {
+                if s == Structure::None || (s == Structure::Flat && n > 100_000) {
                     continue;
                 }
-                let index = build_by_name(s, &bounds).unwrap();
+                let index = s.build(&bounds).unwrap();
                 let mut out = Vec::new();
-                g.bench_with_input(BenchmarkId::new(s, n), &views, |b, views| {
+                g.bench_with_input(BenchmarkId::new(s.name(), n), &views, |b, views| {
                     b.iter(|| black_box(cull_all(index.as_ref(), views, &mut out)))
                 });
             }

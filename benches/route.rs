@@ -64,30 +64,19 @@ fn route_sampling(c: &mut Criterion) {
 }
 
 /// The walk without rendering: 300 frames of the paper route, five structures, frustum culling
-/// and the per-frame bookkeeping. The city is the jittered block grid of `index::synthetic` with
-/// 2,500 blocks (the block count of a generated city of about 80,000 buildings).
+/// and the per-frame bookkeeping, on a synthetic street grid of 50 × 50 blocks (2,500 blocks,
+/// about the block count of a generated city of 80,000 buildings).
 fn walk_300_frames(c: &mut Criterion) {
-    use blockwalk::city::LocalFrame;
-    use blockwalk::index::{build_by_name, synthetic::block_grid, STRUCTURES};
-    use blockwalk::report::walk::{run_walk, OcclusionMode, WalkParams, WalkScene};
-    let bounds = block_grid(2_500, 1);
-    let structures = STRUCTURES
-        .iter()
-        .map(|s| build_by_name(s, &bounds).unwrap())
-        .collect();
-    let scene = WalkScene {
-        name: "grid 2500".into(),
-        frame: LocalFrame {
-            origin: DVec3::ZERO,
-        },
-        street_edges: Vec::new(),
-        meshes: Vec::new(),
-        structures,
-        occlusion: None,
-        oracle: None,
-        cpu_renderer: None,
-        bounds,
+    use blockwalk::index::Structure;
+    use blockwalk::scene::{CitySource, Scene, SceneOptions};
+    use blockwalk::walk::{run_walk, Drawing, OcclusionMode, WalkParams};
+    let source =
+        CitySource::parse(std::path::Path::new("synthetic:50x50"), None, None, &[], 1).unwrap();
+    let opts = SceneOptions {
+        structures: Structure::ALL.to_vec(),
+        ..SceneOptions::default()
     };
+    let scene = Scene::load(&source, &opts, &mut |_| {}).unwrap();
     let route = paper_route(
         &scene.city_bounds(),
         None,
@@ -99,7 +88,6 @@ fn walk_300_frames(c: &mut Criterion) {
         route,
         frames: 300,
         occlusion: OcclusionMode::Off,
-        render: false,
         image_every: 0,
         oracle: false,
         size: (1280, 720),
@@ -107,7 +95,7 @@ fn walk_300_frames(c: &mut Criterion) {
     let mut g = c.benchmark_group("walk");
     g.sample_size(10);
     g.bench_function("paper route 300 frames, 5 structures, 2500 blocks", |b| {
-        b.iter(|| run_walk(&scene, &params, &mut |_, _| {}).unwrap())
+        b.iter(|| run_walk(&scene, &params, Drawing::Off, &mut |_, _| {}).unwrap())
     });
     g.finish();
 }

@@ -10,9 +10,11 @@
 //! | street graph, urban blocks, building assignment | [`blocks`] | 003 §3 |
 //! | spatial structures (BqR-tree, VAMSplit R-tree, flat, none, rstar) | [`index`] | 003 §4 |
 //! | occlusion culling (occluder shadows, cull map) and the visibility oracle | [`visibility`] | 004 §3.2 |
+//! | one scene: city, blocks, meshes, bounds, structures, culler | [`scene`] | |
 //! | camera routes | [`route`] | 003 §5 |
+//! | playing a route: cull → draw → check, per frame | [`walk`] | 003 §5.1 |
 //! | rendering (wgpu, feature `render`) | `render` | 000 |
-//! | tables, plots, reports | [`report`] | |
+//! | tables, plots, reports (writing only) | [`report`] | |
 
 #![forbid(unsafe_code)]
 #![warn(missing_docs)]
@@ -27,4 +29,6 @@ pub mod index;
 pub mod render;
 pub mod report;
 pub mod route;
+pub mod scene;
 pub mod visibility;
+pub mod walk;

@@ -3,11 +3,11 @@
 
 use blockwalk::blocks::BlockId;
 use blockwalk::geom::{Aabb3, Camera};
-use blockwalk::index::CityIndex;
-use blockwalk::visibility::bench::{
-    block_bounds, run_occlusion_bench, BenchOptions, BenchScene, ListIndex, SyntheticCity,
-};
+use blockwalk::index::{block_bounds, CityIndex, CullQuery, FlatList};
+use blockwalk::visibility::bench::{run_occlusion_bench, BenchOptions, BenchScene};
 use blockwalk::visibility::oracle::visible_blocks;
+use blockwalk::visibility::synthetic::SyntheticCity;
+use blockwalk::visibility::views::ViewOptions;
 use blockwalk::visibility::{CullerOptions, OcclusionCuller, Resolution, SkipReason};
 use glam::{DVec2, DVec3};
 use proptest::prelude::*;
@@ -16,7 +16,7 @@ use std::sync::LazyLock;
 
 struct Scene {
     city: SyntheticCity,
-    index: ListIndex,
+    index: FlatList,
     cullers: Vec<OcclusionCuller>,
     boxes: Vec<Aabb3>,
     bounds: Aabb3,
@@ -24,8 +24,7 @@ struct Scene {
 
 static SCENE: LazyLock<Scene> = LazyLock::new(|| {
     let city = SyntheticCity::generate(5, 4, 42, DVec2::new(385_000.0, 6_672_000.0));
-    let refs = city.mesh_refs();
-    let index = ListIndex::new(block_bounds(&city.city, &city.layout, &refs));
+    let index = FlatList::build(&block_bounds(&city.city, &city.layout)).unwrap();
     let base = OcclusionCuller::new(&city.city, &city.layout, CullerOptions::default()).unwrap();
     let cullers = [64, 256, 1024]
         .iter()
@@ -91,7 +90,8 @@ fn check_view(cam: &Camera) -> (usize, usize) {
     let refs = s.city.mesh_refs();
     let visible = visible_blocks(&refs, cam, 320, 180);
     let mut in_frustum = Vec::new();
-    s.index.cull(&cam.frustum(), &mut in_frustum);
+    s.index
+        .cull(&CullQuery::new(&cam.frustum()), None, &mut in_frustum);
     let in_frustum: BTreeSet<BlockId> = in_frustum.into_iter().collect();
     assert!(
         visible.is_subset(&in_frustum),
@@ -204,8 +204,11 @@ fn bench_finds_no_false_culls_and_culls_something() {
     };
     let opts = BenchOptions {
         resolutions: vec![64, 256],
-        views: 40,
-        street_fraction: 0.8,
+        views: ViewOptions {
+            views: 40,
+            street_fraction: 0.8,
+            ..Default::default()
+        },
         oracle_size: (320, 180),
         ..Default::default()
     };
@@ -244,7 +247,8 @@ fn skips_are_reported_and_keep_everything() {
         assert_eq!(st.skipped, Some(why), "{eye}");
         assert_eq!(st.volumes_hidden, 0);
         let mut plain = Vec::new();
-        s.index.cull(&cam.frustum(), &mut plain);
+        s.index
+            .cull(&CullQuery::new(&cam.frustum()), None, &mut plain);
         assert_eq!(out, plain, "a skipped frame is plain frustum culling");
     }
     // A street view is not skipped and reports its work.

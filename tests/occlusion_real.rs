@@ -1,15 +1,12 @@
 //! Occlusion culling on the bundled Helsinki data (footprints extruded, blocks from the street
 //! layer): no block the oracle sees may be culled.
 
-use blockwalk::blocks::{detect, BlockId, BlockOptions};
-use blockwalk::city::build::{build_city, BuildOptions};
-use blockwalk::city::extrude::extrude_building;
+use blockwalk::blocks::{BlockId, BlockOptions};
 use blockwalk::city::Mesh;
-use blockwalk::importers::{read_layer, Theme};
-use blockwalk::index::{build_by_name, CityIndex};
-use blockwalk::visibility::bench::{
-    block_bounds, run_occlusion_bench, BenchOptions, BenchScene, ListIndex,
-};
+use blockwalk::index::Structure;
+use blockwalk::scene::{CitySource, Scene, SceneOptions};
+use blockwalk::visibility::bench::{run_occlusion_bench, BenchOptions, BenchScene};
+use blockwalk::visibility::views::ViewOptions;
 use std::path::PathBuf;
 
 fn data(rel: &str) -> PathBuf {
@@ -20,42 +17,42 @@ fn data(rel: &str) -> PathBuf {
 
 #[test]
 fn helsinki_no_false_culls() {
-    let fp = read_layer(&data("helsinki/buildings.shp"), &Theme::Any).unwrap();
-    let st = read_layer(&data("helsinki/streets_blockclass.shp"), &Theme::Any).unwrap();
-    let city = build_city(&fp, Some(&st), None, &BuildOptions::default()).unwrap();
-    let layout = detect(&city, &BlockOptions::default()).unwrap();
-    // One mesh per block: its buildings' prisms.
-    let mut meshes: Vec<(BlockId, Mesh)> = Vec::new();
-    for block in &layout.blocks {
-        let mut m = Mesh::default();
-        for b in &block.buildings {
-            let part = extrude_building(&city.buildings[b.0 as usize], &city.frame);
-            let base = m.positions.len() as u32;
-            m.positions.extend_from_slice(&part.positions);
-            m.normals.extend_from_slice(&part.normals);
-            m.indices.extend(part.indices.iter().map(|k| k + base));
-        }
-        meshes.push((block.id, m));
-    }
-    let refs: Vec<(BlockId, &Mesh)> = meshes.iter().map(|(id, m)| (*id, m)).collect();
-    let list = ListIndex::new(block_bounds(&city, &layout, &refs));
-    let bqr = build_by_name("bqr", &blockwalk::index::block_bounds(&city, &layout)).unwrap();
+    let source = CitySource::parse(
+        &data("helsinki/buildings.shp"),
+        Some(data("helsinki/streets_blockclass.shp")),
+        None,
+        &[],
+        0,
+    )
+    .unwrap();
+    let opts = SceneOptions {
+        blocks: BlockOptions::default(),
+        structures: vec![Structure::Flat, Structure::Bqr],
+        occlusion: None,
+    };
+    let scene = Scene::load(&source, &opts, &mut |_| {}).unwrap();
+    let refs: Vec<(BlockId, &Mesh)> = scene.meshes.iter().map(|(id, m)| (*id, m)).collect();
     let opts = BenchOptions {
         resolutions: vec![64, 256, 1024],
-        views: 60,
-        street_fraction: 0.75,
-        seed: 5,
+        views: ViewOptions {
+            views: 60,
+            street_fraction: 0.75,
+            seed: 5,
+            ..Default::default()
+        },
         oracle_size: (480, 270),
         ..Default::default()
     };
-    for (name, index) in [("list", &list as &dyn CityIndex), ("bqr", bqr.as_ref())] {
-        let scene = BenchScene {
-            city: &city,
-            layout: &layout,
+    let mut checked = 0;
+    for index in &scene.indexes {
+        let bench = BenchScene {
+            city: &scene.city,
+            layout: &scene.layout,
             meshes: &refs,
-            index,
+            index: index.as_ref(),
         };
-        let r = run_occlusion_bench(&scene, &opts, &mut |_, _| {}).unwrap();
+        let name = index.structure();
+        let r = run_occlusion_bench(&bench, &opts, &mut |_, _| {}).unwrap();
         eprintln!(
             "index {name}: {}",
             serde_json::to_string_pretty(&r).unwrap()
@@ -66,5 +63,7 @@ fn helsinki_no_false_culls() {
         }
         // The oracle sees something in most views (the views really are inside the city).
         assert!(r.mean_visible > 1.0, "{r:?}");
+        checked += 1;
     }
+    assert_eq!(checked, 2);
 }

@@ -20,4 +20,12 @@ impl Mesh {
     pub fn triangle_count(&self) -> usize {
         self.indices.len() / 3
     }
+
+    /// Appends `other`'s vertices and triangles (its indices shifted past this mesh's vertices).
+    pub fn append(&mut self, other: Mesh) {
+        let base = self.positions.len() as u32;
+        self.positions.extend_from_slice(&other.positions);
+        self.normals.extend_from_slice(&other.normals);
+        self.indices.extend(other.indices.iter().map(|k| k + base));
+    }
 }

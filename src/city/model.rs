@@ -128,6 +128,27 @@ pub struct RefusalNote {
 }
 
 /// A city: buildings, streets and parcels in metric world coordinates.
+///
+/// # Examples
+/// ```
+/// use blockwalk::scene::CitySource;
+/// use std::path::Path;
+///
+/// // The bundled Bubeneč footprints (a cadastral sample in EPSG:3857) with their streets.
+/// let source = CitySource::parse(
+///     Path::new("data/bubenec/buildings.shp"),
+///     Some("data/bubenec/streets.shp".into()),
+///     None,
+///     &[],
+///     0,
+/// )
+/// .unwrap();
+/// let city = source.load(&Default::default(), &mut |_| {}).unwrap().city;
+/// assert_eq!(city.buildings.len(), 144);
+/// assert!(!city.streets.is_empty());
+/// // Heights are metres above the ground; coordinates are metres in the metric world frame.
+/// assert!(city.buildings.iter().all(|b| b.height_m > 0.0));
+/// ```
 #[derive(Clone, Debug)]
 pub struct City {
     /// Name (from the footprint file).

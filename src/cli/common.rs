@@ -1,20 +1,20 @@
 //! Inputs shared by the commands that take a city.
 
 use std::io::IsTerminal;
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::time::Duration;
 
-use anyhow::Context;
-use blockwalk::city::build::{build_city, BuildOptions};
+use blockwalk::city::build::BuildOptions;
 use blockwalk::city::City;
-use blockwalk::importers::{read_layer, Layer, Theme};
+use blockwalk::scene::{CitySource, Scene, SceneOptions};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 
 /// A city on the command line: footprints, optional streets and parcels, or a generated city's
 /// directory.
 #[derive(clap::Args, Debug, Clone)]
 pub struct CityArgs {
-    /// Footprint file(s) (.shp, .geojson, .gpkg[:table], .osm.pbf) or a generated city directory.
+    /// Footprint file (.shp, .geojson, .gpkg[:table], .osm.pbf), a generated city directory, or
+    /// `synthetic:COLSxROWS` (a street grid of box buildings, about 27 per block).
     #[arg(required = true)]
     pub inputs: Vec<PathBuf>,
     /// Street centre lines.
@@ -44,76 +44,90 @@ pub fn spinner(msg: impl Into<String>) -> ProgressBar {
     pb
 }
 
-fn read(path: &Path, theme: &Theme) -> anyhow::Result<Layer> {
-    let pb = spinner(format!("reading {}", path.display()));
-    let l = read_layer(path, theme).with_context(|| format!("reading {}", path.display()));
-    pb.finish_and_clear();
-    l
-}
-
-fn parse_tags(tags: &[String]) -> anyhow::Result<Vec<(String, String)>> {
-    tags.iter()
-        .map(|t| {
-            t.split_once('=')
-                .map(|(k, v)| (k.to_string(), v.to_string()))
-                .with_context(|| format!("--exclude-tag {t:?}: expected k=v"))
-        })
-        .collect()
-}
-
-/// The layers named by `args`: footprints, streets, parcels. A directory input stands for its
-/// `buildings.shp` (+ `streets.shp`, `parcels.shp` when present), as `blockwalk generate` writes.
-pub fn load_layers(args: &CityArgs) -> anyhow::Result<(Layer, Option<Layer>, Option<Layer>)> {
-    if args.inputs.len() != 1 {
-        anyhow::bail!(
-            "expected one footprint input (a file or a city directory), got {}",
-            args.inputs.len()
-        );
+impl CityArgs {
+    /// The city source these arguments name (`seed` is used by `synthetic:` inputs).
+    pub fn source(&self, seed: u64) -> anyhow::Result<CitySource> {
+        let [input] = self.inputs.as_slice() else {
+            anyhow::bail!(
+                "expected one footprint input (a file, a city directory or synthetic:COLSxROWS), got {}",
+                self.inputs.len()
+            );
+        };
+        Ok(CitySource::parse(
+            input,
+            self.streets.clone(),
+            self.parcels.clone(),
+            &self.exclude_tag,
+            seed,
+        )?)
     }
-    let input = &args.inputs[0];
-    let (fp, mut st, mut pa) = if input.is_dir() {
-        let b = input.join("buildings.shp");
-        if !b.exists() {
-            anyhow::bail!("{}: directory has no buildings.shp", input.display());
-        }
-        let s = input.join("streets.shp");
-        let p = input.join("parcels.shp");
-        (b, s.exists().then_some(s), p.exists().then_some(p))
-    } else {
-        (input.clone(), None, None)
-    };
-    if args.streets.is_some() {
-        st = args.streets.clone();
-    }
-    if args.parcels.is_some() {
-        pa = args.parcels.clone();
-    }
-    let footprints = read(&fp, &Theme::Buildings)?;
-    let streets = st.map(|s| read(&s, &Theme::Streets)).transpose()?;
-    let parcels = pa.map(|p| read(&p, &Theme::Parcels)).transpose()?;
-    Ok((footprints, streets, parcels))
 }
 
 /// Loads the city named by `args` with the default height rules.
-#[allow(dead_code)]
 pub fn load_city(args: &CityArgs) -> anyhow::Result<City> {
     load_city_with(args, &BuildOptions::default())
 }
 
-/// Loads the city named by `args`; `opts.exclude_street_tags` is extended by `--exclude-tag`.
+/// Loads the city named by `args` with `opts` (`--exclude-tag` is added to its exclusions).
 pub fn load_city_with(args: &CityArgs, opts: &BuildOptions) -> anyhow::Result<City> {
-    let (f, s, p) = load_layers(args)?;
-    let mut opts = opts.clone();
-    opts.exclude_street_tags
-        .extend(parse_tags(&args.exclude_tag)?);
-    let pb = spinner(format!(
-        "building city from {} footprints",
-        f.features.len()
-    ));
-    let city = build_city(&f, s.as_ref(), p.as_ref(), &opts)
-        .with_context(|| format!("building the city from {}", f.source.display()));
+    let source = args.source(0)?;
+    let pb = spinner("loading the city");
+    let loaded = source.load(opts, &mut |m| pb.set_message(m.to_string()));
     pb.finish_and_clear();
-    city
+    Ok(loaded?.city)
+}
+
+/// Loads the city named by `args` and builds its scene, with a spinner.
+pub fn load_scene(args: &CityArgs, seed: u64, opts: &SceneOptions) -> anyhow::Result<Scene> {
+    let source = args.source(seed)?;
+    let pb = spinner("loading the city");
+    let scene = Scene::load(&source, opts, &mut |m| pb.set_message(m.to_string()));
+    pb.finish_and_clear();
+    Ok(scene?)
+}
+
+/// An image size on the command line, `WIDTHxHEIGHT` (e.g. `1280x720`), each side 1..=8192.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Size {
+    /// Pixels across.
+    pub width: u32,
+    /// Pixels down.
+    pub height: u32,
+}
+
+impl Size {
+    /// As a pair.
+    pub fn pair(self) -> (u32, u32) {
+        (self.width, self.height)
+    }
+    /// Width / height.
+    pub fn aspect(self) -> f64 {
+        self.width as f64 / self.height as f64
+    }
+}
+
+impl std::str::FromStr for Size {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        let (w, h) = s
+            .split_once(['x', 'X'])
+            .ok_or_else(|| "expected WIDTHxHEIGHT, e.g. 1280x720".to_string())?;
+        let side = |v: &str, what: &str| -> Result<u32, String> {
+            let n: u32 = v
+                .trim()
+                .parse()
+                .map_err(|_| format!("bad {what} {v:?}: expected a whole number"))?;
+            if (1..=8192).contains(&n) {
+                Ok(n)
+            } else {
+                Err(format!("{what} {n} is out of 1..=8192"))
+            }
+        };
+        Ok(Size {
+            width: side(w, "width")?,
+            height: side(h, "height")?,
+        })
+    }
 }
 
 /// Peak resident memory of this process in bytes (`VmHWM` from `/proc/self/status`), where the

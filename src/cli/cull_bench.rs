@@ -1,10 +1,15 @@
 //! `blockwalk cull-bench`: compare the spatial structures on frustum culling (seed 003 §5.1).
 
-use super::common::{load_city, spinner, CityArgs};
+use super::common::{load_scene, spinner, CityArgs};
 use anyhow::{bail, Context};
-use blockwalk::blocks::{detect, BlockOptions};
 use blockwalk::index::bench::{run_cull_bench, CullBenchParams, CullBenchReport};
-use blockwalk::index::{block_bounds, synthetic::block_grid, BlockBounds, STRUCTURES};
+use blockwalk::index::{synthetic::block_grid, BlockBounds, Structure};
+use blockwalk::scene::SceneOptions;
+
+/// The most blocks of a `--synthetic` grid.
+pub const MAX_SYNTHETIC_BLOCKS: usize = 10_000_000;
+/// The most views.
+pub const MAX_VIEWS: u64 = 1_000_000;
 
 /// Arguments.
 #[derive(clap::Args, Debug)]
@@ -13,18 +18,19 @@ pub struct Args {
     #[command(flatten)]
     pub city: Option<CityArgs>,
     /// Use a synthetic jittered grid of this many blocks instead of a city.
-    #[arg(long, conflicts_with = "inputs")]
-    pub synthetic: Option<usize>,
-    /// Structures to compare, comma separated (bqr, vamsplit, flat, none, rstar).
+    #[arg(long, conflicts_with = "inputs", value_parser = clap::value_parser!(u64).range(1..=MAX_SYNTHETIC_BLOCKS as u64))]
+    pub synthetic: Option<u64>,
+    /// Structures to compare, comma separated.
     #[arg(
         long,
+        value_enum,
         value_delimiter = ',',
         default_value = "bqr,vamsplit,flat,none,rstar"
     )]
-    pub structures: Vec<String>,
+    pub structures: Vec<Structure>,
     /// Number of random views (half street level, half flying).
-    #[arg(long, default_value_t = 200)]
-    pub views: usize,
+    #[arg(long, default_value_t = 200, value_parser = clap::value_parser!(u64).range(1..=MAX_VIEWS))]
+    pub views: u64,
     /// Seed of the views (and of a synthetic city).
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
@@ -37,32 +43,24 @@ pub struct Args {
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
-    for s in &args.structures {
-        if !STRUCTURES.contains(&s.as_str()) {
-            bail!(
-                "unknown structure `{s}`; expected one of {}",
-                STRUCTURES.join(", ")
-            );
-        }
-    }
     let (name, bounds): (String, Vec<BlockBounds>) = match (&args.city, args.synthetic) {
         (_, Some(n)) => (
             format!("synthetic grid of {n} blocks"),
-            block_grid(n, args.seed),
+            block_grid(n as usize, args.seed),
         ),
         (Some(city_args), None) => {
-            let city = load_city(city_args)?;
-            let pb = spinner("detecting blocks");
-            let layout = detect(&city, &BlockOptions::default())
-                .with_context(|| format!("detecting blocks of {}", city.name))?;
-            pb.finish_and_clear();
-            (city.name.clone(), block_bounds(&city, &layout))
+            let opts = SceneOptions {
+                structures: Vec::new(),
+                ..SceneOptions::default()
+            };
+            let scene = load_scene(city_args, args.seed, &opts)?;
+            (scene.name, scene.bounds)
         }
         (None, None) => bail!("give a city (footprint files) or --synthetic N"),
     };
     let params = CullBenchParams {
         structures: args.structures.clone(),
-        views: args.views,
+        views: args.views as usize,
         seed: args.seed,
         check: !args.no_check,
         ..CullBenchParams::default()

@@ -3,18 +3,44 @@
 //! §3.2): ms per frame, occluders, blocks culled, false culls, effectiveness, and a plot of
 //! effectiveness against time.
 
-use super::common::{spinner, CityArgs};
+use super::common::{load_scene, CityArgs, Size};
 use anyhow::{bail, Context};
-use blockwalk::blocks::{detect, BlockId, BlockLayout, BlockOptions};
-use blockwalk::city::extrude::extrude_building;
-use blockwalk::city::{City, Mesh};
-use blockwalk::index::CityIndex;
+use blockwalk::index::Structure;
 use blockwalk::report::plot::{write_plot, PlotKind, Series};
-use blockwalk::visibility::bench::{
-    block_bounds, run_occlusion_bench, BenchOptions, BenchScene, ListIndex, SyntheticCity,
-};
+use blockwalk::scene::SceneOptions;
+use blockwalk::visibility::bench::{run_occlusion_bench, BenchOptions, BenchScene};
+use blockwalk::visibility::views::ViewOptions;
 use blockwalk::visibility::CullerOptions;
 use std::path::PathBuf;
+
+/// The most views.
+pub const MAX_VIEWS: u64 = 1_000_000;
+
+/// A fraction in 0..=1 (NaN and values outside are refused).
+fn fraction(s: &str) -> Result<f64, String> {
+    let v: f64 = s
+        .trim()
+        .parse()
+        .map_err(|_| format!("{s:?} is not a number"))?;
+    if (0.0..=1.0).contains(&v) {
+        Ok(v)
+    } else {
+        Err(format!("{v} is not in 0..=1"))
+    }
+}
+
+/// A positive, finite number.
+fn positive(s: &str) -> Result<f64, String> {
+    let v: f64 = s
+        .trim()
+        .parse()
+        .map_err(|_| format!("{s:?} is not a number"))?;
+    if v.is_finite() && v > 0.0 {
+        Ok(v)
+    } else {
+        Err(format!("{v} is not a positive finite number"))
+    }
+}
 
 /// Arguments.
 #[derive(clap::Args, Debug)]
@@ -27,27 +53,26 @@ pub struct Args {
     #[arg(long, value_delimiter = ',', default_value = "64,128,256,512,1024")]
     pub resolution: Vec<u32>,
     /// Number of random views.
-    #[arg(long, default_value_t = 200)]
-    pub views: usize,
+    #[arg(long, default_value_t = 200, value_parser = clap::value_parser!(u64).range(1..=MAX_VIEWS))]
+    pub views: u64,
     /// Fraction of street-level views (the rest fly).
-    #[arg(long, default_value_t = 0.7)]
+    #[arg(long, default_value_t = 0.7, value_parser = fraction)]
     pub street_fraction: f64,
     /// Seed of the views (and of a synthetic city).
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
     /// Oracle image size, WxH.
     #[arg(long, default_value = "640x360")]
-    pub oracle: String,
+    pub oracle: Size,
     /// Blocks within this distance of the eye give occluders, metres.
-    #[arg(long, default_value_t = 300.0)]
+    #[arg(long, default_value_t = 300.0, value_parser = positive)]
     pub local_radius: f64,
     /// At most this many occluders per frame.
     #[arg(long, default_value_t = 256)]
     pub max_occluders: usize,
-    /// Spatial structure frustum culling runs on (bqr, vamsplit, flat, none, rstar, or `list`:
-    /// every block tested on its own).
-    #[arg(long, default_value = "bqr")]
-    pub index: String,
+    /// Spatial structure frustum culling runs on.
+    #[arg(long, value_enum, default_value_t = Structure::Bqr)]
+    pub index: Structure,
     /// Print one JSON object instead of the summary.
     #[arg(long)]
     pub json: bool,
@@ -56,78 +81,35 @@ pub struct Args {
     pub plot: Option<PathBuf>,
 }
 
-/// The city, its blocks and one mesh per block.
-type Scene = (City, BlockLayout, Vec<(BlockId, Mesh)>);
-
-fn load(args: &Args) -> anyhow::Result<Scene> {
-    let c = &args.city;
-    let first = c.inputs[0].to_string_lossy().to_string();
-    if let Some(spec) = first.strip_prefix("synthetic:") {
-        let (cols, rows) = spec
-            .split_once(['x', 'X'])
-            .and_then(|(a, b)| Some((a.parse::<usize>().ok()?, b.parse::<usize>().ok()?)))
-            .with_context(|| format!("{first}: expected synthetic:COLSxROWS"))?;
-        if cols == 0 || rows == 0 || cols * rows > 1_000_000 {
-            bail!("{first}: between 1 and 1,000,000 blocks");
-        }
-        let s = SyntheticCity::generate(
-            cols,
-            rows,
-            args.seed,
-            glam::DVec2::new(500_000.0, 6_600_000.0),
-        );
-        return Ok((s.city, s.layout, s.meshes));
-    }
-    let city = super::common::load_city(c)?;
-    let pb = spinner(format!(
-        "blocks and meshes for {} buildings",
-        city.buildings.len()
-    ));
-    let layout = detect(&city, &BlockOptions::default()).context("detecting blocks")?;
-    let meshes = layout
-        .blocks
-        .iter()
-        .map(|block| {
-            let mut m = Mesh::default();
-            for b in &block.buildings {
-                let part = extrude_building(&city.buildings[b.0 as usize], &city.frame);
-                let base = m.positions.len() as u32;
-                m.positions.extend_from_slice(&part.positions);
-                m.normals.extend_from_slice(&part.normals);
-                m.indices.extend(part.indices.iter().map(|k| k + base));
-            }
-            (block.id, m)
-        })
-        .collect();
-    pb.finish_and_clear();
-    Ok((city, layout, meshes))
-}
-
 pub fn run(args: Args) -> anyhow::Result<()> {
-    let oracle_size = super::walk::parse_size("--oracle", &args.oracle)?;
+    let oracle_size = args.oracle.pair();
     if args.resolution.is_empty() {
         bail!("--resolution: give at least one");
     }
-    let (city, layout, meshes) = load(&args)?;
-    let refs: Vec<(BlockId, &Mesh)> = meshes.iter().map(|(id, m)| (*id, m)).collect();
-    let index: Box<dyn CityIndex> = if args.index == "list" {
-        Box::new(ListIndex::new(block_bounds(&city, &layout, &refs)))
-    } else {
-        let bounds = blockwalk::index::block_bounds(&city, &layout);
-        blockwalk::index::build_by_name(&args.index, &bounds)
-            .with_context(|| format!("building the {} index", args.index))?
+    let opts = SceneOptions {
+        structures: vec![args.index],
+        ..SceneOptions::default()
     };
+    let scene_data = load_scene(&args.city, args.seed, &opts)?;
+    let refs: Vec<_> = scene_data.meshes.iter().map(|(id, m)| (*id, m)).collect();
+    let index = scene_data
+        .index(args.index)
+        .expect("the scene builds the structure asked for");
+    let city = &scene_data.city;
     let scene = BenchScene {
-        city: &city,
-        layout: &layout,
+        city,
+        layout: &scene_data.layout,
         meshes: &refs,
-        index: index.as_ref(),
+        index,
     };
     let opts = BenchOptions {
         resolutions: args.resolution.clone(),
-        views: args.views,
-        street_fraction: args.street_fraction,
-        seed: args.seed,
+        views: ViewOptions {
+            views: args.views as usize,
+            street_fraction: args.street_fraction,
+            seed: args.seed,
+            ..ViewOptions::default()
+        },
         oracle_size,
         culler: CullerOptions {
             local_radius: args.local_radius,
@@ -136,7 +118,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         },
         ..Default::default()
     };
-    let bar = indicatif::ProgressBar::new(args.views as u64);
+    let bar = indicatif::ProgressBar::new(args.views);
     if args.json {
         bar.set_draw_target(indicatif::ProgressDrawTarget::hidden());
     }

@@ -4,7 +4,9 @@
 //! Without a display: `xvfb-run -s "-screen 0 1280x720x24" blockwalk view CITY --frames 30
 //! --screenshot view.png` renders 30 frames along the route and saves the last one.
 
-use super::common::CityArgs;
+use super::common::{CityArgs, Size};
+use blockwalk::index::Structure;
+use blockwalk::route::RouteChoice;
 use std::path::PathBuf;
 
 /// Arguments.
@@ -14,28 +16,40 @@ pub struct Args {
     pub city: CityArgs,
     /// The route P plays: `paper`, `orbit`, `street`, or a route file (.toml / .json).
     #[arg(long, default_value = "paper")]
-    pub route: String,
-    /// The spatial structure that culls each frame (none, flat, vamsplit, bqr, rstar).
-    #[arg(long, default_value = "bqr")]
-    pub structure: String,
-    /// Occlusion culling (occluder shadows + cull map): on or off.
-    #[arg(long, default_value = "off")]
-    pub occlusion: String,
+    pub route: RouteChoice,
+    /// The spatial structure that culls each frame.
+    #[arg(long, value_enum, default_value_t = Structure::Bqr)]
+    pub structure: Structure,
+    /// Occlusion culling (occluder shadows + cull map).
+    #[arg(long, value_enum, default_value_t = Switch::Off)]
+    pub occlusion: Switch,
     /// Initial window size, e.g. 1280x720.
     #[arg(long, default_value = "1280x720")]
-    pub size: String,
+    pub size: Size,
     /// Render `--frames` frames along the route, save the last as this PNG, and quit.
     #[arg(long)]
     pub screenshot: Option<PathBuf>,
     /// Frames along the route in `--screenshot` mode.
-    #[arg(long, default_value_t = 30)]
-    pub frames: usize,
+    #[arg(long, default_value_t = 30, value_parser = clap::value_parser!(u64).range(1..=100_000))]
+    pub frames: u64,
     /// Flying speed, metres per second (Shift: five times).
     #[arg(long, default_value_t = 20.0)]
     pub speed: f64,
+    /// Seed of a `synthetic:` city.
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
     /// Print one JSON object at the end instead of the human summary.
     #[arg(long)]
     pub json: bool,
+}
+
+/// On or off.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum Switch {
+    /// Enabled.
+    On,
+    /// Disabled.
+    Off,
 }
 
 #[cfg(not(feature = "window"))]
@@ -54,69 +68,39 @@ pub fn run(args: Args) -> anyhow::Result<()> {
 
 #[cfg(feature = "window")]
 pub fn run(args: Args) -> anyhow::Result<()> {
-    use super::common::{load_city, spinner};
+    use super::common::load_scene;
     use anyhow::Context;
-    use blockwalk::blocks::{detect, BlockOptions};
-    use blockwalk::city::extrude::extrude_city;
-    use blockwalk::index::{block_bounds, build_by_name, STRUCTURES};
     use blockwalk::render::window::{run_viewer, ViewerOptions, ViewerScene};
-    use blockwalk::report::walk::{OcclusionProvider, WalkScene};
-    use blockwalk::visibility::{CullerOptions, OcclusionCuller};
+    use blockwalk::scene::SceneOptions;
+    use blockwalk::visibility::CullerOptions;
 
-    let (width, height) = super::walk::parse_size("--size", &args.size)?;
-    let occlusion = match args.occlusion.as_str() {
-        "on" => true,
-        "off" => false,
-        o => anyhow::bail!("--occlusion {o}: expected on or off"),
-    };
-    anyhow::ensure!(
-        STRUCTURES.contains(&args.structure.as_str()),
-        "unknown structure `{}`; expected one of {}",
-        args.structure,
-        STRUCTURES.join(", ")
-    );
-    anyhow::ensure!(args.frames > 0, "--frames must be at least 1");
+    let occlusion = args.occlusion == Switch::On;
     anyhow::ensure!(
         args.speed.is_finite() && args.speed > 0.0,
         "--speed {}: expected a positive number",
         args.speed
     );
-    let city = load_city(&args.city)?;
-    let pb = spinner("detecting blocks");
-    let layout = detect(&city, &BlockOptions::default())
-        .with_context(|| format!("detecting blocks of {}", city.name))?;
-    pb.set_message("extruding buildings");
-    let meshes = extrude_city(&city);
-    pb.set_message(format!("building {}", args.structure));
-    let bounds = block_bounds(&city, &layout);
-    let scene = WalkScene::from_city(&city, &layout, meshes, bounds);
-    let index = build_by_name(&args.structure, &scene.bounds)
-        .with_context(|| format!("building structure {} over {}", args.structure, city.name))?;
-    let occluder: Option<Box<dyn OcclusionProvider>> = if occlusion {
-        pb.set_message("extracting occluders");
-        let culler = OcclusionCuller::new(&city, &layout, CullerOptions::default())
-            .with_context(|| format!("occlusion culler for {}", city.name))?;
-        Some(Box::new(culler))
-    } else {
-        None
+    let opts = SceneOptions {
+        structures: vec![args.structure],
+        occlusion: occlusion.then(CullerOptions::default),
+        ..SceneOptions::default()
     };
-    pb.finish_and_clear();
-    let (route, _) = super::walk::choose_route(&args.route, &scene, width as f64 / height as f64)?;
+    let scene = load_scene(&args.city, args.seed, &opts)?;
+    let (route, _) = super::walk::resolve_route(&args.route, &scene, args.size)?;
     let name = scene.name.clone();
     let viewer_scene = ViewerScene {
-        name: name.clone(),
-        meshes: scene.meshes,
-        index,
-        occlusion: occluder,
+        scene,
+        structure: args.structure,
+        occlusion,
         route,
     };
     let summary = run_viewer(
         viewer_scene,
         ViewerOptions {
-            width,
-            height,
+            width: args.size.width,
+            height: args.size.height,
             screenshot: args.screenshot.clone(),
-            frames: args.frames,
+            frames: args.frames as usize,
             speed: args.speed,
         },
     )

@@ -25,7 +25,7 @@
 //! VAMSplit leaf drawn as a whole (up to `node_capacity` blocks) accepts more triangles than
 //! one block per leaf; our VAMSplit tests the blocks of a partially visible leaf one by one.
 
-use super::{build_by_name, BlockBounds, CityIndex, CullQuery, IndexError};
+use super::{BlockBounds, CityIndex, CullQuery, IndexError, Structure};
 use crate::blocks::BlockId;
 use crate::geom::{BoundingSphere, Camera, Containment, Frustum};
 use glam::DVec3;
@@ -37,8 +37,8 @@ use std::time::Instant;
 /// What to run.
 #[derive(Clone, Debug)]
 pub struct CullBenchParams {
-    /// Structure names (see [`super::STRUCTURES`]).
-    pub structures: Vec<String>,
+    /// Structures to compare.
+    pub structures: Vec<Structure>,
     /// Number of views (half at street level, half flying).
     pub views: usize,
     /// Seed of the views.
@@ -55,7 +55,7 @@ pub struct CullBenchParams {
 impl Default for CullBenchParams {
     fn default() -> Self {
         Self {
-            structures: super::STRUCTURES.iter().map(|s| s.to_string()).collect(),
+            structures: Structure::ALL.to_vec(),
             views: 200,
             seed: 1,
             street_far_m: 2000.0,
@@ -68,8 +68,8 @@ impl Default for CullBenchParams {
 /// Results for one structure.
 #[derive(Clone, Debug, Serialize)]
 pub struct StructureReport {
-    /// Structure name.
-    pub name: String,
+    /// The structure.
+    pub name: Structure,
     /// Build time, milliseconds.
     pub build_ms: f64,
     /// Nodes in the structure.
@@ -128,8 +128,11 @@ impl CullBenchReport {
     /// `bqr / vamsplit` of (cull time median, nodes visited, plane tests, triangles accepted),
     /// when both ran.
     pub fn bqr_over_vamsplit(&self) -> Option<[f64; 4]> {
-        let b = self.structures.iter().find(|s| s.name == "bqr")?;
-        let v = self.structures.iter().find(|s| s.name == "vamsplit")?;
+        let b = self.structures.iter().find(|s| s.name == Structure::Bqr)?;
+        let v = self
+            .structures
+            .iter()
+            .find(|s| s.name == Structure::Vamsplit)?;
         let r = |a: f64, b: f64| if b > 0.0 { a / b } else { f64::NAN };
         Some([
             r(b.cull_us_median, v.cull_us_median),
@@ -223,9 +226,9 @@ pub fn run_cull_bench(
         slot_of.insert(b.id, i);
     }
     let mut structures = Vec::new();
-    for name in &params.structures {
+    for &name in &params.structures {
         let t0 = Instant::now();
-        let index = build_by_name(name, bounds)?;
+        let index = name.build(bounds)?;
         let build_ms = t0.elapsed().as_secs_f64() * 1e3;
         structures.push(measure(
             name,
@@ -285,7 +288,7 @@ pub fn run_cull_bench(
 }
 
 fn measure(
-    name: &str,
+    name: Structure,
     index: &dyn CityIndex,
     build_ms: f64,
     cams: &[Camera],
@@ -302,7 +305,8 @@ fn measure(
         out.clear();
         let q = CullQuery::with_eye(f, cam.position);
         let t0 = Instant::now();
-        let stats = index.cull_query(&q, &mut |_| true, &mut out);
+        // No hidden-volume filter: nodes completely inside are accepted whole (seed 003 §5).
+        let stats = index.cull(&q, None, &mut out);
         times.push(t0.elapsed().as_secs_f64() * 1e6);
         nodes += stats.nodes_visited;
         tests += stats.plane_tests;
@@ -331,7 +335,7 @@ fn measure(
     };
     let n = cams.len().max(1) as f64;
     StructureReport {
-        name: name.to_string(),
+        name,
         build_ms,
         nodes: index.node_count(),
         cull_us_median: pct(0.5),
@@ -362,9 +366,17 @@ mod tests {
         for s in &r.structures {
             assert_eq!(s.false_culls, 0, "{}", s.name);
         }
-        let none = r.structures.iter().find(|s| s.name == "none").unwrap();
+        let none = r
+            .structures
+            .iter()
+            .find(|s| s.name == Structure::None)
+            .unwrap();
         assert_eq!(none.blocks_accepted_mean, 400.0);
-        let flat = r.structures.iter().find(|s| s.name == "flat").unwrap();
+        let flat = r
+            .structures
+            .iter()
+            .find(|s| s.name == Structure::Flat)
+            .unwrap();
         assert!(flat.blocks_accepted_mean < 400.0);
         assert!(r.visible_blocks_mean.unwrap() > 0.0);
         assert!(r.bqr_over_vamsplit().is_some());

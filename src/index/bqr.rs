@@ -21,7 +21,9 @@
 //! and are reported in a separate output by [`BqrTree::cull_with_objects`]; the
 //! [`CityIndex`] methods report blocks only.
 
-use super::{validate_bounds, BlockBounds, CityIndex, CullQuery, CullStats, IndexError, Sink};
+use super::{
+    validate_bounds, BlockBounds, CityIndex, CullQuery, CullStats, IndexError, Sink, Structure,
+};
 use crate::blocks::BlockId;
 use crate::geom::{
     Aabb3, BoundingSphere, CoherenceState, Containment, Frustum, PlaneMask, ALL_PLANES,
@@ -29,7 +31,7 @@ use crate::geom::{
 use glam::{DVec2, DVec3};
 
 const NONE: u32 = u32::MAX;
-const NAME: &str = "bqr";
+const NAME: Structure = Structure::Bqr;
 
 /// Build parameters of a [`BqrTree`].
 #[derive(Clone, Debug, PartialEq)]
@@ -882,30 +884,17 @@ pub(crate) fn box_distance_2(b: &Aabb3, p: DVec3) -> f64 {
 }
 
 impl CityIndex for BqrTree {
-    fn name(&self) -> &'static str {
+    fn structure(&self) -> Structure {
         NAME
     }
 
-    fn cull(&self, frustum: &Frustum, out: &mut Vec<BlockId>) -> CullStats {
-        self.run(&CullQuery::new(frustum), None, out, None)
-    }
-
-    fn cull_filtered(
-        &self,
-        frustum: &Frustum,
-        keep: &mut dyn FnMut(&Aabb3) -> bool,
-        out: &mut Vec<BlockId>,
-    ) -> CullStats {
-        self.run(&CullQuery::new(frustum), Some(keep), out, None)
-    }
-
-    fn cull_query(
+    fn cull(
         &self,
         query: &CullQuery<'_>,
-        keep: &mut dyn FnMut(&Aabb3) -> bool,
+        hidden_filter: Option<&mut dyn FnMut(&Aabb3) -> bool>,
         out: &mut Vec<BlockId>,
     ) -> CullStats {
-        self.run(query, Some(keep), out, None)
+        self.run(query, hidden_filter, out, None)
     }
 
     fn len(&self) -> usize {

@@ -1,6 +1,8 @@
 //! The two references: no structure at all, and a flat list whose every block box is tested.
 
-use super::{validate_bounds, BlockBounds, CityIndex, CullStats, IndexError, Sink};
+use super::{
+    validate_bounds, BlockBounds, CityIndex, CullQuery, CullStats, IndexError, Sink, Structure,
+};
 use crate::blocks::BlockId;
 use crate::geom::{Aabb3, Containment, Frustum, ALL_PLANES};
 
@@ -16,7 +18,7 @@ impl NoStructure {
     /// # Errors
     /// [`IndexError::BadBlock`] for a non-finite or empty block box.
     pub fn build(bounds: &[BlockBounds]) -> Result<Self, IndexError> {
-        validate_bounds("none", bounds)?;
+        validate_bounds(Structure::None, bounds)?;
         Ok(Self {
             blocks: bounds.to_vec(),
         })
@@ -28,19 +30,19 @@ impl NoStructure {
 }
 
 impl CityIndex for NoStructure {
-    fn name(&self) -> &'static str {
-        "none"
+    fn structure(&self) -> Structure {
+        Structure::None
     }
-    /// Every block, in input order; `keep` is still asked about each (it is not a frustum
-    /// test).
-    fn cull_filtered(
+    /// Every block, in input order; `hidden_filter` is still asked about each (it is not a
+    /// frustum test).
+    fn cull(
         &self,
-        _frustum: &Frustum,
-        keep: &mut dyn FnMut(&Aabb3) -> bool,
+        _query: &CullQuery<'_>,
+        hidden_filter: Option<&mut dyn FnMut(&Aabb3) -> bool>,
         out: &mut Vec<BlockId>,
     ) -> CullStats {
         let mut sink = Sink {
-            keep: Some(keep),
+            keep: hidden_filter,
             out,
             stats: CullStats::default(),
         };
@@ -48,17 +50,6 @@ impl CityIndex for NoStructure {
             if sink.keep(&b.aabb) {
                 sink.accept(b);
             }
-        }
-        sink.stats
-    }
-    fn cull(&self, _frustum: &Frustum, out: &mut Vec<BlockId>) -> CullStats {
-        let mut sink = Sink {
-            keep: None,
-            out,
-            stats: CullStats::default(),
-        };
-        for b in &self.blocks {
-            sink.accept(b);
         }
         sink.stats
     }
@@ -79,7 +70,7 @@ impl FlatList {
     /// # Errors
     /// [`IndexError::BadBlock`] for a non-finite or empty block box.
     pub fn build(bounds: &[BlockBounds]) -> Result<Self, IndexError> {
-        validate_bounds("flat", bounds)?;
+        validate_bounds(Structure::Flat, bounds)?;
         Ok(Self {
             blocks: bounds.to_vec(),
         })
@@ -114,19 +105,16 @@ impl FlatList {
 }
 
 impl CityIndex for FlatList {
-    fn name(&self) -> &'static str {
-        "flat"
+    fn structure(&self) -> Structure {
+        Structure::Flat
     }
-    fn cull(&self, frustum: &Frustum, out: &mut Vec<BlockId>) -> CullStats {
-        self.run(frustum, None, out)
-    }
-    fn cull_filtered(
+    fn cull(
         &self,
-        frustum: &Frustum,
-        keep: &mut dyn FnMut(&Aabb3) -> bool,
+        query: &CullQuery<'_>,
+        hidden_filter: Option<&mut dyn FnMut(&Aabb3) -> bool>,
         out: &mut Vec<BlockId>,
     ) -> CullStats {
-        self.run(frustum, Some(keep), out)
+        self.run(query.frustum, hidden_filter, out)
     }
     fn len(&self) -> usize {
         self.blocks.len()

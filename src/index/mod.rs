@@ -38,7 +38,7 @@ pub enum IndexError {
     #[error("{structure}: parameter `{name}` = {value} is invalid: {reason}")]
     BadParam {
         /// Structure being built.
-        structure: &'static str,
+        structure: Structure,
         /// Parameter name.
         name: &'static str,
         /// Value given.
@@ -50,7 +50,7 @@ pub enum IndexError {
     #[error("{structure}: object {id} has a non-finite or empty box")]
     BadObject {
         /// Structure.
-        structure: &'static str,
+        structure: Structure,
         /// The object's id.
         id: u32,
     },
@@ -58,7 +58,7 @@ pub enum IndexError {
     #[error("{structure}: object {id} is already in the index")]
     DuplicateObject {
         /// Structure.
-        structure: &'static str,
+        structure: Structure,
         /// The object's id.
         id: u32,
     },
@@ -66,7 +66,7 @@ pub enum IndexError {
     #[error("{structure}: object {id} is not in the index")]
     UnknownObject {
         /// Structure.
-        structure: &'static str,
+        structure: Structure,
         /// The object's id.
         id: u32,
     },
@@ -74,7 +74,7 @@ pub enum IndexError {
     #[error("{structure}: block {index} (id {id}) has a non-finite or empty box or centre")]
     BadBlock {
         /// Structure being built.
-        structure: &'static str,
+        structure: Structure,
         /// Position in the input slice.
         index: usize,
         /// The block's id.
@@ -84,7 +84,7 @@ pub enum IndexError {
 
 /// Checks what every structure needs of its input: finite, non-empty boxes and centres.
 pub(crate) fn validate_bounds(
-    structure: &'static str,
+    structure: Structure,
     bounds: &[BlockBounds],
 ) -> Result<(), IndexError> {
     for (index, b) in bounds.iter().enumerate() {
@@ -165,39 +165,114 @@ impl std::ops::AddAssign for CullStats {
     }
 }
 
+/// The spatial structures blockwalk can build, named once: the command line's `--structure`
+/// values, the reports' column names and the serialized names all come from this enum.
+#[derive(
+    Clone,
+    Copy,
+    Debug,
+    PartialEq,
+    Eq,
+    Hash,
+    PartialOrd,
+    Ord,
+    clap::ValueEnum,
+    Serialize,
+    serde::Deserialize,
+)]
+#[serde(rename_all = "lowercase")]
+#[value(rename_all = "lowercase")]
+pub enum Structure {
+    /// No structure: every block is drawn (the baseline).
+    None,
+    /// Every block tested on its own against the frustum.
+    Flat,
+    /// The VAMSplit R-tree (White & Jain 1996), the paper's comparison.
+    Vamsplit,
+    /// The BqR-tree (seed 003 §4).
+    Bqr,
+    /// An R*-tree from the `rstar` crate, as an external anchor.
+    Rstar,
+}
+
+impl Structure {
+    /// Every structure, in the order reports list them.
+    pub const ALL: [Structure; 5] = [
+        Structure::None,
+        Structure::Flat,
+        Structure::Vamsplit,
+        Structure::Bqr,
+        Structure::Rstar,
+    ];
+
+    /// The structure's name (its command-line value).
+    pub fn name(self) -> String {
+        use clap::ValueEnum as _;
+        self.to_possible_value()
+            .map(|v| v.get_name().to_string())
+            .unwrap_or_default()
+    }
+
+    /// Builds this structure over `bounds` with default parameters.
+    ///
+    /// # Errors
+    /// The structure's own build errors ([`IndexError::BadBlock`] for a non-finite box).
+    ///
+    /// # Examples
+    /// ```
+    /// use blockwalk::index::{synthetic::block_grid, CullQuery, Structure};
+    /// use blockwalk::geom::Camera;
+    /// use glam::DVec3;
+    ///
+    /// let bounds = block_grid(100, 7);
+    /// let tree = Structure::Bqr.build(&bounds).unwrap();
+    /// assert_eq!(tree.structure(), Structure::Bqr);
+    /// let camera = Camera::new(DVec3::new(0.0, 0.0, 1.7), 0.3, 0.0);
+    /// let frustum = camera.frustum();
+    /// let mut visible = Vec::new();
+    /// let stats = tree.cull(&CullQuery::new(&frustum), None, &mut visible);
+    /// assert_eq!(stats.blocks_accepted as usize, visible.len());
+    /// ```
+    pub fn build(self, bounds: &[BlockBounds]) -> Result<Box<dyn CityIndex>, IndexError> {
+        Ok(match self {
+            Structure::Bqr => Box::new(BqrTree::build(bounds, &BqrParams::default())?),
+            Structure::Vamsplit => {
+                Box::new(VamSplitTree::build(bounds, &VamSplitParams::default())?)
+            }
+            Structure::Flat => Box::new(FlatList::build(bounds)?),
+            Structure::None => Box::new(NoStructure::build(bounds)?),
+            Structure::Rstar => Box::new(RstarIndex::build(bounds)?),
+        })
+    }
+}
+
+impl std::fmt::Display for Structure {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.pad(&self.name())
+    }
+}
+
 /// A spatial structure that returns the blocks to draw for a view.
 ///
 /// Block ids in the output are those of the [`BlockBounds`] the structure was built from.
 pub trait CityIndex: Send + Sync {
-    /// Short name (`bqr`, `vamsplit`, `flat`, `none`, `rstar`).
-    fn name(&self) -> &'static str;
+    /// Which structure this is.
+    fn structure(&self) -> Structure;
 
-    /// Pushes every block that may intersect `frustum` to `out` (never drops one that does).
-    fn cull(&self, frustum: &Frustum, out: &mut Vec<BlockId>) -> CullStats {
-        self.cull_filtered(frustum, &mut |_| true, out)
-    }
-
-    /// As [`CityIndex::cull`], front to back when the structure can, and additionally asking
-    /// `keep(volume)` for every node and block that survives the frustum test: a node whose
-    /// conservative box gets `false` (proven hidden, e.g. by the cull map) is dropped with its
-    /// subtree.
-    fn cull_filtered(
-        &self,
-        frustum: &Frustum,
-        keep: &mut dyn FnMut(&Aabb3) -> bool,
-        out: &mut Vec<BlockId>,
-    ) -> CullStats;
-
-    /// As [`CityIndex::cull_filtered`] with an explicit eye for the front-to-back order
-    /// (nearest child first). The default ignores the eye and uses the frustum's apex.
-    fn cull_query(
+    /// The one cull entry point: pushes every block that may intersect `query.frustum` to `out`
+    /// (never drops one that does), front to back from `query.eye` when the structure can.
+    ///
+    /// `hidden_filter`, when given, is asked about every node and block that survives the
+    /// frustum test, and a volume for which it answers `false` (proven hidden, e.g. by the cull
+    /// map of seed 004 §3.2) is dropped with its subtree. Without it, a node completely inside
+    /// the frustum is accepted with its whole subtree without further tests (seed 003 §5): pass
+    /// `None` whenever there is nothing to filter, so that this shortcut applies.
+    fn cull(
         &self,
         query: &CullQuery<'_>,
-        keep: &mut dyn FnMut(&Aabb3) -> bool,
+        hidden_filter: Option<&mut dyn FnMut(&Aabb3) -> bool>,
         out: &mut Vec<BlockId>,
-    ) -> CullStats {
-        self.cull_filtered(query.frustum, keep, out)
-    }
+    ) -> CullStats;
 
     /// Number of blocks indexed.
     fn len(&self) -> usize;
@@ -212,32 +287,6 @@ pub trait CityIndex: Send + Sync {
         0
     }
 }
-
-/// Builds one structure by name (`bqr`, `vamsplit`, `flat`, `none`, `rstar`) with default
-/// parameters.
-///
-/// # Errors
-/// [`IndexError::BadParam`] for an unknown name, and the structure's own build errors.
-pub fn build_by_name(name: &str, bounds: &[BlockBounds]) -> Result<Box<dyn CityIndex>, IndexError> {
-    Ok(match name {
-        "bqr" => Box::new(BqrTree::build(bounds, &BqrParams::default())?),
-        "vamsplit" => Box::new(VamSplitTree::build(bounds, &VamSplitParams::default())?),
-        "flat" => Box::new(FlatList::build(bounds)?),
-        "none" => Box::new(NoStructure::build(bounds)?),
-        "rstar" => Box::new(RstarIndex::build(bounds)?),
-        other => {
-            return Err(IndexError::BadParam {
-                structure: "index",
-                name: "structure",
-                value: other.to_string(),
-                reason: "expected one of bqr, vamsplit, flat, none, rstar",
-            })
-        }
-    })
-}
-
-/// The structure names [`build_by_name`] knows.
-pub const STRUCTURES: [&str; 5] = ["bqr", "vamsplit", "flat", "none", "rstar"];
 
 /// Collects accepted blocks and counts; shared by the traversals.
 pub(crate) struct Sink<'k, 'o> {

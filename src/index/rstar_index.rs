@@ -5,7 +5,7 @@
 //! and it cannot pass plane masks from parent to child (each envelope is tested against all six
 //! planes).
 
-use super::{validate_bounds, BlockBounds, CityIndex, CullStats, IndexError};
+use super::{validate_bounds, BlockBounds, CityIndex, CullQuery, CullStats, IndexError, Structure};
 use crate::blocks::BlockId;
 use crate::geom::{Aabb3, Containment, Frustum, ALL_PLANES};
 use glam::DVec3;
@@ -42,7 +42,7 @@ impl RstarIndex {
     /// # Errors
     /// [`IndexError::BadBlock`] for a non-finite or empty block box.
     pub fn build(bounds: &[BlockBounds]) -> Result<Self, IndexError> {
-        validate_bounds("rstar", bounds)?;
+        validate_bounds(Structure::Rstar, bounds)?;
         let entries = bounds
             .iter()
             .enumerate()
@@ -132,19 +132,16 @@ impl SelectionFunction<Entry> for &FrustumSelection<'_, '_> {
 }
 
 impl CityIndex for RstarIndex {
-    fn name(&self) -> &'static str {
-        "rstar"
+    fn structure(&self) -> Structure {
+        Structure::Rstar
     }
-    fn cull(&self, frustum: &Frustum, out: &mut Vec<BlockId>) -> CullStats {
-        self.run(frustum, None, out)
-    }
-    fn cull_filtered(
+    fn cull(
         &self,
-        frustum: &Frustum,
-        keep: &mut dyn FnMut(&Aabb3) -> bool,
+        query: &CullQuery<'_>,
+        hidden_filter: Option<&mut dyn FnMut(&Aabb3) -> bool>,
         out: &mut Vec<BlockId>,
     ) -> CullStats {
-        self.run(frustum, Some(keep), out)
+        self.run(query.frustum, hidden_filter, out)
     }
     fn len(&self) -> usize {
         self.blocks.len()

@@ -8,12 +8,14 @@
 //! contiguous.
 
 use super::bqr::box_distance_2;
-use super::{validate_bounds, BlockBounds, CityIndex, CullQuery, CullStats, IndexError, Sink};
+use super::{
+    validate_bounds, BlockBounds, CityIndex, CullQuery, CullStats, IndexError, Sink, Structure,
+};
 use crate::blocks::BlockId;
-use crate::geom::{Aabb3, Containment, Frustum, PlaneMask, ALL_PLANES};
+use crate::geom::{Aabb3, Containment, PlaneMask, ALL_PLANES};
 use glam::DVec3;
 
-const NAME: &str = "vamsplit";
+const NAME: Structure = Structure::Vamsplit;
 
 /// Build parameters of a [`VamSplitTree`].
 #[derive(Clone, Debug, PartialEq)]
@@ -346,27 +348,16 @@ impl VamSplitTree {
 }
 
 impl CityIndex for VamSplitTree {
-    fn name(&self) -> &'static str {
+    fn structure(&self) -> Structure {
         NAME
     }
-    fn cull(&self, frustum: &Frustum, out: &mut Vec<BlockId>) -> CullStats {
-        self.run(&CullQuery::new(frustum), None, out)
-    }
-    fn cull_filtered(
-        &self,
-        frustum: &Frustum,
-        keep: &mut dyn FnMut(&Aabb3) -> bool,
-        out: &mut Vec<BlockId>,
-    ) -> CullStats {
-        self.run(&CullQuery::new(frustum), Some(keep), out)
-    }
-    fn cull_query(
+    fn cull(
         &self,
         query: &CullQuery<'_>,
-        keep: &mut dyn FnMut(&Aabb3) -> bool,
+        hidden_filter: Option<&mut dyn FnMut(&Aabb3) -> bool>,
         out: &mut Vec<BlockId>,
     ) -> CullStats {
-        self.run(query, Some(keep), out)
+        self.run(query, hidden_filter, out)
     }
     fn len(&self) -> usize {
         self.blocks.len()

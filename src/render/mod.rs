@@ -2,6 +2,7 @@
 //!
 //! - [`Gpu`]: adapter and device, created apart from the renderers so that tests and tools can
 //!   bring their own (`Gpu::new_headless`, or [`Gpu::from_parts`]).
+//! - [`GpuFrameRenderer`]: the walk's [`crate::visibility::FrameRenderer`] on a headless device.
 //! - [`MeshRenderer`]: uploads the block meshes once, then draws the blocks a culler lists, lit
 //!   (sun + ambient; roofs and facades told apart by the normal's z; ground plane; sky) or as flat
 //!   block IDs (for comparison with the CPU visibility oracle).
@@ -16,10 +17,12 @@
 //! projection, or sample the depth texture. Pixels no block covers keep depth 1.0 and the sky
 //! colour; the ground plane writes its depth too.
 
+mod frames;
 mod mesh;
 #[cfg(feature = "window")]
 pub mod window;
 
+pub use frames::GpuFrameRenderer;
 pub use mesh::{Frame, FrameTimings, MeshRenderer, RenderOptions, Shading};
 
 /// What can go wrong on the GPU side.

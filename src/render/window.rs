@@ -29,9 +29,10 @@ use super::{Gpu, MeshRenderer, RenderError, RenderOptions};
 use crate::blocks::BlockId;
 use crate::city::Mesh;
 use crate::geom::Camera;
-use crate::index::CityIndex;
-use crate::report::walk::OcclusionProvider;
+use crate::index::{CullQuery, Structure};
 use crate::route::CameraRoute;
+use crate::scene::Scene;
+use crate::visibility::OcclusionCulling;
 use glam::DVec3;
 use std::collections::HashSet;
 use std::path::PathBuf;
@@ -56,6 +57,9 @@ pub enum WindowError {
     /// The window surface cannot be used.
     #[error("window surface: {0}")]
     Surface(String),
+    /// The scene lacks what the viewer was asked to use.
+    #[error("viewer scene: {0}")]
+    Scene(String),
     /// The screenshot could not be written.
     #[error("screenshot {path}: {message}")]
     Screenshot {
@@ -68,14 +72,12 @@ pub enum WindowError {
 
 /// What the viewer shows.
 pub struct ViewerScene {
-    /// City name (for the title).
-    pub name: String,
-    /// One mesh per building, with its block (local frame).
-    pub meshes: Vec<(BlockId, Mesh)>,
-    /// The structure that frustum-culls the blocks.
-    pub index: Box<dyn CityIndex>,
-    /// The occlusion culler, when occlusion culling is on.
-    pub occlusion: Option<Box<dyn OcclusionProvider>>,
+    /// The scene (its meshes are uploaded once).
+    pub scene: Scene,
+    /// The structure that frustum-culls the blocks (built in the scene).
+    pub structure: Structure,
+    /// Cull through the scene's occlusion culler as well (it must have one).
+    pub occlusion: bool,
     /// The route that P plays (and the start pose).
     pub route: CameraRoute,
 }
@@ -83,10 +85,9 @@ pub struct ViewerScene {
 impl std::fmt::Debug for ViewerScene {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.debug_struct("ViewerScene")
-            .field("name", &self.name)
-            .field("meshes", &self.meshes.len())
-            .field("index", &self.index.name())
-            .field("occlusion", &self.occlusion.as_ref().map(|o| o.name()))
+            .field("scene", &self.scene)
+            .field("structure", &self.structure)
+            .field("occlusion", &self.occlusion)
             .field("route", &self.route.name)
             .finish()
     }
@@ -228,7 +229,7 @@ impl App {
     /// device, renderer.
     fn init(&self, event_loop: &ActiveEventLoop) -> Result<GpuState, WindowError> {
         let attrs = Window::default_attributes()
-            .with_title(format!("blockwalk — {}", self.scene.name))
+            .with_title(format!("blockwalk — {}", self.scene.scene.name))
             .with_inner_size(PhysicalSize::new(self.options.width, self.options.height));
         let window = Arc::new(
             event_loop
@@ -300,7 +301,13 @@ impl App {
         width: u32,
         height: u32,
     ) -> Result<MeshRenderer, RenderError> {
-        let refs: Vec<(BlockId, &Mesh)> = self.scene.meshes.iter().map(|(b, m)| (*b, m)).collect();
+        let refs: Vec<(BlockId, &Mesh)> = self
+            .scene
+            .scene
+            .meshes
+            .iter()
+            .map(|(b, m)| (*b, m))
+            .collect();
         MeshRenderer::with_options(gpu, &refs, RenderOptions { width, height })
     }
 
@@ -390,14 +397,29 @@ impl App {
             return Ok(());
         };
         self.visible.clear();
-        match &self.scene.occlusion {
+        let Some(index) = self.scene.scene.index(self.scene.structure) else {
+            return Err(WindowError::Scene(format!(
+                "the scene has no {} structure",
+                self.scene.structure
+            )));
+        };
+        let culler = self
+            .scene
+            .scene
+            .occlusion
+            .as_ref()
+            .filter(|_| self.scene.occlusion);
+        match culler {
             Some(occ) => {
-                occ.cull(self.scene.index.as_ref(), &self.camera, &mut self.visible);
+                occ.cull_frame(index, &self.camera, &mut self.visible);
             }
             None => {
-                self.scene
-                    .index
-                    .cull(&self.camera.frustum(), &mut self.visible);
+                let frustum = self.camera.frustum();
+                index.cull(
+                    &CullQuery::with_eye(&frustum, self.camera.position),
+                    None,
+                    &mut self.visible,
+                );
             }
         }
         let frame = state
@@ -454,12 +476,12 @@ impl App {
             let fps = self.title_frames as f64 / since;
             state.window.set_title(&format!(
                 "blockwalk — {} — {:.1} fps — {} blocks, {} triangles — {}{}{}",
-                self.scene.name,
+                self.scene.scene.name,
                 fps,
                 frame.timings.blocks,
                 frame.timings.triangles,
-                self.scene.index.name(),
-                if self.scene.occlusion.is_some() {
+                self.scene.structure,
+                if self.scene.occlusion {
                     " + occlusion"
                 } else {
                     ""

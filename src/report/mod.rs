@@ -1,7 +1,8 @@
 //! Tables, plots and reports a person would rather look at than read.
 //!
 //! - [`plot`]: line and scatter plots to PNG / SVG.
-//! - [`walk`]: the walk benchmark (seed 003 §5.1): per-frame CSV, Table 1, Fig. 4, frames, HTML.
+//! - [`walk`]: writes a walk's records (seed 003 §5.1): per-frame CSV, Table 1, Fig. 4, frames,
+//!   JSON, HTML. This module only writes: the walk itself is [`crate::walk`].
 
 pub mod plot;
 pub mod walk;

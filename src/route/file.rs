@@ -77,6 +77,28 @@ pub struct KeySpec {
 /// A route file (see the [module docs](self) for the format).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
+///
+/// # Examples
+/// ```
+/// use blockwalk::route::RouteFile;
+///
+/// let file = RouteFile::from_toml(r#"
+///     name = "two keys"
+///     frames = 10
+///     [[keys]]
+///     position = [0.0, 0.0, 1.7]
+///     yaw_deg = 0.0
+///     [[keys]]
+///     position = [14.0, 0.0, 1.7]
+///     yaw_deg = 0.0
+/// "#).unwrap();
+/// let route = file.to_route(None).unwrap();
+/// let cameras = route.sample(10);
+/// assert_eq!(cameras.len(), 10);
+/// // 14 m at the default walking pace of 1.4 m/s.
+/// assert!((route.duration() - 10.0).abs() < 1e-9);
+/// assert!((cameras[9].position.x - 14.0).abs() < 1e-9);
+/// ```
 pub struct RouteFile {
     /// Route name.
     #[serde(default = "default_name")]

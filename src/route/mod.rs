@@ -2,15 +2,18 @@
 //!
 //! - [`CameraRoute`]: timed key frames (local frame, metres) interpolated with centripetal
 //!   Catmull–Rom (positions) and squad (orientations), sampled into [`Camera`]s.
+//! - [`choice`]: [`RouteChoice`], a named generated route or a route file, resolved for a city.
 //! - [`file`]: the route file format (TOML or JSON), see [`file::RouteFile`].
 //! - [`generate`]: routes for any city: the paper's route, a street-level walk, an orbit; the
 //!   street graph and its shortest paths.
 //! - [`spline`]: the interpolation kernels.
 
+pub mod choice;
 pub mod file;
 pub mod generate;
 pub mod spline;
 
+pub use choice::{RouteChoice, RouteContext};
 pub use file::RouteFile;
 pub use generate::{orbit_route, paper_route, street_walk, PaperRouteParams, StreetGraph};
 

@@ -8,7 +8,7 @@ use super::VisibilityError;
 use crate::blocks::{BlockId, BlockLayout};
 use crate::city::City;
 use crate::geom::{Aabb3, Camera, Frustum};
-use crate::index::{CityIndex, CullStats};
+use crate::index::{CityIndex, CullQuery, CullStats};
 use glam::{DVec2, DVec3};
 use serde::Serialize;
 use std::sync::Mutex;
@@ -295,19 +295,18 @@ impl OcclusionCuller {
         let n0 = out.len();
         let (mut tested, mut hidden) = (0u64, 0u64);
         let use_map = st.skipped.is_none() && st.cells_covered > 0;
-        st.cull = index.cull_filtered(
-            &frustum,
-            &mut |b: &Aabb3| {
-                if !use_map {
-                    return true;
-                }
-                tested += 1;
-                let h = map.box_hidden(b);
-                hidden += h as u64;
-                !h
-            },
-            out,
-        );
+        let query = CullQuery::with_eye(&frustum, camera.position);
+        let mut filter = |b: &Aabb3| {
+            tested += 1;
+            let h = map.box_hidden(b);
+            hidden += h as u64;
+            !h
+        };
+        // Without a usable map there is nothing to filter: no callback, so structures keep
+        // their "node completely inside → accept the subtree" shortcut (seed 003 §5).
+        let hidden_filter: Option<&mut dyn FnMut(&Aabb3) -> bool> =
+            if use_map { Some(&mut filter) } else { None };
+        st.cull = index.cull(&query, hidden_filter, out);
         st.volumes_tested = tested;
         st.volumes_hidden = hidden;
         st.blocks_out = (out.len() - n0) as u64;

@@ -154,6 +154,29 @@ pub(crate) fn f32_up(v: f64) -> f32 {
 }
 
 /// The cull map: per cell, the height below which everything is hidden (−∞ when nothing is known).
+///
+/// # Examples
+/// ```
+/// use blockwalk::geom::Aabb3;
+/// use blockwalk::visibility::{CullMap, Occluder, OccluderShadow, Resolution};
+/// use glam::{DVec2, DVec3};
+///
+/// // A 20 m high wall along y = 10 seen by a pedestrian south of it.
+/// let mut map = CullMap::new(DVec2::splat(-100.0), DVec2::splat(100.0), Resolution::Cells(128))
+///     .unwrap();
+/// let wall = Occluder { a: DVec2::new(-50.0, 10.0), b: DVec2::new(50.0, 10.0), height: 20.0 };
+/// let eye = DVec3::new(0.0, 0.0, 1.7);
+/// map.draw(&OccluderShadow::new(eye, &wall).unwrap());
+/// map.build_pyramid();
+/// // A low shed just behind the wall is hidden; a tower behind it is not, nor is anything in
+/// // front of the wall.
+/// let shed = Aabb3::new(DVec3::new(-5.0, 20.0, 0.0), DVec3::new(5.0, 25.0, 4.0));
+/// let tower = Aabb3::new(DVec3::new(-5.0, 20.0, 0.0), DVec3::new(5.0, 25.0, 60.0));
+/// let front = Aabb3::new(DVec3::new(-5.0, 3.0, 0.0), DVec3::new(5.0, 5.0, 1.0));
+/// assert!(map.box_hidden(&shed));
+/// assert!(!map.box_hidden(&tower));
+/// assert!(!map.box_hidden(&front));
+/// ```
 #[derive(Clone, Debug)]
 pub struct CullMap {
     grid: Grid,

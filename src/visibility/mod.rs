@@ -5,19 +5,30 @@
 //! - [`cullmap`]: [`CullMap`], conservative rasterisation of shadows, and its [`cullmap::MinPyramid`].
 //! - [`occluders`]: facade edges per block, collinear runs merged along block fronts.
 //! - [`oracle`]: CPU z-buffer id renderer, the ground truth; [`oracle::shade`] fallback images.
-//! - [`bench`]: culler against oracle over random views; a synthetic test city; a list index.
 //! - [`culler`]: [`OcclusionCuller`], per-frame occluder selection and culling through a
 //!   [`crate::index::CityIndex`].
+//! - [`frame`]: the per-frame roles as traits ([`OcclusionCulling`], [`VisibilityOracle`],
+//!   [`FrameRenderer`]) with their CPU implementations.
+//! - [`views`]: seeded random street-level and flying views over a city.
+//! - [`synthetic`]: a synthetic grid city with exact meshes, for tests and benches.
+//! - [`bench`]: the culler against the oracle over random views, per cull map resolution.
 
 pub mod bench;
 pub mod culler;
 pub mod cullmap;
+pub mod frame;
 pub mod occluders;
 pub mod oracle;
 pub mod shadow;
+pub mod synthetic;
+pub mod views;
 
 pub use culler::{CullerOptions, OcclusionCuller, OcclusionStats, SkipReason};
 pub use cullmap::{CullMap, Resolution};
+pub use frame::{
+    CpuFrameRenderer, DrawError, DrawnFrame, FrameRenderer, MeshOracle, OcclusionCulling,
+    VisibilityOracle,
+};
 pub use occluders::{BlockOccluders, OccluderOptions};
 pub use shadow::{NoShadow, Occluder, OccluderShadow};
 

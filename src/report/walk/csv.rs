@@ -1,0 +1,61 @@
+//! The walk's per-frame table as CSV.
+
+use crate::walk::WalkRecord;
+use std::fmt::Write as _;
+
+/// The CSV header, one column per [`crate::walk::FrameRecord`] field and the camera.
+pub const HEADER: &str = "frame,structure,mode,cull_s,render_s,frame_s,nodes_visited,plane_tests,blocks,triangles,false_culls,x,y,z,yaw_deg,pitch_deg";
+
+/// Per-frame records as CSV (empty cells for values not measured).
+pub fn frames_csv(record: &WalkRecord) -> String {
+    let mut s = String::from(HEADER);
+    s.push('\n');
+    for r in &record.frames {
+        let c = &record.cameras[r.frame];
+        let _ = writeln!(
+            s,
+            "{},{},{},{:.9},{},{:.9},{},{},{},{},{},{:.3},{:.3},{:.3},{:.3},{:.3}",
+            r.frame,
+            r.structure,
+            r.mode,
+            r.cull_s,
+            r.render_s.map(|v| format!("{v:.9}")).unwrap_or_default(),
+            r.frame_s,
+            r.stats.nodes_visited,
+            r.stats.plane_tests,
+            r.blocks,
+            r.triangles,
+            r.false_culls.map(|v| v.to_string()).unwrap_or_default(),
+            c.position.x,
+            c.position.y,
+            c.position.z,
+            c.yaw.to_degrees(),
+            c.pitch.to_degrees(),
+        );
+    }
+    s
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn one_line_per_record_with_every_column() {
+        let r = crate::report::walk::tests::record();
+        let csv = frames_csv(&r);
+        let lines: Vec<&str> = csv.lines().collect();
+        assert_eq!(lines[0], HEADER);
+        assert_eq!(lines.len(), 1 + r.frames.len());
+        let cols = HEADER.split(',').count();
+        for l in &lines[1..] {
+            assert_eq!(l.split(',').count(), cols, "{l}");
+        }
+        assert!(lines[1].starts_with("0,bqr,frustum,"), "{}", lines[1]);
+        assert!(
+            lines[2].starts_with("0,bqr,frustum+occlusion,"),
+            "{}",
+            lines[2]
+        );
+    }
+}

@@ -1,0 +1,181 @@
+//! The route a command plays: a named generated route or a route file.
+
+use super::{
+    orbit_route, paper_route, street_walk, CameraRoute, FrameSpec, Lens, PaperRouteParams,
+    RouteError, RouteFile, StreetGraph,
+};
+use crate::city::LocalFrame;
+use crate::geom::Aabb3;
+use geo_types::LineString;
+use std::path::PathBuf;
+use std::str::FromStr;
+
+/// Orbit radius as a multiple of the city's half-diagonal.
+pub const ORBIT_RADIUS_FACTOR: f64 = 1.3;
+/// Orbit eye height above the ground, metres.
+pub const ORBIT_HEIGHT_M: f64 = 80.0;
+/// Seconds for one orbit.
+pub const ORBIT_DURATION_S: f64 = 60.0;
+/// Eye height of the street walk, metres (a standing adult).
+pub const STREET_EYE_HEIGHT_M: f64 = 1.7;
+/// Walking speed of the street walk, metres per second.
+pub const STREET_SPEED_M_S: f64 = 1.4;
+
+/// A route by name or file.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum RouteChoice {
+    /// The paper's route (seed 003 §5): along the streets, rise, look down, fly down.
+    Paper,
+    /// A circle around the city, looking at its centre.
+    Orbit,
+    /// A street-level walk across the street graph, corner to corner.
+    Street,
+    /// A route file (`.toml` / `.json`, see [`RouteFile`]).
+    File(PathBuf),
+}
+
+impl FromStr for RouteChoice {
+    type Err = std::convert::Infallible;
+    /// `paper`, `orbit`, `street`, or else a route file's path.
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        Ok(match s {
+            "paper" => RouteChoice::Paper,
+            "orbit" => RouteChoice::Orbit,
+            "street" => RouteChoice::Street,
+            path => RouteChoice::File(PathBuf::from(path)),
+        })
+    }
+}
+
+impl std::fmt::Display for RouteChoice {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            RouteChoice::Paper => f.write_str("paper"),
+            RouteChoice::Orbit => f.write_str("orbit"),
+            RouteChoice::Street => f.write_str("street"),
+            RouteChoice::File(p) => write!(f, "{}", p.display()),
+        }
+    }
+}
+
+/// What a route is made for: the city's box (local frame), its street edges (metric world) and
+/// frame, and the image's aspect ratio.
+#[derive(Clone, Copy, Debug)]
+pub struct RouteContext<'a> {
+    /// City name, for messages.
+    pub city: &'a str,
+    /// Box of the city's blocks, local frame.
+    pub bounds: Aabb3,
+    /// Street edges, metric world coordinates (may be empty).
+    pub street_edges: &'a [LineString<f64>],
+    /// The city's local frame.
+    pub frame: &'a LocalFrame,
+    /// Image width / height.
+    pub aspect: f64,
+}
+
+impl RouteChoice {
+    /// The route for `ctx`, and the frame count a route file asks for (generated routes leave
+    /// it to the caller).
+    ///
+    /// # Errors
+    /// A route that cannot be made (no street graph for `street`, a bad file, …).
+    pub fn resolve(
+        &self,
+        ctx: &RouteContext<'_>,
+    ) -> Result<(CameraRoute, Option<usize>), RouteError> {
+        let lens = Lens {
+            aspect: ctx.aspect,
+            ..Lens::default()
+        };
+        let graph = || StreetGraph::from_world_lines(ctx.street_edges, ctx.frame);
+        Ok(match self {
+            RouteChoice::Paper => {
+                let g = graph();
+                let route = paper_route(
+                    &ctx.bounds,
+                    Some(&g).filter(|g| !g.is_empty()),
+                    &PaperRouteParams::default(),
+                    lens,
+                )?;
+                (route, None)
+            }
+            RouteChoice::Orbit => (
+                orbit_route(
+                    &ctx.bounds,
+                    ORBIT_RADIUS_FACTOR,
+                    ORBIT_HEIGHT_M,
+                    ORBIT_DURATION_S,
+                    lens,
+                )?,
+                None,
+            ),
+            RouteChoice::Street => {
+                let g = graph();
+                if g.is_empty() {
+                    return Err(RouteError::Bad {
+                        route: "street".into(),
+                        problem: format!("{} has no street graph to walk", ctx.city),
+                    });
+                }
+                let from = ctx.bounds.min.truncate();
+                let to = ctx.bounds.max.truncate();
+                (
+                    street_walk(&g, from, to, STREET_EYE_HEIGHT_M, STREET_SPEED_M_S, lens)?,
+                    None,
+                )
+            }
+            RouteChoice::File(path) => {
+                let f = RouteFile::read(path)?;
+                let mut r = f.to_route(Some(ctx.frame))?;
+                r.lens.aspect = ctx.aspect;
+                let frames = match f.frame_spec() {
+                    FrameSpec::Count(n) => n,
+                    FrameSpec::Rate(fps) => r.sample_rate(fps).len(),
+                };
+                (r, Some(frames))
+            }
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn names_and_files() {
+        assert_eq!("paper".parse::<RouteChoice>().unwrap(), RouteChoice::Paper);
+        assert_eq!("orbit".parse::<RouteChoice>().unwrap(), RouteChoice::Orbit);
+        assert_eq!(
+            "street".parse::<RouteChoice>().unwrap(),
+            RouteChoice::Street
+        );
+        assert_eq!(
+            "routes/a.toml".parse::<RouteChoice>().unwrap(),
+            RouteChoice::File("routes/a.toml".into())
+        );
+        for c in ["paper", "orbit", "street", "x/y.json"] {
+            assert_eq!(c.parse::<RouteChoice>().unwrap().to_string(), c);
+        }
+    }
+
+    #[test]
+    fn street_walk_without_streets_is_an_error() {
+        let frame = LocalFrame {
+            origin: glam::DVec3::ZERO,
+        };
+        let ctx = RouteContext {
+            city: "empty",
+            bounds: Aabb3::from_points([glam::DVec3::ZERO, glam::DVec3::new(100.0, 100.0, 10.0)]),
+            street_edges: &[],
+            frame: &frame,
+            aspect: 16.0 / 9.0,
+        };
+        let e = RouteChoice::Street.resolve(&ctx).unwrap_err();
+        assert!(
+            matches!(e, RouteError::Bad { ref problem, .. } if problem.contains("no street graph"))
+        );
+        assert!(RouteChoice::Orbit.resolve(&ctx).is_ok());
+    }
+}

@@ -1,0 +1,262 @@
+//! One [`Scene`]: a city with its blocks, one mesh per block (merged once), the blocks' bounds, the
+//! spatial structures asked for and, when wanted, the occlusion culler. Every command and test
+//! that walks, views or benchmarks a city builds its scene here, and nowhere else.
+//!
+//! - [`source`]: where a city comes from ([`CitySource`]: files, a city folder, a synthetic grid).
+//!
+//! # Examples
+//! ```
+//! use blockwalk::index::Structure;
+//! use blockwalk::scene::{CitySource, Scene, SceneOptions};
+//! use std::path::Path;
+//!
+//! let source = CitySource::parse(Path::new("synthetic:3x2"), None, None, &[], 7).unwrap();
+//! let loaded = source.load(&Default::default(), &mut |_| {}).unwrap();
+//! let opts = SceneOptions {
+//!     structures: vec![Structure::Bqr, Structure::Vamsplit],
+//!     ..SceneOptions::default()
+//! };
+//! let scene = Scene::from_loaded(loaded, &opts, &mut |_| {}).unwrap();
+//! assert_eq!(scene.bounds.len(), 6);
+//! assert!(scene.index(Structure::Bqr).is_some());
+//! assert!(scene.index(Structure::Rstar).is_none());
+//! ```
+
+pub mod source;
+
+pub use source::{CitySource, LoadedCity, SourceError};
+
+use crate::blocks::{detect, BlockError, BlockId, BlockLayout, BlockOptions};
+use crate::city::extrude::extrude_city;
+use crate::city::{City, Mesh};
+use crate::geom::Aabb3;
+use crate::index::{block_bounds, BlockBounds, CityIndex, IndexError, Structure};
+use crate::visibility::{CullerOptions, OcclusionCuller, VisibilityError};
+
+/// What a scene is built with.
+#[derive(Clone, Debug)]
+pub struct SceneOptions {
+    /// How blocks are detected (ignored when the source brings its blocks).
+    pub blocks: BlockOptions,
+    /// The spatial structures to build, in this order.
+    pub structures: Vec<Structure>,
+    /// The occlusion culler's settings; `None` builds no culler.
+    pub occlusion: Option<CullerOptions>,
+}
+
+impl Default for SceneOptions {
+    /// Default blocks, the BqR-tree alone, no occlusion culler.
+    fn default() -> Self {
+        Self {
+            blocks: BlockOptions::default(),
+            structures: vec![Structure::Bqr],
+            occlusion: None,
+        }
+    }
+}
+
+/// Why a scene could not be built.
+#[derive(Debug, thiserror::Error)]
+pub enum SceneError {
+    /// Loading the city failed.
+    #[error(transparent)]
+    Source(#[from] SourceError),
+    /// Block detection failed.
+    #[error("detecting the blocks of {city}")]
+    Blocks {
+        /// City name.
+        city: String,
+        /// What went wrong.
+        #[source]
+        source: BlockError,
+    },
+    /// A structure could not be built.
+    #[error("building the {structure} structure over {city}")]
+    Index {
+        /// City name.
+        city: String,
+        /// The structure.
+        structure: Structure,
+        /// What went wrong.
+        #[source]
+        source: IndexError,
+    },
+    /// The occlusion culler could not be built.
+    #[error("building the occlusion culler for {city}")]
+    Occlusion {
+        /// City name.
+        city: String,
+        /// What went wrong.
+        #[source]
+        source: VisibilityError,
+    },
+}
+
+/// A city ready to cull, walk and draw.
+pub struct Scene {
+    /// City name.
+    pub name: String,
+    /// The city (metric world coordinates, its local frame).
+    pub city: City,
+    /// Its blocks; every building is in exactly one.
+    pub layout: BlockLayout,
+    /// One mesh per block (local frame): the block's buildings merged once.
+    pub meshes: Vec<(BlockId, Mesh)>,
+    /// Per-block bounds (local frame), as the structures index them.
+    pub bounds: Vec<BlockBounds>,
+    /// The structures asked for, in [`SceneOptions::structures`] order.
+    pub indexes: Vec<Box<dyn CityIndex>>,
+    /// The occlusion culler, when asked for.
+    pub occlusion: Option<OcclusionCuller>,
+}
+
+impl std::fmt::Debug for Scene {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Scene")
+            .field("name", &self.name)
+            .field("buildings", &self.city.buildings.len())
+            .field("blocks", &self.bounds.len())
+            .field(
+                "structures",
+                &self
+                    .indexes
+                    .iter()
+                    .map(|s| s.structure())
+                    .collect::<Vec<_>>(),
+            )
+            .field("occlusion", &self.occlusion.is_some())
+            .finish()
+    }
+}
+
+impl Scene {
+    /// Loads the city from `source` (default height rules) and builds its scene.
+    ///
+    /// # Errors
+    /// See [`SceneError`].
+    pub fn load(
+        source: &CitySource,
+        opts: &SceneOptions,
+        progress: &mut dyn FnMut(&str),
+    ) -> Result<Self, SceneError> {
+        let loaded = source.load(&Default::default(), progress)?;
+        Self::from_loaded(loaded, opts, progress)
+    }
+
+    /// Builds the scene of a loaded city: its blocks (detected, unless the source brought
+    /// them), per-block meshes, bounds, structures and culler. `progress` hears each stage.
+    ///
+    /// # Errors
+    /// See [`SceneError`].
+    pub fn from_loaded(
+        loaded: LoadedCity,
+        opts: &SceneOptions,
+        progress: &mut dyn FnMut(&str),
+    ) -> Result<Self, SceneError> {
+        let LoadedCity {
+            city,
+            layout,
+            meshes,
+        } = loaded;
+        let layout = match layout {
+            Some(l) => l,
+            None => {
+                progress("detecting blocks");
+                detect(&city, &opts.blocks).map_err(|source| SceneError::Blocks {
+                    city: city.name.clone(),
+                    source,
+                })?
+            }
+        };
+        let meshes = match meshes {
+            Some(m) => m,
+            None => {
+                progress("extruding buildings");
+                block_meshes(&city, &layout)
+            }
+        };
+        progress("building the structures");
+        let bounds = block_bounds(&city, &layout);
+        let indexes = opts
+            .structures
+            .iter()
+            .map(|&s| {
+                s.build(&bounds).map_err(|source| SceneError::Index {
+                    city: city.name.clone(),
+                    structure: s,
+                    source,
+                })
+            })
+            .collect::<Result<Vec<_>, _>>()?;
+        let occlusion = match opts.occlusion {
+            Some(o) => {
+                progress("extracting occluders");
+                Some(OcclusionCuller::new(&city, &layout, o).map_err(|source| {
+                    SceneError::Occlusion {
+                        city: city.name.clone(),
+                        source,
+                    }
+                })?)
+            }
+            None => None,
+        };
+        Ok(Self {
+            name: city.name.clone(),
+            city,
+            layout,
+            meshes,
+            bounds,
+            indexes,
+            occlusion,
+        })
+    }
+
+    /// The structure `s`, when it was built.
+    pub fn index(&self, s: Structure) -> Option<&dyn CityIndex> {
+        self.indexes
+            .iter()
+            .find(|i| i.structure() == s)
+            .map(|i| i.as_ref())
+    }
+
+    /// Box of all block bounds (local frame).
+    pub fn city_bounds(&self) -> Aabb3 {
+        self.bounds
+            .iter()
+            .fold(Aabb3::EMPTY, |b, bb| b.union(bb.aabb))
+    }
+
+    /// Triangles of each block, indexed by block id.
+    pub fn triangles_by_block(&self) -> Vec<u64> {
+        let n = self
+            .bounds
+            .iter()
+            .map(|b| b.id.0 as usize + 1)
+            .max()
+            .unwrap_or(0);
+        let mut t = vec![0u64; n];
+        for b in &self.bounds {
+            t[b.id.0 as usize] = u64::from(b.triangles);
+        }
+        t
+    }
+}
+
+/// One mesh per block: its buildings extruded (in parallel) and merged, in block order.
+/// Buildings in no block are left out (none are when the layout assigns every building).
+pub fn block_meshes(city: &City, layout: &BlockLayout) -> Vec<(BlockId, Mesh)> {
+    let mut per_building: Vec<Option<Mesh>> = extrude_city(city).into_iter().map(Some).collect();
+    layout
+        .blocks
+        .iter()
+        .map(|block| {
+            let mut m = Mesh::default();
+            for b in &block.buildings {
+                if let Some(part) = per_building.get_mut(b.0 as usize).and_then(Option::take) {
+                    m.append(part);
+                }
+            }
+            (block.id, m)
+        })
+        .collect()
+}

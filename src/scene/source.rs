@@ -1,0 +1,317 @@
+//! Where a city comes from: footprint files with optional street and parcel layers, a generated
+//! city's folder, or a synthetic grid (`synthetic:COLSxROWS`). The conventions live here, once,
+//! for every command and test.
+
+use crate::blocks::{BlockId, BlockLayout};
+use crate::city::build::{build_city, BuildError, BuildOptions};
+use crate::city::{City, Mesh};
+use crate::importers::{read_layer, ImportError, Layer, Theme};
+use crate::visibility::synthetic::SyntheticCity;
+use glam::DVec2;
+use std::path::{Path, PathBuf};
+
+/// The most blocks a synthetic grid may have (1,000,000: about 27 million buildings would not
+/// fit in memory anyway).
+pub const MAX_SYNTHETIC_BLOCKS: usize = 1_000_000;
+
+/// Where a synthetic grid is placed in world coordinates: far from (0, 0), so that the local
+/// frame is exercised (a UTM-like easting and northing).
+pub const SYNTHETIC_ORIGIN: DVec2 = DVec2::new(500_000.0, 6_600_000.0);
+
+/// File names a city folder holds, as `blockwalk generate` writes them.
+pub mod folder {
+    /// Footprints (required).
+    pub const BUILDINGS: &str = "buildings.shp";
+    /// Street centre lines (optional).
+    pub const STREETS: &str = "streets.shp";
+    /// Cadastral parcels (optional).
+    pub const PARCELS: &str = "parcels.shp";
+}
+
+/// A city's input.
+#[derive(Clone, Debug, PartialEq)]
+pub enum CitySource {
+    /// Layer files: footprints (`.shp`, `.geojson`, `.gpkg[:table]`, `.osm.pbf`), or a city
+    /// folder holding [`folder::BUILDINGS`] (and [`folder::STREETS`], [`folder::PARCELS`] when
+    /// present); explicit `streets` / `parcels` replace the folder's.
+    Files {
+        /// Footprint file or city folder.
+        footprints: PathBuf,
+        /// Street centre lines.
+        streets: Option<PathBuf>,
+        /// Cadastral parcels.
+        parcels: Option<PathBuf>,
+        /// Street features left out when their attribute `k` equals `v`.
+        exclude_street_tags: Vec<(String, String)>,
+    },
+    /// A synthetic grid of `cols × rows` blocks of box buildings (see [`SyntheticCity`]).
+    Synthetic {
+        /// Blocks along x.
+        cols: usize,
+        /// Blocks along y.
+        rows: usize,
+        /// Seed of the heights and lots.
+        seed: u64,
+    },
+}
+
+/// Why a city could not be loaded.
+#[derive(Debug, thiserror::Error)]
+pub enum SourceError {
+    /// A folder without its footprint file.
+    #[error("{}: directory has no {}", folder.display(), folder::BUILDINGS)]
+    NoBuildingsInFolder {
+        /// The folder.
+        folder: PathBuf,
+    },
+    /// A `synthetic:` spec that does not parse or is out of range.
+    #[error("{spec}: {reason}")]
+    BadSynthetic {
+        /// The spec as given.
+        spec: String,
+        /// What is wrong.
+        reason: &'static str,
+    },
+    /// A street exclusion that is not `k=v`.
+    #[error("street exclusion {0:?}: expected k=v")]
+    BadTag(String),
+    /// A layer could not be read.
+    #[error("reading {}", file.display())]
+    Read {
+        /// The file.
+        file: PathBuf,
+        /// What the importer said.
+        #[source]
+        source: ImportError,
+    },
+    /// The layers did not make a city.
+    #[error("building the city from {}", file.display())]
+    Build {
+        /// The footprint file.
+        file: PathBuf,
+        /// What went wrong.
+        #[source]
+        source: BuildError,
+    },
+}
+
+/// A loaded city: the city, and for a synthetic grid its known blocks and exact meshes.
+#[derive(Clone, Debug)]
+pub struct LoadedCity {
+    /// The city.
+    pub city: City,
+    /// Blocks that are known without detection (synthetic grids).
+    pub layout: Option<BlockLayout>,
+    /// Exact per-block meshes that come with the layout (synthetic grids).
+    pub meshes: Option<Vec<(BlockId, Mesh)>>,
+}
+
+impl CitySource {
+    /// A source from one command-line input: `synthetic:COLSxROWS` (with `seed`), a folder, or a
+    /// footprint file; `streets`, `parcels` and `k=v` exclusions as given.
+    ///
+    /// # Errors
+    /// [`SourceError::BadSynthetic`] and [`SourceError::BadTag`].
+    pub fn parse(
+        input: &Path,
+        streets: Option<PathBuf>,
+        parcels: Option<PathBuf>,
+        exclude_tags: &[String],
+        seed: u64,
+    ) -> Result<Self, SourceError> {
+        let text = input.to_string_lossy();
+        if let Some(spec) = text.strip_prefix("synthetic:") {
+            let bad = |reason| SourceError::BadSynthetic {
+                spec: text.to_string(),
+                reason,
+            };
+            let (cols, rows) = spec
+                .split_once(['x', 'X'])
+                .and_then(|(a, b)| Some((a.trim().parse().ok()?, b.trim().parse().ok()?)))
+                .ok_or_else(|| bad("expected synthetic:COLSxROWS, e.g. synthetic:20x20"))?;
+            let (cols, rows): (usize, usize) = (cols, rows);
+            if cols == 0 || rows == 0 || cols.saturating_mul(rows) > MAX_SYNTHETIC_BLOCKS {
+                return Err(bad("between 1 and 1,000,000 blocks"));
+            }
+            return Ok(CitySource::Synthetic { cols, rows, seed });
+        }
+        let exclude_street_tags = exclude_tags
+            .iter()
+            .map(|t| {
+                t.split_once('=')
+                    .map(|(k, v)| (k.to_string(), v.to_string()))
+                    .ok_or_else(|| SourceError::BadTag(t.clone()))
+            })
+            .collect::<Result<_, _>>()?;
+        Ok(CitySource::Files {
+            footprints: input.to_path_buf(),
+            streets,
+            parcels,
+            exclude_street_tags,
+        })
+    }
+
+    /// The layer files this source reads: footprints, streets, parcels (folder convention
+    /// applied).
+    ///
+    /// # Errors
+    /// [`SourceError::NoBuildingsInFolder`].
+    pub fn layer_files(
+        &self,
+    ) -> Result<Option<(PathBuf, Option<PathBuf>, Option<PathBuf>)>, SourceError> {
+        let CitySource::Files {
+            footprints,
+            streets,
+            parcels,
+            ..
+        } = self
+        else {
+            return Ok(None);
+        };
+        let (fp, mut st, mut pa) = if footprints.is_dir() {
+            let b = footprints.join(folder::BUILDINGS);
+            if !b.exists() {
+                return Err(SourceError::NoBuildingsInFolder {
+                    folder: footprints.clone(),
+                });
+            }
+            let s = footprints.join(folder::STREETS);
+            let p = footprints.join(folder::PARCELS);
+            (b, s.exists().then_some(s), p.exists().then_some(p))
+        } else {
+            (footprints.clone(), None, None)
+        };
+        if streets.is_some() {
+            st.clone_from(streets);
+        }
+        if parcels.is_some() {
+            pa.clone_from(parcels);
+        }
+        Ok(Some((fp, st, pa)))
+    }
+
+    /// Reads the layers (footprints, streets, parcels) of a file source; `None` for a synthetic
+    /// one. `progress` hears what is being read.
+    ///
+    /// # Errors
+    /// [`SourceError::NoBuildingsInFolder`], [`SourceError::Read`].
+    pub fn read_layers(
+        &self,
+        progress: &mut dyn FnMut(&str),
+    ) -> Result<Option<(Layer, Option<Layer>, Option<Layer>)>, SourceError> {
+        let Some((fp, st, pa)) = self.layer_files()? else {
+            return Ok(None);
+        };
+        let mut read = |path: &Path, theme: &Theme| {
+            progress(&format!("reading {}", path.display()));
+            read_layer(path, theme).map_err(|source| SourceError::Read {
+                file: path.to_path_buf(),
+                source,
+            })
+        };
+        let footprints = read(&fp, &Theme::Buildings)?;
+        let streets = st.map(|s| read(&s, &Theme::Streets)).transpose()?;
+        let parcels = pa.map(|p| read(&p, &Theme::Parcels)).transpose()?;
+        Ok(Some((footprints, streets, parcels)))
+    }
+
+    /// Loads the city with `opts` (the source's street exclusions are added to them).
+    ///
+    /// # Errors
+    /// Reading or building errors, with the file they concern.
+    pub fn load(
+        &self,
+        opts: &BuildOptions,
+        progress: &mut dyn FnMut(&str),
+    ) -> Result<LoadedCity, SourceError> {
+        match self {
+            CitySource::Synthetic { cols, rows, seed } => {
+                progress(&format!("generating a synthetic {cols}x{rows} grid"));
+                let s = SyntheticCity::generate(*cols, *rows, *seed, SYNTHETIC_ORIGIN);
+                Ok(LoadedCity {
+                    city: s.city,
+                    layout: Some(s.layout),
+                    meshes: Some(s.meshes),
+                })
+            }
+            CitySource::Files {
+                exclude_street_tags,
+                ..
+            } => {
+                let (f, s, p) = self
+                    .read_layers(progress)?
+                    .expect("a file source has layers");
+                let mut opts = opts.clone();
+                opts.exclude_street_tags
+                    .extend(exclude_street_tags.iter().cloned());
+                progress(&format!(
+                    "building the city from {} footprints",
+                    f.features.len()
+                ));
+                let city = build_city(&f, s.as_ref(), p.as_ref(), &opts).map_err(|source| {
+                    SourceError::Build {
+                        file: f.source.clone(),
+                        source,
+                    }
+                })?;
+                Ok(LoadedCity {
+                    city,
+                    layout: None,
+                    meshes: None,
+                })
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn synthetic_specs_parse_and_refuse() {
+        let s = CitySource::parse(Path::new("synthetic:3x4"), None, None, &[], 9).unwrap();
+        assert_eq!(
+            s,
+            CitySource::Synthetic {
+                cols: 3,
+                rows: 4,
+                seed: 9
+            }
+        );
+        for bad in [
+            "synthetic:3",
+            "synthetic:0x4",
+            "synthetic:axb",
+            "synthetic:2000x2000",
+        ] {
+            let e = CitySource::parse(Path::new(bad), None, None, &[], 1).unwrap_err();
+            assert!(
+                matches!(e, SourceError::BadSynthetic { ref spec, .. } if spec == bad),
+                "{bad}: {e}"
+            );
+        }
+    }
+
+    #[test]
+    fn tags_must_be_key_value() {
+        let e =
+            CitySource::parse(Path::new("a.shp"), None, None, &["tunnel".into()], 1).unwrap_err();
+        assert!(matches!(e, SourceError::BadTag(ref t) if t == "tunnel"));
+        let s = CitySource::parse(Path::new("a.shp"), None, None, &["tunnel=1".into()], 1).unwrap();
+        assert!(
+            matches!(s, CitySource::Files { ref exclude_street_tags, .. }
+            if exclude_street_tags == &[("tunnel".to_string(), "1".to_string())])
+        );
+    }
+
+    #[test]
+    fn a_folder_without_buildings_is_refused() {
+        let dir = tempfile::tempdir().unwrap();
+        let s = CitySource::parse(dir.path(), None, None, &[], 1).unwrap();
+        let e = s.layer_files().unwrap_err();
+        assert!(
+            matches!(e, SourceError::NoBuildingsInFolder { ref folder } if folder == dir.path())
+        );
+    }
+}

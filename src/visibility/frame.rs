@@ -1,0 +1,162 @@
+//! The per-frame roles a walk or a viewer plays, as traits, with their CPU implementations:
+//!
+//! - [`OcclusionCulling`]: culls a frame through a [`CityIndex`], dropping what is proven
+//!   hidden ([`OcclusionCuller`], seed 004 §3.2).
+//! - [`VisibilityOracle`]: the exact set of blocks a camera sees ([`MeshOracle`], the CPU
+//!   z-buffer of [`super::oracle`]).
+//! - [`FrameRenderer`]: draws a frame of the blocks a culler kept ([`CpuFrameRenderer`], the
+//!   oracle's shading; the wgpu renderer lives in `render`).
+//!
+//! They live here, before the walk in the module chain, so that a walk can take any of them and
+//! `visibility` never needs the GPU stack.
+
+use super::oracle;
+use super::OcclusionCuller;
+use crate::blocks::BlockId;
+use crate::city::Mesh;
+use crate::geom::Camera;
+use crate::index::{CityIndex, CullStats};
+use std::collections::HashSet;
+use std::time::Instant;
+
+/// An occlusion culler for a walk or a viewer.
+pub trait OcclusionCulling: Sync {
+    /// What culls, for reports.
+    fn describe(&self) -> String;
+    /// One frame: builds what the culler needs for `camera` (its time counts as culling time),
+    /// then frustum-culls through `index` while dropping what is proven hidden, pushing the blocks
+    /// to draw to `out`.
+    fn cull_frame(
+        &self,
+        index: &dyn CityIndex,
+        camera: &Camera,
+        out: &mut Vec<BlockId>,
+    ) -> CullStats;
+}
+
+/// The occluder-shadow culler (seed 004 §3.2).
+impl OcclusionCulling for OcclusionCuller {
+    fn describe(&self) -> String {
+        "occluder shadows + cull map (seed 004 §3.2)".into()
+    }
+    fn cull_frame(
+        &self,
+        index: &dyn CityIndex,
+        camera: &Camera,
+        out: &mut Vec<BlockId>,
+    ) -> CullStats {
+        self.cull(index, camera, out).cull
+    }
+}
+
+/// The exact set of visible blocks for a camera, to count false culls.
+pub trait VisibilityOracle: Sync {
+    /// What decides, for reports (method and resolution).
+    fn describe(&self, width: u32, height: u32) -> String;
+    /// Blocks that cover at least one pixel of an image of `width` × `height` pixels.
+    fn visible(&self, camera: &Camera, width: u32, height: u32) -> HashSet<BlockId>;
+}
+
+/// The CPU z-buffer oracle over block meshes ([`oracle::visible_blocks`]).
+#[derive(Clone, Copy, Debug)]
+pub struct MeshOracle<'a> {
+    meshes: &'a [(BlockId, Mesh)],
+}
+
+impl<'a> MeshOracle<'a> {
+    /// An oracle over the meshes (local frame).
+    pub fn new(meshes: &'a [(BlockId, Mesh)]) -> Self {
+        Self { meshes }
+    }
+}
+
+impl VisibilityOracle for MeshOracle<'_> {
+    fn describe(&self, width: u32, height: u32) -> String {
+        format!("CPU z-buffer oracle at {width}x{height}")
+    }
+    fn visible(&self, camera: &Camera, width: u32, height: u32) -> HashSet<BlockId> {
+        let refs: Vec<(BlockId, &Mesh)> = self.meshes.iter().map(|(b, m)| (*b, m)).collect();
+        oracle::visible_blocks(&refs, camera, width, height)
+            .into_iter()
+            .collect()
+    }
+}
+
+/// Why a frame could not be drawn.
+pub type DrawError = Box<dyn std::error::Error + Send + Sync>;
+
+/// A drawn frame: how long it took and, when asked for, the picture.
+#[derive(Clone, Debug)]
+pub struct DrawnFrame {
+    /// Seconds the drawing took (GPU time when [`DrawnFrame::gpu_time`]).
+    pub seconds: f64,
+    /// True when `seconds` comes from GPU timestamps, false for wall time.
+    pub gpu_time: bool,
+    /// The image, when asked for.
+    pub image: Option<image::RgbaImage>,
+}
+
+/// Draws frames of the blocks a culler kept.
+pub trait FrameRenderer {
+    /// What renders, for the report (e.g. `GPU: llvmpipe (Vulkan), timestamps, 640x360`).
+    fn describe(&self) -> String;
+    /// Image size in pixels.
+    fn size(&self) -> (u32, u32);
+    /// Draws `visible` for `camera`.
+    ///
+    /// # Errors
+    /// What the renderer reports (device lost, read-back failed, …).
+    fn draw(
+        &self,
+        camera: &Camera,
+        visible: &[BlockId],
+        want_image: bool,
+    ) -> Result<DrawnFrame, DrawError>;
+}
+
+/// The CPU fallback: the oracle's shaded z-buffer image of the listed blocks, wall time.
+#[derive(Clone, Copy, Debug)]
+pub struct CpuFrameRenderer<'a> {
+    meshes: &'a [(BlockId, Mesh)],
+    size: (u32, u32),
+}
+
+impl<'a> CpuFrameRenderer<'a> {
+    /// A renderer of `meshes` (local frame) at `size` pixels.
+    pub fn new(meshes: &'a [(BlockId, Mesh)], size: (u32, u32)) -> Self {
+        Self { meshes, size }
+    }
+}
+
+impl FrameRenderer for CpuFrameRenderer<'_> {
+    fn describe(&self) -> String {
+        format!(
+            "CPU z-buffer shading (visibility::oracle::shade), wall time, {}x{}",
+            self.size.0, self.size.1
+        )
+    }
+    fn size(&self) -> (u32, u32) {
+        self.size
+    }
+    fn draw(
+        &self,
+        camera: &Camera,
+        visible: &[BlockId],
+        want_image: bool,
+    ) -> Result<DrawnFrame, DrawError> {
+        let t0 = Instant::now();
+        let keep: HashSet<BlockId> = visible.iter().copied().collect();
+        let list: Vec<(BlockId, &Mesh)> = self
+            .meshes
+            .iter()
+            .filter(|(b, _)| keep.contains(b))
+            .map(|(b, m)| (*b, m))
+            .collect();
+        let img = oracle::shade(&list, camera, self.size.0, self.size.1);
+        Ok(DrawnFrame {
+            seconds: t0.elapsed().as_secs_f64(),
+            gpu_time: false,
+            image: want_image.then_some(img),
+        })
+    }
+}
