@@ -209,13 +209,13 @@ mod tests {
     fn demo() -> Vec<Series> {
         vec![
             Series {
-                name: "bqr".into(),
+                name: "series one".into(),
                 points: (0..50)
                     .map(|i| (i as f64, (i as f64 * 0.2).sin() + 2.0))
                     .collect(),
             },
             Series {
-                name: "none".into(),
+                name: "series two".into(),
                 points: (0..50).map(|i| (i as f64, 3.5)).collect(),
             },
         ]
@@ -246,7 +246,7 @@ mod tests {
         let p = dir.path().join("t.svg");
         write_plot(&p, "frame time", "frame", "s", &demo(), PlotKind::Points).unwrap();
         let s = std::fs::read_to_string(&p).unwrap();
-        assert!(s.contains("<svg") && s.contains("bqr") && s.contains("none"));
+        assert!(s.contains("<svg") && s.contains("series one") && s.contains("series two"));
         let bad = write_plot(
             &dir.path().join("t.gif"),
             "",
