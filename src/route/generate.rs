@@ -3,6 +3,7 @@
 
 use super::{CameraRoute, KeyFrame, Lens, RouteError};
 use crate::city::LocalFrame;
+use crate::geom::tolerance::ROUTE_NODE_GRID_M;
 use crate::geom::Aabb3;
 use geo_types::LineString;
 use glam::{DVec2, DVec3};
@@ -10,11 +11,11 @@ use std::cmp::Reverse;
 use std::collections::{BinaryHeap, HashMap};
 use std::f64::consts::{FRAC_PI_2, TAU};
 
-/// Street vertices closer than this (metres) are merged into one node.
-const SNAP: f64 = 0.01;
-
 /// An undirected street graph in the local frame (x, y metres): vertices of the street lines are
-/// nodes (merged within 1 cm), consecutive vertices are joined by edges weighted by length.
+/// nodes (vertices that round to the same point of the
+/// [`ROUTE_NODE_GRID_M`](crate::geom::tolerance::ROUTE_NODE_GRID_M) grid, 1 cm, are one node; see
+/// there why it is finer than the blocks' snap tolerance), consecutive vertices are joined by
+/// edges weighted by length.
 #[derive(Clone, Debug, Default)]
 pub struct StreetGraph {
     /// Node positions, local frame.
@@ -41,8 +42,11 @@ impl StreetGraph {
                     prev = None;
                     continue;
                 }
-                let p = frame.to_local_f64(DVec3::new(c.x, c.y, 0.0)).truncate();
-                let key = ((p.x / SNAP).round() as i64, (p.y / SNAP).round() as i64);
+                let p = frame.to_local_xy(*c);
+                let key = (
+                    (p.x / ROUTE_NODE_GRID_M).round() as i64,
+                    (p.y / ROUTE_NODE_GRID_M).round() as i64,
+                );
                 let id = *lookup.entry(key).or_insert_with(|| {
                     g.nodes.push(p);
                     g.adjacency.push(Vec::new());

@@ -1,16 +1,18 @@
 //! Occlusion culling against the oracle over random views: false culls, effectiveness, time
 //! (seed 004 §3.2.9 measures the same trade-off between cull map resolution and cost).
 
-use super::culler::{aabb_may_intersect, CullerOptions, OcclusionCuller};
+use super::culler::{CullerOptions, OcclusionCuller};
 use super::cullmap::Resolution;
 use super::oracle::render_ids;
 use super::VisibilityError;
 use crate::blocks::{Block, BlockId, BlockKind, BlockLayout, BlockSource};
 use crate::city::{Building, BuildingId, City, CityReport, HeightSource, LocalFrame, Mesh};
+use crate::geom::predicates::{point_in_ring, Location};
+use crate::geom::segment::point_rect_distance;
 use crate::geom::{Aabb3, Camera, Frustum};
 use crate::index::{BlockBounds, CityIndex, CullStats};
 use geo_types::{coord, LineString, Polygon};
-use glam::{DVec2, DVec3, Vec3};
+use glam::{DVec2, DVec3};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use serde::Serialize;
@@ -184,7 +186,7 @@ impl CityIndex for ListIndex {
             .map(|(k, b)| {
                 let d = self.viewer.map_or(0.0, |e| {
                     let e2 = e.truncate();
-                    (e2.clamp(b.aabb.min.truncate(), b.aabb.max.truncate()) - e2).length()
+                    point_rect_distance(e2, b.aabb.min.truncate(), b.aabb.max.truncate())
                 });
                 (d, k)
             })
@@ -194,7 +196,7 @@ impl CityIndex for ListIndex {
             let b = &self.blocks[k];
             st.nodes_visited += 1;
             st.plane_tests += 6;
-            if b.aabb.is_empty() || !aabb_may_intersect(frustum, &b.aabb) || !keep(&b.aabb) {
+            if b.aabb.is_empty() || !frustum.intersects_aabb(&b.aabb) || !keep(&b.aabb) {
                 continue;
             }
             st.blocks_accepted += 1;
@@ -236,16 +238,6 @@ pub fn block_bounds(
             }
         })
         .collect()
-}
-
-/// True when `p` is inside or on the ring (the exact odd-crossing test of `geom::predicates`).
-fn point_in_ring(p: DVec2, ring: &[DVec2]) -> bool {
-    use crate::geom::predicates::{self, Location};
-    let r: Vec<geo_types::Coord<f64>> = ring
-        .iter()
-        .map(|c| geo_types::Coord { x: c.x, y: c.y })
-        .collect();
-    predicates::point_in_ring(geo_types::Coord { x: p.x, y: p.y }, &r) != Location::Outside
 }
 
 /// Random views over the city (deterministic for a seed): street views at `eye_height` on the
@@ -296,7 +288,7 @@ pub fn random_views(city: &City, layout: &BlockLayout, opts: &BenchOptions) -> V
                 && p.x <= b.max.x
                 && p.y >= b.min.y
                 && p.y <= b.max.y
-                && point_in_ring(p, r)
+                && point_in_ring(p, r) != Location::Outside
         })
     };
     let (lo, hi) = (bounds.min.truncate(), bounds.max.truncate());
@@ -666,8 +658,8 @@ impl SyntheticCity {
                     });
                     for (a, b) in boxes {
                         let m = super::oracle::box_mesh(
-                            Vec3::new(a.x as f32, a.y as f32, min_height as f32),
-                            Vec3::new(b.x as f32, b.y as f32, height as f32),
+                            LocalFrame::round_to_f32(DVec3::new(a.x, a.y, min_height)),
+                            LocalFrame::round_to_f32(DVec3::new(b.x, b.y, height)),
                         );
                         let base = mesh.positions.len() as u32;
                         mesh.positions.extend_from_slice(&m.positions);
