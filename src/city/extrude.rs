@@ -11,7 +11,7 @@
 
 use std::collections::HashMap;
 
-use geo_types::{Coord, Polygon};
+use geo_types::Coord;
 use glam::{DVec2, DVec3, Vec3};
 use spade::{ConstrainedDelaunayTriangulation, Point2, Triangulation};
 
@@ -276,7 +276,7 @@ mod tests {
     use crate::city::model::{BuildingId, HeightSource};
     use crate::geom::predicates::polygon_area;
     use crate::geom::repair::repair_polygon;
-    use geo_types::LineString;
+    use geo_types::{LineString, Polygon};
     use proptest::prelude::*;
 
     fn building(p: Polygon<f64>, h: f64, min: f64) -> Building {

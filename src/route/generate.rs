@@ -112,7 +112,7 @@ impl StreetGraph {
                 continue;
             }
             let d = q.distance_squared(p);
-            if best.map_or(true, |(bd, _)| d < bd) {
+            if best.is_none_or(|(bd, _)| d < bd) {
                 best = Some((d, i as u32));
             }
         }
@@ -177,7 +177,7 @@ fn thin(points: Vec<DVec2>, min_gap: f64) -> Vec<DVec2> {
     };
     let mut out: Vec<DVec2> = Vec::with_capacity(points.len());
     for p in points {
-        if out.last().map_or(true, |q| q.distance(p) >= min_gap) {
+        if out.last().is_none_or(|q| q.distance(p) >= min_gap) {
             out.push(p);
         }
     }
@@ -381,7 +381,8 @@ pub fn orbit_route(
     duration: f64,
     lens: Lens,
 ) -> Result<CameraRoute, RouteError> {
-    if bounds.is_empty() || !(duration > 0.0) || !(radius_factor > 0.0) {
+    let positive = |v: f64| v > 0.0; // false for NaN
+    if bounds.is_empty() || !positive(duration) || !positive(radius_factor) {
         return Err(RouteError::Bad {
             route: "orbit".into(),
             problem: "needs a non-empty city, positive radius and duration".into(),
