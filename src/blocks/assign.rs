@@ -7,17 +7,19 @@
 //! scanline's point is taken, as the paper retries "another point of the polygon".
 //! Buildings in no block are grouped into outskirts by proximity.
 
+use crate::geom::hull::convex_hull_polygon;
 use crate::geom::predicates::{interior_point, point_in_polygon, Location};
-use geo::{ConvexHull, Distance, Euclidean};
-use geo_types::{Coord, MultiPoint, Point, Polygon};
+use geo::{Distance, Euclidean};
+use geo_types::{Coord, Polygon};
 use rayon::prelude::*;
 use rstar::{primitives::GeomWithData, primitives::Rectangle, RTree, AABB};
 
 /// Default distance (m) within which outskirts buildings join one group.
 pub const DEFAULT_OUTSKIRTS_LINK: f64 = 30.0;
 
-type Env = GeomWithData<Rectangle<[f64; 2]>, usize>;
+pub(super) type Env = GeomWithData<Rectangle<[f64; 2]>, usize>;
 
+/// Plan-view box of a polygon's exterior grown by `grow`; `None` for an empty exterior.
 fn envelope(p: &Polygon<f64>, grow: f64) -> Option<([f64; 2], [f64; 2])> {
     let mut lo = [f64::INFINITY; 2];
     let mut hi = [f64::NEG_INFINITY; 2];
@@ -28,7 +30,8 @@ fn envelope(p: &Polygon<f64>, grow: f64) -> Option<([f64; 2], [f64; 2])> {
     (lo[0] <= hi[0]).then_some(([lo[0] - grow, lo[1] - grow], [hi[0] + grow, hi[1] + grow]))
 }
 
-fn tree_of(polys: &[Polygon<f64>], grow: f64) -> RTree<Env> {
+/// An R-tree of the polygons' exterior boxes grown by `grow`, each tagged with its index.
+pub(super) fn tree_of(polys: &[Polygon<f64>], grow: f64) -> RTree<Env> {
     RTree::bulk_load(
         polys
             .iter()
@@ -145,11 +148,10 @@ pub fn outskirts_groups(
     groups
         .into_iter()
         .map(|g| {
-            let pts: MultiPoint<f64> = g
+            let pts = g
                 .iter()
-                .flat_map(|&i| buildings[i].exterior().0.iter().map(|&c| Point(c)))
-                .collect();
-            (pts.convex_hull(), g)
+                .flat_map(|&i| buildings[i].exterior().0.iter().copied());
+            (convex_hull_polygon(pts), g)
         })
         .collect()
 }

@@ -283,7 +283,7 @@ impl FaceSet {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::blocks::noding::node_lines;
+    use crate::blocks::noding::{node_lines, DEFAULT_SNAP_TOLERANCE};
     use geo_types::line_string;
 
     #[test]
@@ -296,7 +296,7 @@ mod tests {
             // island loop inside the right block
             line_string![(x: 13., y: 3.), (x: 17., y: 3.), (x: 17., y: 7.), (x: 13., y: 7.), (x: 13., y: 3.)],
         ];
-        let g = node_lines(&lines, 0.05);
+        let g = node_lines(&lines, DEFAULT_SNAP_TOLERANCE);
         assert_eq!(g.dangles(), 1);
         let fs = faces(&g);
         let mut areas: Vec<f64> = fs.bounded().map(|i| fs.area(i)).collect();

@@ -12,12 +12,13 @@
 //!   the chordal axis of that space ([`gap_centrelines`]): in a Delaunay triangulation of the
 //!   blocks' boundary points, the midpoints of the links that join two different blocks.
 
+use super::assign::{tree_of, Env};
 use super::faces::faces;
 use super::noding::{node_lines, PlanarGraph};
 use crate::geom::predicates::{point_in_polygon, robust_interior_point, Location};
 use geo_types::{Coord, LineString, Polygon};
 use rayon::prelude::*;
-use rstar::{primitives::GeomWithData, primitives::Rectangle, RTree};
+use rstar::RTree;
 use spade::{DelaunayTriangulation, HasPosition, Point2, PositionInTriangulation, Triangulation};
 
 /// Default street width threshold (m) for blocks from footprints: two buildings closer than this
@@ -64,27 +65,6 @@ pub fn dissolve(
         .collect()
 }
 
-type Env = GeomWithData<Rectangle<[f64; 2]>, usize>;
-
-fn poly_tree(polys: &[Polygon<f64>]) -> RTree<Env> {
-    RTree::bulk_load(
-        polys
-            .iter()
-            .enumerate()
-            .filter(|(_, p)| p.exterior().0.len() >= 4)
-            .map(|(i, p)| {
-                let mut lo = [f64::INFINITY; 2];
-                let mut hi = [f64::NEG_INFINITY; 2];
-                for c in &p.exterior().0 {
-                    lo = [lo[0].min(c.x), lo[1].min(c.y)];
-                    hi = [hi[0].max(c.x), hi[1].max(c.y)];
-                }
-                GeomWithData::new(Rectangle::from_corners(lo, hi), i)
-            })
-            .collect(),
-    )
-}
-
 fn inside_any(tree: &RTree<Env>, polys: &[Polygon<f64>], p: Coord<f64>) -> bool {
     tree.locate_all_at_point(&[p.x, p.y])
         .any(|c| point_in_polygon(p, &polys[c.data]) == Location::Inside)
@@ -99,7 +79,7 @@ fn rings(polys: &[Polygon<f64>]) -> Vec<LineString<f64>> {
 
 /// Blocks from parcels: connected unions of parcels sharing boundary (see the module docs).
 pub fn blocks_from_parcels(parcels: &[Polygon<f64>], tol: f64) -> Vec<Polygon<f64>> {
-    let tree = poly_tree(parcels);
+    let tree = tree_of(parcels, 0.0);
     dissolve(&rings(parcels), tol, |p| inside_any(&tree, parcels, p))
 }
 
@@ -174,7 +154,7 @@ pub fn blocks_from_footprints(
             ]));
         }
     }
-    let tree = poly_tree(footprints);
+    let tree = tree_of(footprints, 0.0);
     let in_kept = |p: Coord<f64>| match tri.locate(Point2::new(p.x, p.y)) {
         PositionInTriangulation::OnFace(f) => kept[f.index()],
         PositionInTriangulation::OnEdge(e) => {
@@ -197,7 +177,7 @@ pub fn gap_centrelines(blocks: &[Polygon<f64>], step: f64, max_gap: f64) -> Vec<
     let Ok(tri) = DelaunayTriangulation::<Tagged>::bulk_load(pts) else {
         return Vec::new();
     };
-    let tree = poly_tree(blocks);
+    let tree = tree_of(blocks, 0.0);
     let mid = |a: Point2<f64>, b: Point2<f64>| Coord {
         x: 0.5 * (a.x + b.x),
         y: 0.5 * (a.y + b.y),

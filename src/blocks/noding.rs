@@ -7,15 +7,17 @@
 //! become one edge; zero-length pieces are dropped. Candidate pairs come from an R-tree of the
 //! segments' envelopes (O(n log n) for street networks), the crossing tests use exact orientation.
 
-use crate::geom::predicates::orient2d_det;
+use crate::geom::predicates::{orient2d, segments_intersect, Orientation, SegmentIntersection};
+use crate::geom::segment::point_segment_distance;
+use crate::geom::tolerance::STREET_SNAP_M;
 use geo_types::{Coord, LineString};
 use rstar::{primitives::GeomWithData, primitives::Rectangle, RTree, AABB};
 use std::collections::HashMap;
 
 /// Default snap tolerance in metres: points closer than this are one node, and a line end this
-/// close to another line joins it. 5 cm is far below any street width and far above the
-/// millimetre misses of digitised data and coordinate round-off near 1e7.
-pub const DEFAULT_SNAP_TOLERANCE: f64 = 0.05;
+/// close to another line joins it. The street graph's tolerance,
+/// [`crate::geom::tolerance::STREET_SNAP_M`] (5 cm), where its reason is given.
+pub const DEFAULT_SNAP_TOLERANCE: f64 = STREET_SNAP_M;
 
 /// A planar straight-line graph: nodes and undirected edges between distinct nodes, with no two
 /// edges crossing or overlapping (up to the snap tolerance).
@@ -103,22 +105,6 @@ impl Snapper {
     }
 }
 
-/// Distance from `p` to segment `a b` and the parameter of the closest point.
-fn point_segment(p: Coord<f64>, a: Coord<f64>, b: Coord<f64>) -> (f64, f64) {
-    let d = b - a;
-    let len2 = d.x * d.x + d.y * d.y;
-    let t = if len2 > 0.0 {
-        (((p.x - a.x) * d.x + (p.y - a.y) * d.y) / len2).clamp(0.0, 1.0)
-    } else {
-        0.0
-    };
-    let q = Coord {
-        x: a.x + t * d.x,
-        y: a.y + t * d.y,
-    };
-    ((p.x - q.x).hypot(p.y - q.y), t)
-}
-
 /// One noding pass over segments; returns the graph and whether any segment was split at a point
 /// that is not one of its own end nodes.
 fn node_once(segs: &[[Coord<f64>; 2]], tol: f64) -> (PlanarGraph, bool) {
@@ -147,11 +133,7 @@ fn node_once(segs: &[[Coord<f64>; 2]], tol: f64) -> (PlanarGraph, bool) {
             }
             let [a, b] = *s;
             let [c, d] = segs[j];
-            let o1 = orient2d_det(a, b, c);
-            let o2 = orient2d_det(a, b, d);
-            let o3 = orient2d_det(c, d, a);
-            let o4 = orient2d_det(c, d, b);
-            if o1 * o2 < 0.0 && o3 * o4 < 0.0 {
+            if segments_intersect(a, b, c, d) == SegmentIntersection::Proper {
                 // Proper crossing: the point, computed relative to `a` for precision.
                 let r = b - a;
                 let q = d - c;
@@ -162,20 +144,23 @@ fn node_once(segs: &[[Coord<f64>; 2]], tol: f64) -> (PlanarGraph, bool) {
                     x: a.x + t * r.x,
                     y: a.y + t * r.y,
                 };
-                let (_, u) = point_segment(p, c, d);
+                let (_, u) = point_segment_distance(p, c, d);
                 splits[i].push((t, p));
                 splits[j].push((u, p));
             }
             // Ends touching or near the other segment (T-junctions, overlaps, near misses).
             // An exactly collinear end counts as distance 0 whatever the rounding of the distance.
-            for (p, target, other, o) in [
-                (c, i, [a, b], o1),
-                (d, i, [a, b], o2),
-                (a, j, [c, d], o3),
-                (b, j, [c, d], o4),
+            for (p, target, other) in [
+                (c, i, [a, b]),
+                (d, i, [a, b]),
+                (a, j, [c, d]),
+                (b, j, [c, d]),
             ] {
-                let (dist, t) = point_segment(p, other[0], other[1]);
-                if (dist <= tol || o == 0.0) && t > 0.0 && t < 1.0 {
+                let (dist, t) = point_segment_distance(p, other[0], other[1]);
+                if (dist <= tol || orient2d(other[0], other[1], p) == Orientation::Collinear)
+                    && t > 0.0
+                    && t < 1.0
+                {
                     splits[target].push((t, p));
                 }
             }
@@ -279,7 +264,7 @@ mod tests {
                 line_string![(x: 0., y: 0.), (x: 2., y: 2.)],
                 line_string![(x: 0., y: 2.), (x: 2., y: 0.)],
             ],
-            0.05,
+            DEFAULT_SNAP_TOLERANCE,
         );
         assert_eq!(g.nodes.len(), 5);
         assert_eq!(g.edges.len(), 4);
@@ -294,7 +279,7 @@ mod tests {
                 line_string![(x: 5., y: 0.), (x: 15., y: 0.)],
                 line_string![(x: 10., y: 0.), (x: 0., y: 0.)],
             ],
-            0.05,
+            DEFAULT_SNAP_TOLERANCE,
         );
         assert_eq!(g.nodes.len(), 4);
         assert_eq!(g.edges.len(), 3);
@@ -307,7 +292,7 @@ mod tests {
                 line_string![(x: 0., y: 0.), (x: 10., y: 0.)],
                 line_string![(x: 5., y: 0.001), (x: 5., y: 10.)],
             ],
-            0.05,
+            DEFAULT_SNAP_TOLERANCE,
         );
         assert_eq!(g.edges.len(), 3);
         assert_eq!(g.nodes.len(), 4);

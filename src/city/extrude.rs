@@ -11,13 +11,13 @@
 
 use std::collections::HashMap;
 
-use geo_types::{Coord, LineString, Polygon};
-use glam::{DVec3, Vec3};
+use geo_types::Coord;
+use glam::{DVec2, DVec3, Vec3};
 use spade::{ConstrainedDelaunayTriangulation, Point2, Triangulation};
 
 use super::mesh::Mesh;
 use super::model::{Building, City, LocalFrame};
-use crate::geom::predicates::{open_ring, point_in_polygon, Location};
+use crate::geom::predicates::{open_ring, orient2d, point_in_polygon, Location, Orientation};
 
 /// Why a building could not be extruded.
 #[derive(Clone, Debug, PartialEq, thiserror::Error)]
@@ -56,18 +56,7 @@ pub fn try_extrude_building(b: &Building, frame: &LocalFrame) -> Result<Mesh, Ex
             bottom: z0,
         });
     }
-    let o = frame.origin;
-    let local = |c: &Coord<f64>| Coord {
-        x: c.x - o.x,
-        y: c.y - o.y,
-    };
-    let loc_ring = |l: &LineString<f64>| -> LineString<f64> {
-        l.0.iter().map(local).collect::<Vec<_>>().into()
-    };
-    let lp = Polygon::new(
-        loc_ring(b.footprint.exterior()),
-        b.footprint.interiors().iter().map(loc_ring).collect(),
-    );
+    let lp = frame.to_local_polygon(&b.footprint);
 
     // Triangulate in local f64.
     let mut verts: Vec<Point2<f64>> = Vec::new();
@@ -111,9 +100,9 @@ pub fn try_extrude_building(b: &Building, frame: &LocalFrame) -> Result<Mesh, Ex
         };
         if point_in_polygon(c, &lp) == Location::Inside {
             let idx = v.map(|h| h.fix().index() as u32);
-            // spade's faces are counter-clockwise; make sure.
-            let ccw = (p[1].x - p[0].x) * (p[2].y - p[0].y) - (p[2].x - p[0].x) * (p[1].y - p[0].y);
-            if ccw >= 0.0 {
+            // spade's faces are counter-clockwise; make sure (exactly).
+            let [a, b2, c2] = p.map(|q| DVec2::new(q.x, q.y));
+            if orient2d(a, b2, c2) != Orientation::Clockwise {
                 cap.push(idx);
             } else {
                 cap.push([idx[0], idx[2], idx[1]]);
@@ -122,7 +111,7 @@ pub fn try_extrude_building(b: &Building, frame: &LocalFrame) -> Result<Mesh, Ex
     }
 
     // The footprint is already local (origin subtracted in f64): this is the one f32 rounding.
-    let p32 = |x: f64, y: f64, z: f64| DVec3::new(x, y, z).as_vec3();
+    let p32 = |x: f64, y: f64, z: f64| LocalFrame::round_to_f32(DVec3::new(x, y, z));
 
     let n_walls: usize = std::iter::once(lp.exterior())
         .chain(lp.interiors())
@@ -157,7 +146,7 @@ pub fn try_extrude_building(b: &Building, frame: &LocalFrame) -> Result<Mesh, Ex
             let (a, b2) = (r[i], r[(i + 1) % r.len()]);
             let (dx, dy) = (b2.x - a.x, b2.y - a.y);
             let len = (dx * dx + dy * dy).sqrt();
-            let n = DVec3::new(dy / len, -dx / len, 0.0).as_vec3();
+            let n = LocalFrame::round_to_f32(DVec3::new(dy / len, -dx / len, 0.0));
             let base = m.positions.len() as u32;
             m.positions.extend([
                 p32(a.x, a.y, z0),
@@ -287,6 +276,7 @@ mod tests {
     use crate::city::model::{BuildingId, HeightSource};
     use crate::geom::predicates::polygon_area;
     use crate::geom::repair::repair_polygon;
+    use geo_types::{LineString, Polygon};
     use proptest::prelude::*;
 
     fn building(p: Polygon<f64>, h: f64, min: f64) -> Building {
@@ -311,12 +301,12 @@ mod tests {
     }
 
     /// The footprint as the f32 mesh sees it: local, rounded to f32, back to f64.
-    fn rounded_area(p: &Polygon<f64>, o: DVec3) -> f64 {
+    fn rounded_area(p: &Polygon<f64>, frame: &LocalFrame) -> f64 {
         let r = |l: &LineString<f64>| -> LineString<f64> {
             l.0.iter()
-                .map(|c| Coord {
-                    x: ((c.x - o.x) as f32) as f64,
-                    y: ((c.y - o.y) as f32) as f64,
+                .map(|c| {
+                    let v = frame.to_local(DVec3::new(c.x, c.y, 0.0)).as_dvec3();
+                    Coord { x: v.x, y: v.y }
                 })
                 .collect::<Vec<_>>()
                 .into()
@@ -414,7 +404,7 @@ mod tests {
             let b = building(p.clone(), h, min * h);
             let m = try_extrude_building(&b, &frame).unwrap();
             prop_assert!(check_closed(&m).is_ok(), "{:?}", check_closed(&m));
-            let area = rounded_area(&p, frame.origin);
+            let area = rounded_area(&p, &frame);
             let expect = area * (h as f32 as f64 - (min * h) as f32 as f64);
             let v = signed_volume(&m);
             prop_assert!(v > 0.0);

@@ -132,6 +132,18 @@ impl Frustum {
         self.test_aabb_masked(b, &mut ALL_PLANES.clone(), &mut 0)
     }
 
+    /// True unless the box lies entirely outside one plane (its p-vertex behind it): the
+    /// conservative "may be visible" test, [`Frustum::test_aabb`] `!= Outside` without the
+    /// bookkeeping. A box that crosses no plane but misses the frustum near an edge or corner
+    /// still passes; [`Frustum::intersects_aabb_exact`] settles those.
+    pub fn intersects_aabb(&self, b: &Aabb3) -> bool {
+        let c = b.center();
+        let e = b.extent() * 0.5;
+        self.planes
+            .iter()
+            .all(|pl| !matches!(box_plane(c, e, pl), PlaneSide::Out))
+    }
+
     /// Test of the intersection of a box and a sphere (the BqR-tree leaf volume, seed 003 §4):
     /// outside when the box or the sphere is outside a plane; a plane is cleared when the box or
     /// the sphere is fully inside it (the intersection is then inside it too).
@@ -706,5 +718,42 @@ mod tests {
         );
         assert_eq!(f.test_aabb(&corner_box), Containment::Intersecting);
         assert!(!f.intersects_aabb_exact(&corner_box));
+    }
+
+    proptest::proptest! {
+        /// The one "may be visible" box test: equal to `test_aabb != Outside`, never false for a
+        /// box the exact separating-axis oracle sees, and equal to the p-vertex formulation the
+        /// occlusion culler used to carry (`n · p_vertex + d ≥ 0` on every plane) except where
+        /// that distance is within rounding of zero.
+        #[test]
+        fn intersects_aabb_is_the_conservative_box_test(
+            eye in (-50.0f64..50.0, -50.0f64..50.0, 0.0f64..80.0),
+            yaw in -3.2f64..3.2, pitch in -1.5f64..1.5,
+            lo in (-300.0f64..300.0, -300.0f64..300.0, -10.0f64..60.0),
+            ext in (0.0f64..60.0, 0.0f64..60.0, 0.0f64..60.0),
+        ) {
+            let f = cam(DVec3::new(eye.0, eye.1, eye.2), yaw, pitch).frustum();
+            let min = DVec3::new(lo.0, lo.1, lo.2);
+            let b = Aabb3::new(min, min + DVec3::new(ext.0, ext.1, ext.2));
+            let got = f.intersects_aabb(&b);
+            proptest::prop_assert_eq!(got, f.test_aabb(&b) != Containment::Outside);
+            if f.intersects_aabb_exact(&b) {
+                proptest::prop_assert!(got);
+            }
+            let mut near_zero = false;
+            let p_vertex = f.planes.iter().all(|p| {
+                let v = DVec3::new(
+                    if p.normal.x >= 0.0 { b.max.x } else { b.min.x },
+                    if p.normal.y >= 0.0 { b.max.y } else { b.min.y },
+                    if p.normal.z >= 0.0 { b.max.z } else { b.min.z },
+                );
+                let d = p.distance(v);
+                near_zero |= d.abs() <= 1e-9 * (1.0 + v.abs().max_element() + p.d.abs());
+                d >= 0.0
+            });
+            if !near_zero {
+                proptest::prop_assert_eq!(got, p_vertex);
+            }
+        }
     }
 }

@@ -4,9 +4,12 @@
 //! the point-in-ring test (the odd-crossing ray test that seed 003 §3 uses to assign buildings
 //! to blocks) decides every crossing with that orientation, never with a computed intersection.
 //!
-//! Rings are slices of [`Coord`]; they may be open or closed (a last point equal to the first
-//! is ignored), and any winding.
+//! The ring predicates are generic over [`Xy`], so the same code serves world [`Coord`]s
+//! (footprints, blocks) and local-frame [`glam::DVec2`]s (occluders, random views) without a
+//! conversion or an allocation per call. Rings are slices of points; they may be open or closed
+//! (a last point equal to the first is ignored), and any winding.
 
+use super::point::Xy;
 use geo_types::{Coord, LineString, Polygon};
 
 /// On which side of the directed line `a → b` a point lies.
@@ -23,21 +26,17 @@ pub enum Orientation {
 /// The exact orientation determinant of `a, b, c` (Shewchuk's adaptive `orient2d`): its sign is
 /// exact (`> 0` counter-clockwise, `< 0` clockwise, `0` collinear); its magnitude is twice the
 /// triangle's signed area, correct to the last bit only in sign.
-pub fn orient2d_det(a: Coord<f64>, b: Coord<f64>, c: Coord<f64>) -> f64 {
+pub fn orient2d_det<P: Xy>(a: P, b: P, c: P) -> f64 {
     robust::orient2d(
-        robust::Coord { x: a.x, y: a.y },
-        robust::Coord { x: b.x, y: b.y },
-        robust::Coord { x: c.x, y: c.y },
+        robust::Coord { x: a.x(), y: a.y() },
+        robust::Coord { x: b.x(), y: b.y() },
+        robust::Coord { x: c.x(), y: c.y() },
     )
 }
 
 /// Exact orientation of `c` relative to the directed line `a → b`.
-pub fn orient2d(a: Coord<f64>, b: Coord<f64>, c: Coord<f64>) -> Orientation {
-    let d = robust::orient2d(
-        robust::Coord { x: a.x, y: a.y },
-        robust::Coord { x: b.x, y: b.y },
-        robust::Coord { x: c.x, y: c.y },
-    );
+pub fn orient2d<P: Xy>(a: P, b: P, c: P) -> Orientation {
+    let d = orient2d_det(a, b, c);
     if d > 0.0 {
         Orientation::CounterClockwise
     } else if d < 0.0 {
@@ -59,12 +58,18 @@ pub enum Location {
 }
 
 /// The ring's points without the closing duplicate (if the last point equals the first).
-pub fn open_ring(ring: &[Coord<f64>]) -> &[Coord<f64>] {
-    if ring.len() >= 2 && ring[0] == ring[ring.len() - 1] {
+pub fn open_ring<P: Xy>(ring: &[P]) -> &[P] {
+    if ring.len() >= 2 && same_point(ring[0], ring[ring.len() - 1]) {
         &ring[..ring.len() - 1]
     } else {
         ring
     }
+}
+
+/// True when the two points have equal coordinates (`==` on both, as `PartialEq` on a pair).
+#[inline]
+fn same_point<P: Xy>(a: P, b: P) -> bool {
+    a.x() == b.x() && a.y() == b.y()
 }
 
 /// Signed area of a ring (shoelace formula): positive when counter-clockwise.
@@ -72,7 +77,7 @@ pub fn open_ring(ring: &[Coord<f64>]) -> &[Coord<f64>] {
 /// Coordinates are taken relative to the first vertex before multiplying, so that rings far
 /// from the origin (UTM northings of 6e6 m) lose no precision, and the terms are summed with
 /// Neumaier's compensated summation.
-pub fn ring_signed_area(ring: &[Coord<f64>]) -> f64 {
+pub fn ring_signed_area<P: Xy>(ring: &[P]) -> f64 {
     let r = open_ring(ring);
     if r.len() < 3 {
         return 0.0;
@@ -81,8 +86,8 @@ pub fn ring_signed_area(ring: &[Coord<f64>]) -> f64 {
     let mut sum = 0.0f64;
     let mut comp = 0.0f64;
     for i in 1..r.len() - 1 {
-        let (ax, ay) = (r[i].x - o.x, r[i].y - o.y);
-        let (bx, by) = (r[i + 1].x - o.x, r[i + 1].y - o.y);
+        let (ax, ay) = (r[i].x() - o.x(), r[i].y() - o.y());
+        let (bx, by) = (r[i + 1].x() - o.x(), r[i + 1].y() - o.y());
         let term = ax * by - bx * ay;
         let t = sum + term;
         if sum.abs() >= term.abs() {
@@ -105,12 +110,12 @@ pub fn polygon_area(p: &Polygon<f64>) -> f64 {
 }
 
 /// True when `p` lies on the closed segment `a–b` (exactly).
-pub fn on_segment(a: Coord<f64>, b: Coord<f64>, p: Coord<f64>) -> bool {
+pub fn on_segment<P: Xy>(a: P, b: P, p: P) -> bool {
     orient2d(a, b, p) == Orientation::Collinear
-        && p.x >= a.x.min(b.x)
-        && p.x <= a.x.max(b.x)
-        && p.y >= a.y.min(b.y)
-        && p.y <= a.y.max(b.y)
+        && p.x() >= a.x().min(b.x())
+        && p.x() <= a.x().max(b.x())
+        && p.y() >= a.y().min(b.y())
+        && p.y() <= a.y().max(b.y())
 }
 
 /// Where `p` lies relative to a ring: the odd-crossing ray test (seed 003 §3), exact.
@@ -121,7 +126,9 @@ pub fn on_segment(a: Coord<f64>, b: Coord<f64>, p: Coord<f64>) -> bool {
 /// exactly once or not at all, as it must be. Whether the crossing lies right of `p` is decided
 /// by the exact orientation of `p` against the edge. Points on an edge or a vertex are
 /// [`Location::OnBoundary`].
-pub fn point_in_ring(p: Coord<f64>, ring: &[Coord<f64>]) -> Location {
+///
+/// Allocates nothing: the ring is read in place, whatever its point type.
+pub fn point_in_ring<P: Xy>(p: P, ring: &[P]) -> Location {
     let r = open_ring(ring);
     let n = r.len();
     if n == 0 {
@@ -134,8 +141,8 @@ pub fn point_in_ring(p: Coord<f64>, ring: &[Coord<f64>]) -> Location {
         if on_segment(a, b, p) {
             return Location::OnBoundary;
         }
-        let a_above = a.y >= p.y;
-        let b_above = b.y >= p.y;
+        let a_above = a.y() >= p.y();
+        let b_above = b.y() >= p.y();
         if a_above != b_above {
             // The edge straddles the line; the crossing is right of p when p is left of an
             // upward edge, or right of a downward edge.
@@ -187,16 +194,11 @@ pub enum SegmentIntersection {
 }
 
 /// Exact classification of how segments `p1–p2` and `q1–q2` meet.
-pub fn segments_intersect(
-    p1: Coord<f64>,
-    p2: Coord<f64>,
-    q1: Coord<f64>,
-    q2: Coord<f64>,
-) -> SegmentIntersection {
-    if p1.x.max(p2.x) < q1.x.min(q2.x)
-        || q1.x.max(q2.x) < p1.x.min(p2.x)
-        || p1.y.max(p2.y) < q1.y.min(q2.y)
-        || q1.y.max(q2.y) < p1.y.min(p2.y)
+pub fn segments_intersect<P: Xy>(p1: P, p2: P, q1: P, q2: P) -> SegmentIntersection {
+    if p1.x().max(p2.x()) < q1.x().min(q2.x())
+        || q1.x().max(q2.x()) < p1.x().min(p2.x())
+        || p1.y().max(p2.y()) < q1.y().min(q2.y())
+        || q1.y().max(q2.y()) < p1.y().min(p2.y())
     {
         return SegmentIntersection::None;
     }
@@ -459,6 +461,93 @@ mod tests {
                 Location::OnBoundary
             };
             proptest::prop_assert_eq!(point_in_ring(p, &r), truth);
+        }
+    }
+
+    /// A star-shaped ring of `n` vertices around `(cx, cy)`, radii from `radii` (counter-clockwise).
+    fn star(cx: f64, cy: f64, radii: &[f64]) -> Vec<glam::DVec2> {
+        let n = radii.len();
+        radii
+            .iter()
+            .enumerate()
+            .map(|(i, r)| {
+                let a = std::f64::consts::TAU * i as f64 / n as f64;
+                glam::DVec2::new(cx + r * a.cos(), cy + r * a.sin())
+            })
+            .collect()
+    }
+
+    proptest::proptest! {
+        /// The one point-in-ring agrees with `geo`'s independent implementation
+        /// (`CoordinatePosition`) on random star-shaped rings, near the origin and at UTM
+        /// magnitudes, for points anywhere including on vertices; and a `DVec2` ring gives the same
+        /// answer as the same ring in `Coord`s (what the allocating copy in the occlusion bench
+        /// used to do).
+        #[test]
+        fn point_in_ring_matches_geo_and_both_point_types(
+            radii in proptest::collection::vec(1.0f64..10.0, 3..16),
+            px in -12.0f64..12.0, py in -12.0f64..12.0,
+            vertex in proptest::option::of(0usize..16),
+            off in proptest::prop_oneof![proptest::strategy::Just(0.0), proptest::strategy::Just(5.4e6)],
+        ) {
+            use geo::coordinate_position::{CoordPos, CoordinatePosition};
+            let ring = star(off, off, &radii);
+            let p = match vertex {
+                Some(k) => ring[k % ring.len()],
+                None => glam::DVec2::new(px + off, py + off),
+            };
+            let coords: Vec<Coord<f64>> = ring.iter().map(|v| v.to()).collect();
+            let got = point_in_ring(p, &ring);
+            proptest::prop_assert_eq!(got, point_in_ring(p.to::<Coord<f64>>(), &coords));
+            let mut closed = coords.clone();
+            closed.push(coords[0]);
+            let poly = Polygon::new(LineString(closed.clone()), vec![]);
+            let truth = match poly.coordinate_position(&p.to::<Coord<f64>>()) {
+                CoordPos::Inside => Location::Inside,
+                CoordPos::Outside => Location::Outside,
+                CoordPos::OnBoundary => Location::OnBoundary,
+            };
+            proptest::prop_assert_eq!(got, truth);
+            // Closed and open rings are the same ring.
+            proptest::prop_assert_eq!(point_in_ring(p.to::<Coord<f64>>(), &closed), got);
+        }
+
+        /// The one signed area agrees with the plain shoelace sum the occluder extraction used
+        /// to compute on its own (same sign; equal up to rounding), for rings far from the origin
+        /// in both windings.
+        #[test]
+        fn signed_area_matches_the_plain_shoelace(
+            radii in proptest::collection::vec(1.0f64..10.0, 3..16),
+            off in proptest::prop_oneof![proptest::strategy::Just(0.0), proptest::strategy::Just(100.0)],
+            reverse in proptest::bool::ANY,
+        ) {
+            let mut ring = star(off, -off, &radii);
+            if reverse {
+                ring.reverse();
+            }
+            ring.push(ring[0]);
+            let plain = ring.windows(2).map(|w| w[0].perp_dot(w[1])).sum::<f64>() * 0.5;
+            let one = ring_signed_area(&ring);
+            proptest::prop_assert!(plain != 0.0 && one != 0.0);
+            proptest::prop_assert_eq!(plain > 0.0, !reverse);
+            proptest::prop_assert_eq!(one > 0.0, !reverse);
+            proptest::prop_assert!((one - plain).abs() <= 1e-9 * plain.abs(), "{} vs {}", one, plain);
+            let coords: Vec<Coord<f64>> = ring.iter().map(|v| v.to()).collect();
+            proptest::prop_assert_eq!(ring_signed_area(&coords).to_bits(), one.to_bits());
+        }
+
+        /// The proper-crossing case of `segments_intersect` is exactly the sign test the street
+        /// noding used to write by hand (`o1·o2 < 0 && o3·o4 < 0` on `orient2d_det`), on integer
+        /// grids where collinear and touching cases are frequent.
+        #[test]
+        fn proper_crossing_is_the_strict_sign_test(
+            c in proptest::collection::vec((-4i32..4, -4i32..4), 4),
+        ) {
+            let v: Vec<Coord<f64>> = c.iter().map(|&(x, y)| Coord { x: x as f64, y: y as f64 }).collect();
+            let (a, b, p, q) = (v[0], v[1], v[2], v[3]);
+            let hand = orient2d_det(a, b, p) * orient2d_det(a, b, q) < 0.0
+                && orient2d_det(p, q, a) * orient2d_det(p, q, b) < 0.0;
+            proptest::prop_assert_eq!(segments_intersect(a, b, p, q) == SegmentIntersection::Proper, hand);
         }
     }
 

@@ -56,8 +56,7 @@ fn ring_vertices(r: &LineString<f64>) -> usize {
 /// Building ids that are not in `city` are skipped (the layout and city disagree; blocks are
 /// built from the same city in the pipeline).
 pub fn block_bounds(city: &City, layout: &BlockLayout) -> Vec<BlockBounds> {
-    let o = city.frame.origin;
-    let to_local = |c: &Coord<f64>| DVec2::new(c.x - o.x, c.y - o.y);
+    let to_local = |c: &Coord<f64>| city.frame.to_local_xy(*c);
     layout
         .blocks
         .iter()

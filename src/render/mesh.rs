@@ -462,9 +462,10 @@ impl MeshRenderer {
         shading: Shading,
     ) -> Result<Frame, RenderError> {
         let start = Instant::now();
-        let m = camera.clip_from_world().as_mat4();
+        let m = crate::city::LocalFrame::round_matrix_to_f32(camera.clip_from_world());
         // Sun from the south-east, 50° up; ambient 0.35.
-        let sun = glam::DVec3::new(0.5, -0.6, 1.3).normalize().as_vec3();
+        let sun =
+            crate::city::LocalFrame::round_to_f32(glam::DVec3::new(0.5, -0.6, 1.3).normalize());
         let globals = Globals {
             clip_from_world: m.to_cols_array_2d(),
             sun: [sun.x, sun.y, sun.z, 0.35],

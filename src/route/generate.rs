@@ -3,6 +3,7 @@
 
 use super::{CameraRoute, KeyFrame, Lens, RouteError};
 use crate::city::LocalFrame;
+use crate::geom::tolerance::ROUTE_NODE_GRID_M;
 use crate::geom::Aabb3;
 use geo_types::LineString;
 use glam::{DVec2, DVec3};
@@ -10,11 +11,11 @@ use std::cmp::Reverse;
 use std::collections::{BinaryHeap, HashMap};
 use std::f64::consts::{FRAC_PI_2, TAU};
 
-/// Street vertices closer than this (metres) are merged into one node.
-const SNAP: f64 = 0.01;
-
 /// An undirected street graph in the local frame (x, y metres): vertices of the street lines are
-/// nodes (merged within 1 cm), consecutive vertices are joined by edges weighted by length.
+/// nodes (vertices that round to the same point of the
+/// [`ROUTE_NODE_GRID_M`](crate::geom::tolerance::ROUTE_NODE_GRID_M) grid, 1 cm, are one node; see
+/// there why it is finer than the blocks' snap tolerance), consecutive vertices are joined by
+/// edges weighted by length.
 #[derive(Clone, Debug, Default)]
 pub struct StreetGraph {
     /// Node positions, local frame.
@@ -41,8 +42,11 @@ impl StreetGraph {
                     prev = None;
                     continue;
                 }
-                let p = frame.to_local_f64(DVec3::new(c.x, c.y, 0.0)).truncate();
-                let key = ((p.x / SNAP).round() as i64, (p.y / SNAP).round() as i64);
+                let p = frame.to_local_xy(*c);
+                let key = (
+                    (p.x / ROUTE_NODE_GRID_M).round() as i64,
+                    (p.y / ROUTE_NODE_GRID_M).round() as i64,
+                );
                 let id = *lookup.entry(key).or_insert_with(|| {
                     g.nodes.push(p);
                     g.adjacency.push(Vec::new());
@@ -108,7 +112,7 @@ impl StreetGraph {
                 continue;
             }
             let d = q.distance_squared(p);
-            if best.map_or(true, |(bd, _)| d < bd) {
+            if best.is_none_or(|(bd, _)| d < bd) {
                 best = Some((d, i as u32));
             }
         }
@@ -173,7 +177,7 @@ fn thin(points: Vec<DVec2>, min_gap: f64) -> Vec<DVec2> {
     };
     let mut out: Vec<DVec2> = Vec::with_capacity(points.len());
     for p in points {
-        if out.last().map_or(true, |q| q.distance(p) >= min_gap) {
+        if out.last().is_none_or(|q| q.distance(p) >= min_gap) {
             out.push(p);
         }
     }
@@ -377,7 +381,8 @@ pub fn orbit_route(
     duration: f64,
     lens: Lens,
 ) -> Result<CameraRoute, RouteError> {
-    if bounds.is_empty() || !(duration > 0.0) || !(radius_factor > 0.0) {
+    let positive = |v: f64| v > 0.0; // false for NaN
+    if bounds.is_empty() || !positive(duration) || !positive(radius_factor) {
         return Err(RouteError::Bad {
             route: "orbit".into(),
             problem: "needs a non-empty city, positive radius and duration".into(),

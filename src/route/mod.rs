@@ -366,7 +366,7 @@ mod tests {
                 assert!((p - pitch).abs() < 1e-9, "{yaw} {pitch}: {p}");
                 let dy = (y - yaw).rem_euclid(std::f64::consts::TAU);
                 assert!(
-                    dy < 1e-9 || dy > std::f64::consts::TAU - 1e-9,
+                    !(1e-9..=std::f64::consts::TAU - 1e-9).contains(&dy),
                     "{yaw} {pitch}: {y}"
                 );
             }

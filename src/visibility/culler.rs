@@ -7,7 +7,8 @@ use super::shadow::{Occluder, OccluderShadow};
 use super::VisibilityError;
 use crate::blocks::{BlockId, BlockLayout};
 use crate::city::City;
-use crate::geom::{Aabb3, Camera, Frustum};
+use crate::geom::segment::point_rect_distance;
+use crate::geom::{Aabb3, Camera};
 use crate::index::{CityIndex, CullQuery, CullStats};
 use glam::{DVec2, DVec3};
 use serde::Serialize;
@@ -96,18 +97,6 @@ pub struct OcclusionCuller {
     min: DVec2,
     max: DVec2,
     map: Mutex<CullMap>,
-}
-
-/// True unless the box lies entirely outside one plane of the frustum.
-pub fn aabb_may_intersect(f: &Frustum, b: &Aabb3) -> bool {
-    f.planes.iter().all(|p| {
-        let v = DVec3::new(
-            if p.normal.x >= 0.0 { b.max.x } else { b.min.x },
-            if p.normal.y >= 0.0 { b.max.y } else { b.min.y },
-            if p.normal.z >= 0.0 { b.max.z } else { b.min.z },
-        );
-        p.distance(v) >= 0.0
-    })
 }
 
 impl OcclusionCuller {
@@ -200,10 +189,8 @@ impl OcclusionCuller {
         let mut scored: Vec<(f64, Occluder)> = Vec::new();
         let mut tallest: f64 = 0.0;
         for b in &self.blocks {
-            let lo = b.aabb.min.truncate();
-            let hi = b.aabb.max.truncate();
-            let d = (v2.clamp(lo, hi) - v2).length();
-            if b.aabb.is_empty() || d > r || !aabb_may_intersect(&frustum, &b.aabb) {
+            let d = point_rect_distance(v2, b.aabb.min.truncate(), b.aabb.max.truncate());
+            if b.aabb.is_empty() || d > r || !frustum.intersects_aabb(&b.aabb) {
                 continue;
             }
             for o in &b.occluders {

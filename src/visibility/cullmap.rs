@@ -9,6 +9,8 @@
 
 use super::shadow::OccluderShadow;
 use super::VisibilityError;
+use crate::geom::clip::clip_polygon;
+use crate::geom::hull::convex_hull;
 use crate::geom::Aabb3;
 use glam::DVec2;
 use serde::{Deserialize, Serialize};
@@ -260,21 +262,7 @@ fn region_y_range(s: &OccluderShadow, min: DVec2, max: DVec2) -> Option<(f64, f6
         if h.c == f64::INFINITY {
             continue;
         }
-        next.clear();
-        for k in 0..poly.len() {
-            let (p, q) = (poly[k], poly[(k + 1) % poly.len()]);
-            let (dp, dq) = (h.eval(p), h.eval(q));
-            if dp >= 0.0 {
-                next.push(p);
-            }
-            if (dp >= 0.0) != (dq >= 0.0) {
-                let t = dp / (dp - dq);
-                if t.is_finite() {
-                    next.push(p + (q - p) * t.clamp(0.0, 1.0));
-                }
-            }
-        }
-        std::mem::swap(&mut poly, &mut next);
+        clip_polygon(&mut poly, &mut next, |p| h.eval(p));
         if poly.is_empty() {
             return None;
         }
@@ -285,34 +273,6 @@ fn region_y_range(s: &OccluderShadow, min: DVec2, max: DVec2) -> Option<(f64, f6
             (a.min(p.y), b.max(p.y))
         });
     (lo <= hi).then_some((lo, hi))
-}
-
-/// Convex hull (counter-clockwise, no repeated first point) of the finite points.
-fn convex_hull(points: &[DVec2]) -> Vec<DVec2> {
-    let mut p: Vec<DVec2> = points.iter().copied().filter(|p| p.is_finite()).collect();
-    p.sort_by(|a, b| a.x.total_cmp(&b.x).then(a.y.total_cmp(&b.y)));
-    p.dedup();
-    if p.len() < 3 {
-        return p;
-    }
-    let turn = |o: DVec2, a: DVec2, b: DVec2| (a - o).perp_dot(b - o);
-    let mut h: Vec<DVec2> = Vec::with_capacity(2 * p.len());
-    for pass in 0..2 {
-        let start = h.len();
-        let iter: Box<dyn Iterator<Item = &DVec2>> = if pass == 0 {
-            Box::new(p.iter())
-        } else {
-            Box::new(p.iter().rev())
-        };
-        for &q in iter {
-            while h.len() >= start + 2 && turn(h[h.len() - 2], h[h.len() - 1], q) <= 0.0 {
-                h.pop();
-            }
-            h.push(q);
-        }
-        h.pop();
-    }
-    h
 }
 
 impl CullMap {

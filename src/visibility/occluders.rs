@@ -4,6 +4,7 @@
 use super::shadow::Occluder;
 use crate::blocks::{BlockId, BlockLayout};
 use crate::city::City;
+use crate::geom::predicates::ring_signed_area;
 use crate::geom::Aabb3;
 use glam::{DVec2, DVec3};
 
@@ -68,7 +69,7 @@ pub fn extract(city: &City, layout: &BlockLayout, opts: &OccluderOptions) -> Vec
                     continue;
                 }
                 for c in b.footprint.exterior().coords() {
-                    let p = city.frame.to_local_f64(DVec3::new(c.x, c.y, 0.0));
+                    let p = city.frame.to_local_xy(*c);
                     aabb = aabb
                         .including(DVec3::new(p.x, p.y, 0.0))
                         .including(DVec3::new(p.x, p.y, b.height_m.max(0.0)));
@@ -80,13 +81,9 @@ pub fn extract(city: &City, layout: &BlockLayout, opts: &OccluderOptions) -> Vec
                     .footprint
                     .exterior()
                     .coords()
-                    .map(|c| {
-                        city.frame
-                            .to_local_f64(DVec3::new(c.x, c.y, 0.0))
-                            .truncate()
-                    })
+                    .map(|c| city.frame.to_local_xy(*c))
                     .collect();
-                let ccw = signed_area(&ring) >= 0.0;
+                let ccw = ring_signed_area(&ring) >= 0.0;
                 for w in ring.windows(2) {
                     let (a, b2) = if ccw { (w[0], w[1]) } else { (w[1], w[0]) };
                     if a != b2 {
@@ -107,10 +104,6 @@ pub fn extract(city: &City, layout: &BlockLayout, opts: &OccluderOptions) -> Vec
             }
         })
         .collect()
-}
-
-fn signed_area(ring: &[DVec2]) -> f64 {
-    ring.windows(2).map(|w| w[0].perp_dot(w[1])).sum::<f64>() * 0.5
 }
 
 /// Merged runs of collinear, same-direction edges (only runs of two or more edges).

@@ -9,6 +9,7 @@
 
 use crate::blocks::BlockId;
 use crate::city::Mesh;
+use crate::geom::clip::clip_polygon;
 use crate::geom::Camera;
 use glam::{DVec3, DVec4};
 use rayon::prelude::*;
@@ -47,24 +48,6 @@ struct ScreenTri {
     color: [u8; 3],
     ymin: i64,
     ymax: i64,
-}
-
-fn clip_polygon(poly: &mut Vec<DVec4>, tmp: &mut Vec<DVec4>, dist: impl Fn(DVec4) -> f64) {
-    tmp.clear();
-    let n = poly.len();
-    for k in 0..n {
-        let a = poly[k];
-        let b = poly[(k + 1) % n];
-        let (da, db) = (dist(a), dist(b));
-        if da >= 0.0 {
-            tmp.push(a);
-        }
-        if (da >= 0.0) != (db >= 0.0) {
-            let t = da / (da - db);
-            tmp.push(a + (b - a) * t);
-        }
-    }
-    std::mem::swap(poly, tmp);
 }
 
 fn facade_color(n: DVec3, id: u32) -> [u8; 3] {

@@ -13,6 +13,8 @@
 //! infinity: the cull map intersects each half-plane with its own rows, in f64, and clamps the
 //! result to the map rectangle.
 
+use crate::geom::predicates::{orient2d, Orientation};
+use crate::geom::segment::point_segment_distance;
 use glam::{DVec2, DVec3};
 
 /// A facade top edge that occludes: the wall below `a`–`b` is solid from the ground to `height`.
@@ -34,22 +36,14 @@ impl Occluder {
         (self.b - self.a).length()
     }
 
-    /// True when `p` lies strictly on the outward side (right of `a → b`).
+    /// True when `p` lies strictly on the outward side (right of `a → b`), decided exactly.
     pub fn faces(&self, p: DVec2) -> bool {
-        let d = self.b - self.a;
-        d.perp_dot(p - self.a) < 0.0
+        orient2d(self.a, self.b, p) == Orientation::Clockwise
     }
 
     /// Plan-view distance from `p` to the segment.
     pub fn distance_to(&self, p: DVec2) -> f64 {
-        let d = self.b - self.a;
-        let l2 = d.length_squared();
-        let t = if l2 > 0.0 {
-            ((p - self.a).dot(d) / l2).clamp(0.0, 1.0)
-        } else {
-            0.0
-        };
-        (self.a + d * t - p).length()
+        point_segment_distance(p, self.a, self.b).0
     }
 }
 

@@ -3,7 +3,7 @@
 use crate::blocks::{Block, BlockId, BlockKind, BlockLayout, BlockSource};
 use crate::city::{Building, BuildingId, City, CityReport, HeightSource, LocalFrame, Mesh};
 use geo_types::{coord, LineString, Polygon};
-use glam::{DVec2, Vec3};
+use glam::{DVec2, DVec3};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
@@ -163,8 +163,8 @@ impl SyntheticCity {
                     });
                     for (a, b) in boxes {
                         let m = super::oracle::box_mesh(
-                            Vec3::new(a.x as f32, a.y as f32, min_height as f32),
-                            Vec3::new(b.x as f32, b.y as f32, height as f32),
+                            LocalFrame::round_to_f32(DVec3::new(a.x, a.y, min_height)),
+                            LocalFrame::round_to_f32(DVec3::new(b.x, b.y, height)),
                         );
                         let base = mesh.positions.len() as u32;
                         mesh.positions.extend_from_slice(&m.positions);

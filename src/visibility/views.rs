@@ -6,6 +6,7 @@
 
 use crate::blocks::BlockLayout;
 use crate::city::City;
+use crate::geom::predicates::{point_in_ring, Location};
 use crate::geom::{Aabb3, Camera};
 use glam::{DVec2, DVec3};
 use rand::{Rng, SeedableRng};
@@ -106,7 +107,7 @@ pub fn random_views(city: &City, layout: &BlockLayout, opts: &ViewOptions) -> Ve
                 && p.x <= b.max.x
                 && p.y >= b.min.y
                 && p.y <= b.max.y
-                && point_in_ring(p, r)
+                && point_in_ring(p, r) != Location::Outside
         })
     };
     let (lo, hi) = (bounds.min.truncate(), bounds.max.truncate());
@@ -151,12 +152,3 @@ pub fn random_views(city: &City, layout: &BlockLayout, opts: &ViewOptions) -> Ve
     views
 }
 
-/// True when `p` is inside or on the ring (the exact odd-crossing test of `geom::predicates`).
-fn point_in_ring(p: DVec2, ring: &[DVec2]) -> bool {
-    use crate::geom::predicates::{self, Location};
-    let r: Vec<geo_types::Coord<f64>> = ring
-        .iter()
-        .map(|c| geo_types::Coord { x: c.x, y: c.y })
-        .collect();
-    predicates::point_in_ring(geo_types::Coord { x: p.x, y: p.y }, &r) != Location::Outside
-}

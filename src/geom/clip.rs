@@ -1,0 +1,83 @@
+//! Clipping a polygon against one half-space (one step of Sutherland–Hodgman).
+//!
+//! One implementation serves the plan-view cull map (`DVec2`, half-planes of an occluder shadow)
+//! and the oracle's homogeneous clip space (`DVec4`, near and far planes).
+
+use std::ops::{Add, Mul, Sub};
+
+/// Keeps the part of the polygon `poly` (vertices in order, implicitly closed) where
+/// `dist(p) ≥ 0`, for a `dist` that is affine in `p`; `tmp` is scratch space (both vectors are
+/// reused, nothing is allocated once they have grown). A convex polygon stays convex.
+///
+/// Vertices with `dist ≥ 0` are kept as they are; where an edge crosses the boundary the
+/// crossing `a + (b − a) t`, `t = d(a) / (d(a) − d(b))` is inserted. A crossing that is not finite
+/// (a `dist` of ±∞ or NaN) is dropped.
+pub fn clip_polygon<V>(poly: &mut Vec<V>, tmp: &mut Vec<V>, dist: impl Fn(V) -> f64)
+where
+    V: Copy + Add<Output = V> + Sub<Output = V> + Mul<f64, Output = V>,
+{
+    tmp.clear();
+    let n = poly.len();
+    for k in 0..n {
+        let a = poly[k];
+        let b = poly[(k + 1) % n];
+        let (da, db) = (dist(a), dist(b));
+        if da >= 0.0 {
+            tmp.push(a);
+        }
+        if (da >= 0.0) != (db >= 0.0) {
+            let t = da / (da - db);
+            if t.is_finite() {
+                tmp.push(a + (b - a) * t.clamp(0.0, 1.0));
+            }
+        }
+    }
+    std::mem::swap(poly, tmp);
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use glam::{DVec2, DVec4};
+
+    #[test]
+    fn square_loses_a_corner_to_a_diagonal_line() {
+        let mut poly = vec![
+            DVec2::new(0.0, 0.0),
+            DVec2::new(2.0, 0.0),
+            DVec2::new(2.0, 2.0),
+            DVec2::new(0.0, 2.0),
+        ];
+        let mut tmp = Vec::new();
+        // Keep x + y ≤ 3: the corner (2, 2) is cut off.
+        clip_polygon(&mut poly, &mut tmp, |p| 3.0 - p.x - p.y);
+        assert_eq!(
+            poly,
+            vec![
+                DVec2::new(0.0, 0.0),
+                DVec2::new(2.0, 0.0),
+                DVec2::new(2.0, 1.0),
+                DVec2::new(1.0, 2.0),
+                DVec2::new(0.0, 2.0)
+            ]
+        );
+        // Everything on the wrong side: nothing left.
+        clip_polygon(&mut poly, &mut tmp, |p| p.x - 10.0);
+        assert!(poly.is_empty());
+    }
+
+    #[test]
+    fn homogeneous_triangle_through_the_near_plane() {
+        let mut poly = vec![
+            DVec4::new(0.0, 0.0, -1.0, 1.0),
+            DVec4::new(1.0, 0.0, 1.0, 1.0),
+            DVec4::new(0.0, 1.0, 1.0, 1.0),
+        ];
+        let mut tmp = Vec::new();
+        clip_polygon(&mut poly, &mut tmp, |q| q.z);
+        assert_eq!(poly.len(), 4);
+        assert!(poly.iter().all(|q| q.z >= 0.0));
+        assert!(poly.contains(&DVec4::new(0.5, 0.0, 0.0, 1.0)));
+        assert!(poly.contains(&DVec4::new(0.0, 0.5, 0.0, 1.0)));
+    }
+}

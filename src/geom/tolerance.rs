@@ -1,0 +1,31 @@
+//! Snapping tolerances, in metres, each with its reason.
+//!
+//! Everything else in [`crate::geom`] is exact or says how far it rounds; these are the places
+//! where points that are *near* are deliberately treated as *the same*.
+//!
+//! The two street graphs are chained: the route graph ([`crate::route::StreetGraph`]) is built
+//! from the block layout's street edges, which [`crate::blocks::noding`] has already noded at
+//! [`STREET_SNAP_M`]. So the route graph must not snap again at that tolerance: its job is only to
+//! recognise the copies of one node that several edges carry, and it must never merge two nodes
+//! the noding kept apart. Hence a second, smaller constant, checked against the first below.
+
+/// Snap tolerance of the blocks' street graph: street vertices closer than this are one node, and
+/// a line end this close to another line joins it (seed 003 §3 needs streets that meet).
+///
+/// 5 cm is far below any street width (so no two real junctions merge) and far above the
+/// millimetre misses of digitised data and the coordinate round-off of UTM northings near 1e7 m
+/// (about 1e-9 m), so T-junctions that miss by a millimetre still join.
+pub const STREET_SNAP_M: f64 = 0.05;
+
+/// Grid on which the route's street graph keys its vertices: vertices that round to the same
+/// point of this grid are one node.
+///
+/// The graph is built from already noded street edges, whose distinct nodes lie more than
+/// [`STREET_SNAP_M`] apart; two of them can share a grid key only if they are less than a grid
+/// cell's diagonal (`√2 ×` this) apart, so any grid finer than `STREET_SNAP_M / √2` keys the copies
+/// of one node together and never two nodes. 1 cm leaves a factor 3.5 of margin, and still
+/// absorbs the round-off of moving the edges into the local frame.
+pub const ROUTE_NODE_GRID_M: f64 = 0.01;
+
+// The argument above, checked when the crate is compiled.
+const _: () = assert!(ROUTE_NODE_GRID_M * std::f64::consts::SQRT_2 < STREET_SNAP_M);
