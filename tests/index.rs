@@ -4,7 +4,7 @@ use blockwalk::blocks::BlockId;
 use blockwalk::geom::{Aabb3, Camera, CoherenceState, Frustum};
 use blockwalk::index::{
     synthetic::block_grid, BlockBounds, BqrParams, BqrTree, CityIndex, CullQuery, FlatList,
-    NoStructure, ObjectId, RstarIndex, VamSplitParams, VamSplitTree,
+    IndexError, NoStructure, ObjectId, RstarIndex, VamSplitParams, VamSplitTree,
 };
 use glam::{DVec2, DVec3};
 use proptest::prelude::*;
@@ -334,15 +334,36 @@ fn bqr_same_centre_blocks_share_a_leaf_at_the_depth_limit() {
 #[test]
 fn bad_params_and_blocks_are_errors() {
     let mut bounds = block_grid(10, 1);
-    assert!(VamSplitTree::build(&bounds, &VamSplitParams { node_capacity: 1 }).is_err());
-    assert!(BqrTree::build(&bounds, &BqrParams { max_depth: 0 }).is_err());
-    assert!(BqrTree::build(&bounds, &BqrParams { max_depth: 31 }).is_err());
+    let e = VamSplitTree::build(&bounds, &VamSplitParams { node_capacity: 1 }).unwrap_err();
+    assert!(
+        matches!(&e, IndexError::BadParam { name: "node_capacity", value, .. } if value == "1"),
+        "{e:?}"
+    );
+    for depth in [0, 31] {
+        let e = BqrTree::build(&bounds, &BqrParams { max_depth: depth }).unwrap_err();
+        assert!(
+            matches!(&e, IndexError::BadParam { name: "max_depth", value, .. } if *value == depth.to_string()),
+            "{e:?}"
+        );
+    }
     bounds[3].aabb.max.x = f64::NAN;
+    let bad_block = |e: &IndexError| matches!(e, IndexError::BadBlock { index: 3, .. });
     let e = BqrTree::build(&bounds, &BqrParams::default()).unwrap_err();
+    assert!(bad_block(&e), "{e:?}");
     assert!(e.to_string().contains("block 3"), "{e}");
-    assert!(FlatList::build(&bounds).is_err());
-    assert!(RstarIndex::build(&bounds).is_err());
-    assert!(blockwalk::index::build_by_name("kd", &block_grid(3, 1)).is_err());
+    let e = VamSplitTree::build(&bounds, &VamSplitParams::default()).unwrap_err();
+    assert!(bad_block(&e), "{e:?}");
+    let e = FlatList::build(&bounds).unwrap_err();
+    assert!(bad_block(&e), "{e:?}");
+    let e = RstarIndex::build(&bounds).unwrap_err();
+    assert!(bad_block(&e), "{e:?}");
+    let e = blockwalk::index::build_by_name("kd", &block_grid(3, 1))
+        .err()
+        .expect("an unknown structure name is an error");
+    assert!(
+        matches!(&e, IndexError::BadParam { value, .. } if value == "kd"),
+        "{e:?}"
+    );
 }
 
 #[test]
