@@ -6,7 +6,7 @@ use blockwalk::city::{LocalFrame, Mesh};
 use blockwalk::geom::{Aabb3, Frustum};
 use blockwalk::index::{BlockBounds, CityIndex, CullStats};
 use blockwalk::report::walk::{
-    run_walk, OcclusionMode, OcclusionProvider, VisibilityOracle, WalkParams, WalkScene,
+    run_walk, OcclusionMode, OcclusionProvider, VisibilityOracle, WalkError, WalkParams, WalkScene,
 };
 use blockwalk::route::{paper_route, Lens, PaperRouteParams};
 use glam::{DVec2, DVec3};
@@ -221,12 +221,11 @@ fn occlusion_mode_and_false_culls() {
         assert_eq!(r.false_culls, Some(low_in_view));
     }
     let off = scene(false);
-    assert!(
-        run_walk(&off, &params(&off, OcclusionMode::On), &mut |_, _| {})
-            .unwrap_err()
-            .to_string()
-            .contains("occlusion")
-    );
+    let e = run_walk(&off, &params(&off, OcclusionMode::On), &mut |_, _| {})
+        .err()
+        .expect("occlusion asked for without a culler");
+    assert!(matches!(e, WalkError::NoOcclusion(_)), "{e:?}");
+    assert!(e.to_string().contains("occlusion"), "{e}");
 }
 
 #[test]
