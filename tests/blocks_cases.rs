@@ -1,7 +1,9 @@
 //! Hard cases for the street graph and the face walk, and grid properties (proptest).
 
 use blockwalk::blocks::noding::node_lines;
-use blockwalk::blocks::{detect_geometry, BlockKind, BlockLayout, BlockOptions, BlockSource};
+use blockwalk::blocks::{
+    detect_geometry, BlockError, BlockKind, BlockLayout, BlockOptions, BlockSource,
+};
 use blockwalk::geom::predicates::{point_in_polygon, polygon_area, ring_signed_area, Location};
 use geo_types::{line_string, polygon, Coord, LineString, Polygon};
 use proptest::prelude::*;
@@ -170,7 +172,21 @@ fn bad_options_are_errors() {
         snap_tolerance: f64::NAN,
         ..BlockOptions::default()
     };
-    assert!(detect_geometry(BlockSource::Streets, &[], &[], &[], &opts).is_err());
+    let e = detect_geometry(BlockSource::Streets, &[], &[], &[], &opts).unwrap_err();
+    assert!(
+        matches!(e, BlockError::BadOption { name: "snap_tolerance", value, .. } if value.is_nan()),
+        "{e:?}"
+    );
+    let opts = BlockOptions {
+        street_width: -1.0,
+        ..BlockOptions::default()
+    };
+    let e = detect_geometry(BlockSource::Streets, &[], &[], &[], &opts).unwrap_err();
+    assert!(
+        matches!(e, BlockError::BadOption { name: "street_width", value, .. } if value == -1.0),
+        "{e:?}"
+    );
+    assert!(e.to_string().contains("street_width"), "{e}");
 }
 
 /// A jittered grid: `n × n` nodes, spacing 100, each interior node moved by up to `j`.

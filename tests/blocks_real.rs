@@ -257,7 +257,7 @@ fn city(fp: &str, streets: Option<&str>, parcels: Option<&str>) -> blockwalk::ci
 /// blocks → areas back in the input's units and GeoJSON/SVG/PNG.
 #[test]
 fn bubenec_city_pipeline_areas_in_input_units() {
-    use blockwalk::blocks::export::{summary, to_geojson, write_geojson, write_map};
+    use blockwalk::blocks::export::{summary, to_geojson, write_geojson, write_map, ExportError};
     let c = city("bubenec/buildings.shp", Some("bubenec/streets.shp"), None);
     let l = blockwalk::blocks::detect(&c, &BlockOptions::default()).unwrap();
     assert_eq!(l.source, BlockSource::Streets);
@@ -301,7 +301,31 @@ fn bubenec_city_pipeline_areas_in_input_units() {
     assert_eq!(img.width().max(img.height()), 800);
     let svg = std::fs::read_to_string(dir.path().join("m.svg")).unwrap();
     assert!(svg.matches("<polygon").count() >= 7 + 144);
-    assert!(write_map(&dir.path().join("m.bmp"), &l, &fps, 800).is_err());
+    let bmp = dir.path().join("m.bmp");
+    let e = write_map(&bmp, &l, &fps, 800).unwrap_err();
+    assert!(
+        matches!(&e, ExportError::Format { file } if file == &bmp),
+        "{e:?}"
+    );
+    let missing = dir.path().join("no such dir").join("m.png");
+    let e = write_map(&missing, &l, &fps, 800).unwrap_err();
+    assert!(
+        matches!(&e, ExportError::Image { file, source: image::ImageError::IoError(_) } if file == &missing),
+        "{e:?}"
+    );
+    let missing = dir.path().join("no such dir").join("m.svg");
+    let e = write_map(&missing, &l, &fps, 800).unwrap_err();
+    assert!(
+        matches!(&e, ExportError::Draw { file, .. } if file == &missing),
+        "{e:?}"
+    );
+    assert!(std::error::Error::source(&e).is_some());
+    let missing = dir.path().join("no such dir").join("b.geojson");
+    let e = write_geojson(&missing, &l, &c.transform).unwrap_err();
+    assert!(
+        matches!(&e, ExportError::Io { file, .. } if file == &missing),
+        "{e:?}"
+    );
 }
 
 /// Helsinki through the City: by default bridges do not cut blocks (one face fewer than the

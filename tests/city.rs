@@ -353,3 +353,41 @@ fn generated_city_end_to_end() {
     }
     check_meshes(&city);
 }
+
+#[test]
+fn export_errors_name_the_file_and_keep_the_cause() {
+    use blockwalk::city::export::{write_glb, ExportError};
+    use std::error::Error;
+    let (_, city) = load("bubenec/buildings.shp");
+    let (meshes, _) = try_extrude_city(&city);
+    let e = glb_bytes(&city, &meshes[1..]).unwrap_err();
+    assert!(
+        matches!(e, ExportError::MeshCount { meshes: m, buildings: b, .. }
+            if m == meshes.len() - 1 && b == city.buildings.len()),
+        "{e:?}"
+    );
+    let dir = tempfile::tempdir().unwrap();
+    let glb = dir.path().join("c.glb");
+    let e = write_glb(&city, &meshes[1..], &glb).unwrap_err();
+    assert!(
+        matches!(&e, ExportError::MeshCount { file, .. } if file == &glb),
+        "{e:?}"
+    );
+    assert!(e.to_string().contains("c.glb"), "{e}");
+    let missing = dir.path().join("no such dir").join("c.glb");
+    let e = write_glb(&city, &meshes, &missing).unwrap_err();
+    match &e {
+        ExportError::Io { file, source } => {
+            assert_eq!(file, &missing);
+            assert_eq!(source.kind(), std::io::ErrorKind::NotFound);
+        }
+        other => panic!("{other:?}"),
+    }
+    assert!(e.source().is_some());
+    let missing = dir.path().join("no such dir").join("c.geojson");
+    let e = write_geojson(&city, &missing).unwrap_err();
+    assert!(
+        matches!(&e, ExportError::Io { file, .. } if file == &missing),
+        "{e:?}"
+    );
+}

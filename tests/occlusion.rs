@@ -260,3 +260,60 @@ fn skips_are_reported_and_keep_everything() {
     assert!(st.occluders_used > 0 && st.shadows_drawn > 0 && st.cells_covered > 0);
     assert_eq!(st.blocks_out as usize, out.len());
 }
+
+#[test]
+fn bad_culler_options_are_errors_naming_the_parameter() {
+    use blockwalk::visibility::VisibilityError;
+    let s = &*SCENE;
+    let (city, layout) = (&s.city.city, &s.city.layout);
+    let opts = |f: fn(&mut CullerOptions)| {
+        let mut o = CullerOptions::default();
+        f(&mut o);
+        o
+    };
+    let e = OcclusionCuller::new(city, layout, opts(|o| o.local_radius = 0.0)).unwrap_err();
+    assert!(
+        matches!(e, VisibilityError::BadParameter { name: "local_radius", value, .. } if value == 0.0),
+        "{e:?}"
+    );
+    let e =
+        OcclusionCuller::new(city, layout, opts(|o| o.skip_height_factor = f64::NAN)).unwrap_err();
+    assert!(
+        matches!(
+            e,
+            VisibilityError::BadParameter {
+                name: "skip_height_factor",
+                ..
+            }
+        ),
+        "{e:?}"
+    );
+    assert!(e.to_string().contains("skip_height_factor"), "{e}");
+    let e = OcclusionCuller::new(city, layout, opts(|o| o.resolution = Resolution::Cells(0)))
+        .unwrap_err();
+    assert!(
+        matches!(
+            e,
+            VisibilityError::BadResolution {
+                resolution: Resolution::Cells(0),
+                ..
+            }
+        ),
+        "{e:?}"
+    );
+
+    let refs = s.city.mesh_refs();
+    let scene = BenchScene {
+        city,
+        layout,
+        meshes: &refs,
+        index: &s.index,
+    };
+    let none = BenchOptions {
+        resolutions: vec![],
+        views: 2,
+        ..Default::default()
+    };
+    let e = run_occlusion_bench(&scene, &none, &mut |_, _| {}).unwrap_err();
+    assert!(matches!(e, VisibilityError::NoResolutions), "{e:?}");
+}

@@ -17,8 +17,10 @@ fn gpu_or_skip(test: &str) -> Option<Gpu> {
             eprintln!("{test}: adapter {}", g.adapter_name());
             Some(g)
         }
-        Err(RenderError::NoAdapter(why)) if std::env::var_os("BLOCKWALK_REQUIRE_GPU").is_none() => {
-            eprintln!("{test}: SKIPPED, no GPU adapter ({why}); set BLOCKWALK_REQUIRE_GPU=1 to fail instead");
+        Err(RenderError::NoAdapter { source })
+            if std::env::var_os("BLOCKWALK_REQUIRE_GPU").is_none() =>
+        {
+            eprintln!("{test}: SKIPPED, no GPU adapter ({source}); set BLOCKWALK_REQUIRE_GPU=1 to fail instead");
             None
         }
         Err(e) => panic!("{test}: no usable GPU: {e}"),
@@ -283,5 +285,115 @@ fn bad_meshes_are_refused() {
     m.indices.push(0);
     m.indices.push(1);
     let e = MeshRenderer::new(&gpu, &[(BlockId(3), &m)]).unwrap_err();
+    assert!(
+        matches!(
+            e,
+            RenderError::IndexOutOfRange {
+                block: BlockId(3),
+                index: 999,
+                vertices: 24
+            }
+        ),
+        "{e:?}"
+    );
     assert!(e.to_string().contains("block 3"), "{e}");
+
+    let mut m = box_mesh(&scene()[0].1);
+    m.normals.pop();
+    let e = MeshRenderer::new(&gpu, &[(BlockId(2), &m)]).unwrap_err();
+    assert!(
+        matches!(
+            e,
+            RenderError::BadMesh {
+                block: BlockId(2),
+                positions: 24,
+                normals: 23,
+                ..
+            }
+        ),
+        "{e:?}"
+    );
+
+    let m = box_mesh(&scene()[0].1);
+    let e = MeshRenderer::new(&gpu, &[(BlockId(0x00FF_FFFF), &m)]).unwrap_err();
+    assert!(
+        matches!(
+            e,
+            RenderError::BlockIdTooLarge {
+                id: 0x00FF_FFFF,
+                limit: 0x00FF_FFFE
+            }
+        ),
+        "{e:?}"
+    );
+
+    for (width, height) in [(0, 10), (10, 0)] {
+        let e = MeshRenderer::with_options(&gpu, &[], RenderOptions { width, height }).unwrap_err();
+        assert!(
+            matches!(e, RenderError::EmptyImage { width: w, height: h } if (w, h) == (width, height)),
+            "{e:?}"
+        );
+    }
+    let limit = gpu.device.limits().max_texture_dimension_2d;
+    let e = MeshRenderer::with_options(
+        &gpu,
+        &[],
+        RenderOptions {
+            width: limit + 1,
+            height: 8,
+        },
+    )
+    .unwrap_err();
+    assert!(
+        matches!(e, RenderError::ImageTooLarge { limit: l, .. } if l == limit),
+        "{e:?}"
+    );
+}
+
+/// A frame whose pixels do not match its size, and an image file that cannot be written, are
+/// errors that keep their cause (no GPU needed).
+#[test]
+fn frame_write_errors_keep_their_cause() {
+    use blockwalk::render::{Frame, FrameTimings};
+    use std::error::Error;
+    let dir = tempfile::tempdir().unwrap();
+    let bad = Frame {
+        width: 4,
+        height: 4,
+        rgba: vec![0; 10],
+        timings: FrameTimings::default(),
+    };
+    let e = bad.save_png(&dir.path().join("f.png")).unwrap_err();
+    assert!(
+        matches!(
+            e,
+            RenderError::FrameSize {
+                width: 4,
+                height: 4,
+                bytes: 10
+            }
+        ),
+        "{e:?}"
+    );
+    let good = Frame {
+        width: 2,
+        height: 2,
+        rgba: vec![255; 16],
+        timings: FrameTimings::default(),
+    };
+    let missing = dir.path().join("no such dir").join("f.png");
+    let e = good.save_png(&missing).unwrap_err();
+    match &e {
+        RenderError::Image { file, source } => {
+            assert_eq!(file, &missing);
+            assert!(
+                matches!(source, image::ImageError::IoError(_)),
+                "{source:?}"
+            );
+        }
+        other => panic!("{other:?}"),
+    }
+    assert!(e.source().is_some());
+    assert!(e.to_string().contains("no such dir"), "{e}");
+    good.save_png(&dir.path().join("ok.png")).unwrap();
 }

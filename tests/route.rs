@@ -5,7 +5,7 @@ use blockwalk::geom::{Aabb3, Camera};
 use blockwalk::route::file::RouteFile;
 use blockwalk::route::{
     orbit_route, paper_route, street_walk, CameraRoute, FrameSpec, KeyFrame, Lens,
-    PaperRouteParams, StreetGraph,
+    PaperRouteParams, RouteError, StreetGraph,
 };
 use geo_types::LineString;
 use glam::{DVec2, DVec3};
@@ -112,23 +112,23 @@ fn sampling_is_deterministic_and_counts_frames() {
 #[test]
 fn bad_routes_are_refused_with_reasons() {
     let one = vec![KeyFrame::new(0.0, DVec3::ZERO, 0.0, 0.0)];
-    assert!(CameraRoute::new("x", one, Lens::default())
-        .unwrap_err()
-        .to_string()
-        .contains("at least 2"));
+    let e = CameraRoute::new("x", one, Lens::default()).unwrap_err();
+    assert!(matches!(e, RouteError::TooFewKeys { n: 1, .. }), "{e:?}");
+    assert!(e.to_string().contains("at least 2"), "{e}");
     let back = vec![
         KeyFrame::new(1.0, DVec3::ZERO, 0.0, 0.0),
         KeyFrame::new(0.5, DVec3::X, 0.0, 0.0),
     ];
-    let e = CameraRoute::new("x", back, Lens::default())
-        .unwrap_err()
-        .to_string();
-    assert!(e.contains("key frame 1"), "{e}");
+    let e = CameraRoute::new("x", back, Lens::default()).unwrap_err();
+    assert!(matches!(e, RouteError::BadKey { key: 1, .. }), "{e:?}");
+    assert!(e.to_string().contains("key frame 1"), "{e}");
     let nan = vec![
         KeyFrame::new(0.0, DVec3::ZERO, 0.0, 0.0),
         KeyFrame::new(1.0, DVec3::new(f64::NAN, 0.0, 0.0), 0.0, 0.0),
     ];
-    assert!(CameraRoute::new("x", nan, Lens::default()).is_err());
+    let e = CameraRoute::new("x", nan, Lens::default()).unwrap_err();
+    assert!(matches!(e, RouteError::BadKey { key: 1, .. }), "{e:?}");
+    assert!(e.to_string().contains("finite"), "{e}");
 }
 
 #[test]
@@ -167,6 +167,7 @@ fn route_file_errors_name_the_problem() {
         .unwrap()
         .to_route(None)
         .unwrap_err();
+    assert!(matches!(e, RouteError::BadKey { key: 0, .. }), "{e:?}");
     assert!(e.to_string().contains("key frame 0") && e.to_string().contains("not both"));
     let world = r#"
         frame = "world"
@@ -178,15 +179,64 @@ fn route_file_errors_name_the_problem() {
         yaw_deg = 0.0
     "#;
     let f = RouteFile::from_toml(world).unwrap();
-    assert!(f.to_route(None).unwrap_err().to_string().contains("world"));
+    let e = f.to_route(None).unwrap_err();
+    assert!(matches!(e, RouteError::Bad { .. }), "{e:?}");
+    assert!(e.to_string().contains("world"), "{e}");
     let frame = LocalFrame {
         origin: DVec3::new(500.0, 600.0, 0.0),
     };
     let r = f.to_route(Some(&frame)).unwrap();
     assert_eq!(r.keys()[0].position, DVec3::new(-500.0, -600.0, 1.0));
-    assert!(RouteFile::from_toml("keys = 3").is_err());
+    let e = RouteFile::from_toml("keys = 3").unwrap_err();
+    assert!(matches!(e, RouteError::Toml { .. }), "{e:?}");
+    assert!(e.to_string().contains("<toml>"), "{e}");
     let unknown = "nmae = \"x\"\nkeys = []";
-    assert!(RouteFile::from_toml(unknown).is_err());
+    let e = RouteFile::from_toml(unknown).unwrap_err();
+    assert!(matches!(e, RouteError::Toml { .. }), "{e:?}");
+    assert!(e.to_string().contains("nmae"), "{e}");
+}
+
+#[test]
+fn route_file_read_errors_name_the_file_and_keep_the_cause() {
+    use std::error::Error;
+    let dir = tempfile::tempdir().unwrap();
+    let missing = dir.path().join("missing.toml");
+    let e = RouteFile::read(&missing).unwrap_err();
+    match &e {
+        RouteError::Read { file, source } => {
+            assert_eq!(file, &missing);
+            assert_eq!(source.kind(), std::io::ErrorKind::NotFound);
+        }
+        other => panic!("{other:?}"),
+    }
+    assert!(e.source().is_some());
+
+    let json = dir.path().join("r.json");
+    std::fs::write(&json, "{\"keys\": [").unwrap();
+    let e = RouteFile::read(&json).unwrap_err();
+    match &e {
+        RouteError::Json { file, source } => {
+            assert_eq!(file, &json);
+            assert!(source.is_eof(), "{source}");
+        }
+        other => panic!("{other:?}"),
+    }
+    assert!(e.to_string().contains("r.json"), "{e}");
+
+    let toml = dir.path().join("r.toml");
+    std::fs::write(&toml, "speed = \"fast\"\nkeys = []").unwrap();
+    let e = RouteFile::read(&toml).unwrap_err();
+    match &e {
+        RouteError::Toml { file, source } => {
+            assert_eq!(file, &toml);
+            assert!(source.span().is_some());
+        }
+        other => panic!("{other:?}"),
+    }
+    assert!(
+        e.to_string().contains("r.toml") && e.to_string().contains("speed"),
+        "{e}"
+    );
 }
 
 #[test]
@@ -282,13 +332,14 @@ fn paper_route_without_streets_goes_straight_in() {
     );
     let r = paper_route(&bounds, None, &PaperRouteParams::default(), Lens::default()).unwrap();
     assert_eq!(r.keys()[1].position.truncate(), DVec2::ZERO);
-    assert!(paper_route(
+    let e = paper_route(
         &Aabb3::EMPTY,
         None,
         &PaperRouteParams::default(),
-        Lens::default()
+        Lens::default(),
     )
-    .is_err());
+    .unwrap_err();
+    assert!(matches!(e, RouteError::Bad { .. }), "{e:?}");
 }
 
 #[test]

@@ -87,6 +87,7 @@ fn errors_name_file_and_tables() {
         &Theme::Table("blocks".into()),
     )
     .unwrap_err();
+    assert!(matches!(e, ImportError::Format { .. }), "{e:?}");
     let msg = e.to_string();
     assert!(
         msg.contains("bubenec.gpkg") && msg.contains("buildings, streets"),
@@ -101,7 +102,10 @@ fn errors_name_file_and_tables() {
         "{e}"
     );
     let e = gpkg::read(&dir.path().join("missing.gpkg"), &Theme::Any).unwrap_err();
-    assert!(matches!(e, ImportError::Io { .. }));
+    assert!(
+        matches!(&e, ImportError::Io { file, .. } if file.ends_with("missing.gpkg")),
+        "{e:?}"
+    );
 }
 
 /// A hand-made GeoPackage: null, empty, NaN and corrupt geometries are refused with their fid;
@@ -210,5 +214,9 @@ fn refusals_in_a_handmade_geopackage() {
         "{reasons:?}"
     );
     let e = gpkg::read(&p, &Theme::Buildings).unwrap_err();
+    assert!(
+        matches!(&e, ImportError::Format { file, .. } if file == &p),
+        "{e:?}"
+    );
     assert!(e.to_string().contains("main_roads"), "{e}");
 }

@@ -348,12 +348,20 @@ fn truncated_and_garbage_files() {
     std::fs::remove_file(dir.path().join("l.shx")).unwrap();
     std::fs::write(&shp_path, &bytes[..200]).unwrap();
     let e = shp::read(&shp_path).unwrap_err();
+    assert!(
+        matches!(&e, ImportError::Format { file, .. } if file == &shp_path),
+        "{e:?}"
+    );
     assert!(e.to_string().contains("record 0"), "{e}");
 
     // A .dbf with fewer records than the .shp: an error, not a silent loss.
     let shp_path = copy_layer("bubenec/streets", dir.path());
     std::fs::copy(data("bubenec/buildings.dbf"), dir.path().join("l.dbf")).unwrap();
     let e = shp::read(&shp_path).unwrap_err();
+    assert!(
+        matches!(&e, ImportError::Format { file, .. } if file == &shp_path),
+        "{e:?}"
+    );
     assert!(e.to_string().contains("35 shapes"), "{e}");
 }
 
@@ -484,7 +492,14 @@ mod fuzz {
             std::fs::write(&shp_path, &bytes).unwrap();
             match shp::read(&shp_path) {
                 Ok(l) => prop_assert_eq!(l.report.read, l.report.imported + l.report.refused.len()),
-                Err(e) => prop_assert!(e.to_string().contains("l.shp") || e.to_string().contains("l.dbf"), "{}", e),
+                Err(e) => {
+                    prop_assert!(
+                        matches!(e, ImportError::Format { .. } | ImportError::Io { .. }),
+                        "{:?}",
+                        e
+                    );
+                    prop_assert!(e.to_string().contains("l.shp") || e.to_string().contains("l.dbf"), "{}", e);
+                }
             }
         }
     }

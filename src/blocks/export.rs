@@ -10,16 +10,44 @@ use serde::Serialize;
 use serde_json::{json, Value};
 use std::path::{Path, PathBuf};
 
-/// Why an output could not be written. Every variant names the file.
+/// Why an output could not be written. Every variant names the file and keeps the cause.
 #[derive(Debug, thiserror::Error)]
 pub enum ExportError {
-    /// Writing failed.
-    #[error("{file}: {message}")]
-    Write {
+    /// The file could not be written.
+    #[error("{file}: {source}")]
+    Io {
         /// The file.
         file: PathBuf,
-        /// What went wrong.
-        message: String,
+        /// The I/O error.
+        #[source]
+        source: std::io::Error,
+    },
+    /// The GeoJSON could not be serialised.
+    #[error("{file}: serialising the GeoJSON failed: {source}")]
+    Json {
+        /// The file.
+        file: PathBuf,
+        /// What `serde_json` said.
+        #[source]
+        source: serde_json::Error,
+    },
+    /// plotters failed to draw the map (for SVG this includes writing the file).
+    #[error("{file}: drawing the map failed: {source}")]
+    Draw {
+        /// The file.
+        file: PathBuf,
+        /// plotters' error (its type depends on the backend).
+        #[source]
+        source: Box<dyn std::error::Error + Send + Sync>,
+    },
+    /// The PNG could not be encoded or written.
+    #[error("{file}: writing the image failed: {source}")]
+    Image {
+        /// The file.
+        file: PathBuf,
+        /// What `image` said.
+        #[source]
+        source: image::ImageError,
     },
     /// The map format is not known from the file name.
     #[error("{file}: unknown map format (expected .svg or .png)")]
@@ -148,20 +176,21 @@ pub fn to_geojson(layout: &BlockLayout, transform: &MetricTransform) -> Value {
 /// Writes [`to_geojson`] to a file.
 ///
 /// # Errors
-/// [`ExportError::Write`] naming the file.
+/// [`ExportError::Json`] or [`ExportError::Io`] naming the file.
 pub fn write_geojson(
     path: &Path,
     layout: &BlockLayout,
     transform: &MetricTransform,
 ) -> Result<(), ExportError> {
-    let text =
-        serde_json::to_string(&to_geojson(layout, transform)).map_err(|e| ExportError::Write {
+    let text = serde_json::to_string(&to_geojson(layout, transform)).map_err(|source| {
+        ExportError::Json {
             file: path.to_path_buf(),
-            message: e.to_string(),
-        })?;
-    std::fs::write(path, text).map_err(|e| ExportError::Write {
+            source,
+        }
+    })?;
+    std::fs::write(path, text).map_err(|source| ExportError::Io {
         file: path.to_path_buf(),
-        message: e.to_string(),
+        source,
     })
 }
 
@@ -184,8 +213,8 @@ fn draw<DB: DrawingBackend>(
     size: (u32, u32),
     layout: &BlockLayout,
     buildings: &[Polygon<f64>],
-) -> Result<(), String> {
-    root.fill(&WHITE).map_err(|e| e.to_string())?;
+) -> Result<(), DrawingAreaErrorKind<DB::ErrorType>> {
+    root.fill(&WHITE)?;
     let mut lo = [f64::INFINITY; 2];
     let mut hi = [f64::NEG_INFINITY; 2];
     let mut grow = |c: &Coord<f64>| {
@@ -219,7 +248,6 @@ fn draw<DB: DrawingBackend>(
         )
     };
     let ring = |ls: &LineString<f64>| ls.0.iter().map(px).collect::<Vec<_>>();
-    let err = |e: DrawingAreaErrorKind<DB::ErrorType>| e.to_string();
     for b in &layout.blocks {
         match b.kind {
             BlockKind::Block => {
@@ -227,19 +255,16 @@ fn draw<DB: DrawingBackend>(
                 root.draw(&plotters::element::Polygon::new(
                     ring(b.polygon.exterior()),
                     RGBColor(r, g, bl).mix(0.45).filled(),
-                ))
-                .map_err(err)?;
+                ))?;
                 for h in b.polygon.interiors() {
-                    root.draw(&plotters::element::Polygon::new(ring(h), WHITE.filled()))
-                        .map_err(err)?;
+                    root.draw(&plotters::element::Polygon::new(ring(h), WHITE.filled()))?;
                 }
             }
             BlockKind::Outskirts => {
                 root.draw(&PathElement::new(
                     ring(b.polygon.exterior()),
                     RGBColor(150, 150, 150).stroke_width(1),
-                ))
-                .map_err(err)?;
+                ))?;
             }
         }
     }
@@ -247,17 +272,15 @@ fn draw<DB: DrawingBackend>(
         root.draw(&PathElement::new(
             ring(l),
             RGBColor(60, 60, 60).stroke_width(2),
-        ))
-        .map_err(err)?;
+        ))?;
     }
     for b in buildings {
         root.draw(&plotters::element::Polygon::new(
             ring(b.exterior()),
             RGBColor(30, 30, 30).filled(),
-        ))
-        .map_err(err)?;
+        ))?;
     }
-    root.present().map_err(|e| e.to_string())
+    root.present()
 }
 
 /// Writes the map as SVG or PNG, chosen by the file's extension; the long side is `long_side`
@@ -292,9 +315,9 @@ pub fn write_map(
     } else {
         (long_side, long_side)
     };
-    let fail = |message: String| ExportError::Write {
+    let fail = |source: Box<dyn std::error::Error + Send + Sync>| ExportError::Draw {
         file: path.to_path_buf(),
-        message,
+        source,
     };
     let ext = path
         .extension()
@@ -303,16 +326,20 @@ pub fn write_map(
     match ext.as_deref() {
         Some("svg") => {
             let root = SVGBackend::new(path, (w, h)).into_drawing_area();
-            draw(&root, (w, h), layout, buildings).map_err(fail)
+            draw(&root, (w, h), layout, buildings).map_err(|e| fail(e.into()))
         }
         Some("png") => {
             let mut buf = vec![255u8; (w * h * 3) as usize];
             {
                 let root = BitMapBackend::with_buffer(&mut buf, (w, h)).into_drawing_area();
-                draw(&root, (w, h), layout, buildings).map_err(fail)?;
+                draw(&root, (w, h), layout, buildings).map_err(|e| fail(e.into()))?;
             }
-            image::save_buffer(path, &buf, w, h, image::ExtendedColorType::Rgb8)
-                .map_err(|e| fail(e.to_string()))
+            image::save_buffer(path, &buf, w, h, image::ExtendedColorType::Rgb8).map_err(|source| {
+                ExportError::Image {
+                    file: path.to_path_buf(),
+                    source,
+                }
+            })
         }
         _ => Err(ExportError::Format {
             file: path.to_path_buf(),

@@ -22,13 +22,27 @@ use crate::geom::predicates::{open_ring, orient2d, point_in_polygon, Location, O
 /// Why a building could not be extruded.
 #[derive(Clone, Debug, PartialEq, thiserror::Error)]
 pub enum ExtrudeError {
-    /// The triangulation refused the footprint (its rings cross or touch: not a valid footprint).
-    #[error("building {id}: footprint cannot be triangulated: {why}")]
+    /// spade refused a vertex of the footprint (a coordinate too small, too large or NaN).
+    #[error("building {id}: footprint cannot be triangulated: {source}")]
     Triangulation {
         /// Source id.
         id: String,
         /// What spade said.
-        why: String,
+        #[source]
+        source: spade::InsertionError,
+    },
+    /// The footprint's rings cross or touch, or repeat a vertex: not a valid footprint.
+    #[error(
+        "building {id}: footprint cannot be triangulated: {crossings} crossing constraint(s), \
+         {duplicates} duplicate vertex(es)"
+    )]
+    CrossingRings {
+        /// Source id.
+        id: String,
+        /// Ring edges that crossed another (spade's constraint conflicts).
+        crossings: usize,
+        /// Vertices that fell on another.
+        duplicates: usize,
     },
     /// Heights are not finite or the top is not above the bottom.
     #[error("building {id}: top {top} m is not above bottom {bottom} m")]
@@ -77,17 +91,15 @@ pub fn try_extrude_building(b: &Building, frame: &LocalFrame) -> Result<Mesh, Ex
         ConstrainedDelaunayTriangulation::<Point2<f64>>::try_bulk_load_cdt(verts, edges, |_| {
             conflicts += 1
         })
-        .map_err(|e| ExtrudeError::Triangulation {
+        .map_err(|source| ExtrudeError::Triangulation {
             id: b.source_id.clone(),
-            why: format!("{e:?}"),
+            source,
         })?;
     if conflicts > 0 || cdt.num_vertices() != n_in {
-        return Err(ExtrudeError::Triangulation {
+        return Err(ExtrudeError::CrossingRings {
             id: b.source_id.clone(),
-            why: format!(
-                "{conflicts} crossing constraint(s), {} duplicate vertex(es)",
-                n_in - cdt.num_vertices()
-            ),
+            crossings: conflicts,
+            duplicates: n_in - cdt.num_vertices(),
         });
     }
     let mut cap: Vec<[u32; 3]> = Vec::new();
@@ -361,8 +373,57 @@ mod tests {
         let f = LocalFrame {
             origin: DVec3::ZERO,
         };
-        assert!(try_extrude_building(&building(p.clone(), 3.0, 3.0), &f).is_err());
-        assert!(try_extrude_building(&building(p, f64::NAN, 0.0), &f).is_err());
+        let e = try_extrude_building(&building(p.clone(), 3.0, 3.0), &f).unwrap_err();
+        assert!(
+            matches!(&e, ExtrudeError::Heights { id, top, bottom } if id == "t:0" && *top == 3.0 && *bottom == 3.0),
+            "{e:?}"
+        );
+        assert!(e.to_string().contains("t:0"), "{e}");
+        let e = try_extrude_building(&building(p, f64::NAN, 0.0), &f).unwrap_err();
+        assert!(
+            matches!(&e, ExtrudeError::Heights { top, .. } if top.is_nan()),
+            "{e:?}"
+        );
+    }
+
+    #[test]
+    fn invalid_footprints_are_errors_with_the_cause() {
+        let f = LocalFrame {
+            origin: DVec3::ZERO,
+        };
+        // A bow tie: the exterior crosses itself.
+        let bow = Polygon::new(
+            LineString::from(vec![
+                (0.0, 0.0),
+                (4.0, 4.0),
+                (4.0, 0.0),
+                (0.0, 4.0),
+                (0.0, 0.0),
+            ]),
+            vec![],
+        );
+        let e = try_extrude_building(&building(bow, 3.0, 0.0), &f).unwrap_err();
+        assert!(
+            matches!(&e, ExtrudeError::CrossingRings { id, crossings, .. } if id == "t:0" && *crossings > 0),
+            "{e:?}"
+        );
+        // A NaN vertex: spade's own error is kept as the source.
+        let nan = Polygon::new(
+            LineString::from(vec![(0.0, 0.0), (4.0, 0.0), (f64::NAN, 4.0), (0.0, 0.0)]),
+            vec![],
+        );
+        let e = try_extrude_building(&building(nan, 3.0, 0.0), &f).unwrap_err();
+        assert!(
+            matches!(
+                e,
+                ExtrudeError::Triangulation {
+                    source: spade::InsertionError::NAN,
+                    ..
+                }
+            ),
+            "{e:?}"
+        );
+        assert!(std::error::Error::source(&e).is_some());
     }
 
     fn star(n: usize, seed: u64, cx: f64, cy: f64, rmin: f64, rmax: f64) -> Vec<(f64, f64)> {

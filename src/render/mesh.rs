@@ -1,7 +1,7 @@
 //! The block mesh renderer: one vertex and index buffer for the whole city, one indexed draw
 //! per visible block.
 
-use super::{Gpu, RenderError};
+use super::{Gpu, Readback, RenderError};
 use crate::blocks::BlockId;
 use crate::city::Mesh;
 use crate::geom::Camera;
@@ -107,11 +107,15 @@ impl Frame {
 
     /// Writes the frame as PNG.
     pub fn save_png(&self, path: &std::path::Path) -> Result<(), RenderError> {
-        let img = self
-            .to_image()
-            .ok_or_else(|| RenderError::Readback("frame has the wrong size".into()))?;
-        img.save(path)
-            .map_err(|e| RenderError::Readback(format!("{}: {e}", path.display())))
+        let img = self.to_image().ok_or(RenderError::FrameSize {
+            width: self.width,
+            height: self.height,
+            bytes: self.rgba.len(),
+        })?;
+        img.save(path).map_err(|source| RenderError::Image {
+            file: path.to_path_buf(),
+            source,
+        })
     }
 }
 
@@ -179,17 +183,18 @@ impl MeshRenderer {
         options: RenderOptions,
     ) -> Result<Self, RenderError> {
         if options.width == 0 || options.height == 0 {
-            return Err(RenderError::Input(format!(
-                "image size {}x{} is empty",
-                options.width, options.height
-            )));
+            return Err(RenderError::EmptyImage {
+                width: options.width,
+                height: options.height,
+            });
         }
         let limit = gpu.device.limits().max_texture_dimension_2d;
         if options.width > limit || options.height > limit {
-            return Err(RenderError::Input(format!(
-                "image size {}x{} exceeds the adapter's {limit}",
-                options.width, options.height
-            )));
+            return Err(RenderError::ImageTooLarge {
+                width: options.width,
+                height: options.height,
+                limit,
+            });
         }
         let device = &gpu.device;
         // Group meshes by block, keeping the input order within a block.
@@ -213,11 +218,10 @@ impl MeshRenderer {
         };
         let max_id = blocks.iter().map(|b| b.0 .0).max();
         if max_id.is_some_and(|m| m >= GROUND) {
-            return Err(RenderError::Input(format!(
-                "block id {} is too large (limit {})",
-                max_id.unwrap_or(0),
-                GROUND - 1
-            )));
+            return Err(RenderError::BlockIdTooLarge {
+                id: max_id.unwrap_or(0),
+                limit: GROUND - 1,
+            });
         }
         let mut ranges: Vec<Option<BlockRange>> = vec![None; max_id.map_or(0, |m| m as usize + 1)];
         let mut i = 0;
@@ -228,13 +232,12 @@ impl MeshRenderer {
             while i < order.len() && blocks[order[i]].0 == id {
                 let mesh = blocks[order[i]].1;
                 if mesh.positions.len() != mesh.normals.len() || mesh.indices.len() % 3 != 0 {
-                    return Err(RenderError::Input(format!(
-                        "block {}: mesh has {} positions, {} normals, {} indices",
-                        id.0,
-                        mesh.positions.len(),
-                        mesh.normals.len(),
-                        mesh.indices.len()
-                    )));
+                    return Err(RenderError::BadMesh {
+                        block: id,
+                        positions: mesh.positions.len(),
+                        normals: mesh.normals.len(),
+                        indices: mesh.indices.len(),
+                    });
                 }
                 let offset = (vertices.len() - base_vertex) as u32;
                 if let Some(&bad) = mesh
@@ -242,11 +245,11 @@ impl MeshRenderer {
                     .iter()
                     .find(|&&k| k as usize >= mesh.positions.len())
                 {
-                    return Err(RenderError::Input(format!(
-                        "block {}: index {bad} out of range ({} vertices)",
-                        id.0,
-                        mesh.positions.len()
-                    )));
+                    return Err(RenderError::IndexOutOfRange {
+                        block: id,
+                        index: bad,
+                        vertices: mesh.positions.len(),
+                    });
                 }
                 vertices.extend(
                     mesh.positions
@@ -263,8 +266,12 @@ impl MeshRenderer {
             ranges[id.0 as usize] = Some(BlockRange {
                 first_index: first_index as u32,
                 index_count: (indices.len() - first_index) as u32,
-                base_vertex: i32::try_from(base_vertex)
-                    .map_err(|_| RenderError::Input("more than 2^31 vertices".into()))?,
+                base_vertex: i32::try_from(base_vertex).map_err(|_| {
+                    RenderError::TooManyVertices {
+                        block: id,
+                        vertices: base_vertex,
+                    }
+                })?,
             });
         }
 
@@ -593,7 +600,7 @@ impl MeshRenderer {
 
     /// Maps the read-back buffer and strips the row padding.
     fn read_image(&self, gpu: &Gpu) -> Result<Vec<u8>, RenderError> {
-        let bytes = map_read(gpu, &self.readback)?;
+        let bytes = map_read(gpu, &self.readback, Readback::Frame)?;
         let row = (self.options.width * 4) as usize;
         let mut rgba = Vec::with_capacity(row * self.options.height as usize);
         for y in 0..self.options.height as usize {
@@ -604,21 +611,21 @@ impl MeshRenderer {
     }
 }
 
-/// Maps `buffer` for reading, waits, copies its bytes out and unmaps it.
-fn map_read(gpu: &Gpu, buffer: &wgpu::Buffer) -> Result<Vec<u8>, RenderError> {
+/// Maps `buffer` (holding `what`) for reading, waits, copies its bytes out and unmaps it.
+fn map_read(gpu: &Gpu, buffer: &wgpu::Buffer, what: Readback) -> Result<Vec<u8>, RenderError> {
     let (tx, rx) = std::sync::mpsc::channel();
     buffer.map_async(wgpu::MapMode::Read, .., move |r| {
         let _ = tx.send(r);
     });
     gpu.device
         .poll(wgpu::PollType::wait_indefinitely())
-        .map_err(|e| RenderError::Readback(e.to_string()))?;
+        .map_err(|source| RenderError::Poll { what, source })?;
     rx.recv()
-        .map_err(|e| RenderError::Readback(e.to_string()))?
-        .map_err(|e| RenderError::Readback(e.to_string()))?;
+        .map_err(|source| RenderError::MapCallbackLost { what, source })?
+        .map_err(|source| RenderError::Map { what, source })?;
     let bytes = buffer
         .get_mapped_range(..)
-        .map_err(|e| RenderError::Readback(e.to_string()))?
+        .map_err(|source| RenderError::MapRange { what, source })?
         .to_vec();
     buffer.unmap();
     Ok(bytes)
@@ -626,13 +633,17 @@ fn map_read(gpu: &Gpu, buffer: &wgpu::Buffer) -> Result<Vec<u8>, RenderError> {
 
 /// Seconds between the two timestamps in `read`.
 fn read_timestamps(gpu: &Gpu, read: &wgpu::Buffer) -> Result<f64, RenderError> {
-    let bytes = map_read(gpu, read)?;
+    let bytes = map_read(gpu, read, Readback::Timestamps)?;
     let stamp = |i: usize| -> Result<u64, RenderError> {
         bytes
             .get(i * 8..i * 8 + 8)
             .and_then(|b| b.try_into().ok())
             .map(u64::from_le_bytes)
-            .ok_or_else(|| RenderError::Readback("short timestamp buffer".into()))
+            .ok_or(RenderError::ShortReadback {
+                what: Readback::Timestamps,
+                got: bytes.len(),
+                expected: 16,
+            })
     };
     let ticks = stamp(1)?.wrapping_sub(stamp(0)?);
     Ok(ticks as f64 * gpu.queue.get_timestamp_period() as f64 * 1e-9)

@@ -25,21 +25,171 @@ pub mod window;
 pub use frames::GpuFrameRenderer;
 pub use mesh::{Frame, FrameTimings, MeshRenderer, RenderOptions, Shading};
 
-/// What can go wrong on the GPU side.
+use crate::blocks::BlockId;
+
+/// What can go wrong on the GPU side. Failures of wgpu and `image` keep their error as the
+/// [`source`](std::error::Error::source); bad input says what input and what is wrong with it.
 #[derive(Debug, thiserror::Error)]
 pub enum RenderError {
     /// No adapter (GPU or software rasteriser such as lavapipe) is available.
-    #[error("no GPU adapter found: {0}")]
-    NoAdapter(String),
+    #[error("no GPU adapter found: {source}")]
+    NoAdapter {
+        /// What wgpu said (the fallback-adapter request's error).
+        #[source]
+        source: wgpu::RequestAdapterError,
+    },
     /// The adapter refused to create a device.
-    #[error("GPU device request failed: {0}")]
-    Device(String),
-    /// Reading the image back failed.
-    #[error("GPU read-back failed: {0}")]
-    Readback(String),
-    /// Bad input to the renderer.
-    #[error("render: {0}")]
-    Input(String),
+    #[error("GPU device request on {adapter} failed: {source}")]
+    Device {
+        /// Adapter name and backend.
+        adapter: String,
+        /// What wgpu said.
+        #[source]
+        source: wgpu::RequestDeviceError,
+    },
+    /// Waiting for the device to finish before a read-back failed.
+    #[error("GPU read-back of the {what}: waiting for the device failed: {source}")]
+    Poll {
+        /// What was being read back.
+        what: Readback,
+        /// What wgpu said.
+        #[source]
+        source: wgpu::PollError,
+    },
+    /// Mapping a read-back buffer failed.
+    #[error("GPU read-back of the {what}: mapping the buffer failed: {source}")]
+    Map {
+        /// What was being read back.
+        what: Readback,
+        /// What wgpu said.
+        #[source]
+        source: wgpu::BufferAsyncError,
+    },
+    /// The buffer-map callback was dropped without reporting (the device was lost).
+    #[error("GPU read-back of the {what}: the buffer-map callback never ran: {source}")]
+    MapCallbackLost {
+        /// What was being read back.
+        what: Readback,
+        /// The closed channel.
+        #[source]
+        source: std::sync::mpsc::RecvError,
+    },
+    /// The mapped range of a read-back buffer could not be viewed.
+    #[error("GPU read-back of the {what}: {source}")]
+    MapRange {
+        /// What was being read back.
+        what: Readback,
+        /// What wgpu said.
+        #[source]
+        source: wgpu::MapRangeError,
+    },
+    /// A read-back buffer holds fewer bytes than expected.
+    #[error("GPU read-back of the {what}: {got} bytes, expected {expected}")]
+    ShortReadback {
+        /// What was being read back.
+        what: Readback,
+        /// Bytes read.
+        got: usize,
+        /// Bytes needed.
+        expected: usize,
+    },
+    /// An image could not be encoded or written.
+    #[error("{file}: writing the image failed: {source}")]
+    Image {
+        /// The image file.
+        file: std::path::PathBuf,
+        /// What `image` said.
+        #[source]
+        source: image::ImageError,
+    },
+    /// A frame's pixel buffer does not match its size.
+    #[error("frame of {width}x{height} pixels holds {bytes} bytes, not width × height × 4")]
+    FrameSize {
+        /// Width, pixels.
+        width: u32,
+        /// Height, pixels.
+        height: u32,
+        /// Bytes in the buffer.
+        bytes: usize,
+    },
+    /// The requested image size has no pixels.
+    #[error("render: image size {width}x{height} is empty")]
+    EmptyImage {
+        /// Width asked for, pixels.
+        width: u32,
+        /// Height asked for, pixels.
+        height: u32,
+    },
+    /// The requested image size exceeds what the adapter can render.
+    #[error("render: image size {width}x{height} exceeds the adapter's {limit} pixels per side")]
+    ImageTooLarge {
+        /// Width asked for, pixels.
+        width: u32,
+        /// Height asked for, pixels.
+        height: u32,
+        /// The adapter's `max_texture_dimension_2d`.
+        limit: u32,
+    },
+    /// A block id does not fit the id encoding (24 bits, less the ground's id).
+    #[error("render: block id {id} is too large (limit {limit})")]
+    BlockIdTooLarge {
+        /// The largest id given.
+        id: u32,
+        /// The largest id allowed.
+        limit: u32,
+    },
+    /// A block mesh's arrays disagree: positions and normals differ in length, or the index
+    /// count is not a multiple of 3.
+    #[error(
+        "render: block {}: mesh has {positions} positions, {normals} normals, {indices} indices",
+        block.0
+    )]
+    BadMesh {
+        /// The block.
+        block: BlockId,
+        /// Positions.
+        positions: usize,
+        /// Normals.
+        normals: usize,
+        /// Indices.
+        indices: usize,
+    },
+    /// A block mesh's index points past its vertices.
+    #[error("render: block {}: index {index} out of range ({vertices} vertices)", block.0)]
+    IndexOutOfRange {
+        /// The block.
+        block: BlockId,
+        /// The bad index.
+        index: u32,
+        /// Vertices in the mesh.
+        vertices: usize,
+    },
+    /// The meshes together have more vertices than a draw call can address.
+    #[error("render: {vertices} vertices before block {}, more than 2^31", block.0)]
+    TooManyVertices {
+        /// The block whose first vertex is out of reach.
+        block: BlockId,
+        /// Vertices before it.
+        vertices: usize,
+    },
+}
+
+/// What a GPU read-back was fetching (for [`RenderError`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Readback {
+    /// The colour image of a frame.
+    Frame,
+    /// The render pass's timestamp queries.
+    Timestamps,
+}
+
+impl std::fmt::Display for Readback {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            Readback::Frame => "frame",
+            Readback::Timestamps => "timestamps",
+        })
+    }
 }
 
 /// An adapter, device and queue, and what they can do.
@@ -84,12 +234,13 @@ impl Gpu {
                 apply_limit_buckets: false,
             }))
         })
-        .map_err(|e| RenderError::NoAdapter(e.to_string()))?;
+        .map_err(|source| RenderError::NoAdapter { source })?;
         Self::from_adapter(adapter)
     }
 
     /// A device on the given adapter.
     pub fn from_adapter(adapter: wgpu::Adapter) -> Result<Gpu, RenderError> {
+        let info = adapter.get_info();
         let timestamps = adapter.features().contains(wgpu::Features::TIMESTAMP_QUERY);
         let required_features = if timestamps {
             wgpu::Features::TIMESTAMP_QUERY
@@ -102,7 +253,10 @@ impl Gpu {
             required_limits: adapter.limits(),
             ..Default::default()
         }))
-        .map_err(|e| RenderError::Device(e.to_string()))?;
+        .map_err(|source| RenderError::Device {
+            adapter: format!("{} ({:?})", info.name, info.backend),
+            source,
+        })?;
         Ok(Gpu {
             adapter,
             device,

@@ -45,28 +45,76 @@ use winit::event_loop::{ActiveEventLoop, ControlFlow, EventLoop};
 use winit::keyboard::{KeyCode, PhysicalKey};
 use winit::window::{Window, WindowId};
 
-/// What can go wrong in the viewer.
+/// What can go wrong in the viewer. Failures of winit and wgpu keep their error as the
+/// [`source`](std::error::Error::source).
 #[derive(Debug, thiserror::Error)]
 pub enum WindowError {
-    /// No display (no X11 or Wayland server), or the window could not be created.
-    #[error("cannot open a window: {0} (is a display available? try xvfb-run)")]
-    Display(String),
+    /// The requested window size has no pixels.
+    #[error("window size {width}x{height} is empty")]
+    EmptyWindow {
+        /// Width asked for, pixels.
+        width: u32,
+        /// Height asked for, pixels.
+        height: u32,
+    },
+    /// The event loop could not be created or failed (usually: no X11 or Wayland display).
+    #[error("cannot open a window: {source} (is a display available? try xvfb-run)")]
+    EventLoop {
+        /// What winit said.
+        #[source]
+        source: winit::error::EventLoopError,
+    },
+    /// The window could not be created.
+    #[error("cannot create the window: {source} (is a display available? try xvfb-run)")]
+    CreateWindow {
+        /// What winit said.
+        #[source]
+        source: winit::error::OsError,
+    },
     /// The GPU side failed (no adapter, device, read-back).
     #[error(transparent)]
     Render(#[from] RenderError),
-    /// The window surface cannot be used.
-    #[error("window surface: {0}")]
-    Surface(String),
+    /// wgpu could not make a surface for the window.
+    #[error("window surface: {source}")]
+    CreateSurface {
+        /// What wgpu said.
+        #[source]
+        source: wgpu::CreateSurfaceError,
+    },
+    /// The surface cannot be written to by a copy, which the viewer needs.
+    #[error("window surface: the surface on {adapter} cannot be written to (usages {usages:?})")]
+    SurfaceNotWritable {
+        /// Adapter name and backend.
+        adapter: String,
+        /// The usages the surface offers.
+        usages: wgpu::TextureUsages,
+    },
+    /// The surface offers no 8-bit RGBA or BGRA format.
+    #[error("window surface: no 8-bit RGBA/BGRA surface format among {formats:?}")]
+    NoSurfaceFormat {
+        /// The formats it offers.
+        formats: Vec<wgpu::TextureFormat>,
+    },
+    /// The adapter cannot present to the surface.
+    #[error("window surface: surface not supported by {adapter}")]
+    SurfaceUnsupported {
+        /// Adapter name and backend.
+        adapter: String,
+    },
+    /// Acquiring the next surface texture raised a validation error.
+    #[error("window surface: validation error acquiring a frame")]
+    AcquireFrame,
     /// The scene lacks what the viewer was asked to use.
     #[error("viewer scene: {0}")]
     Scene(String),
     /// The screenshot could not be written.
-    #[error("screenshot {path}: {message}")]
+    #[error("screenshot {path}: {source}")]
     Screenshot {
         /// Where it should have gone.
         path: PathBuf,
         /// Why it failed.
-        message: String,
+        #[source]
+        source: RenderError,
     },
 }
 
@@ -144,12 +192,12 @@ pub fn run_viewer(
     options: ViewerOptions,
 ) -> Result<ViewerSummary, WindowError> {
     if options.width == 0 || options.height == 0 {
-        return Err(WindowError::Display(format!(
-            "window size {}x{} is empty",
-            options.width, options.height
-        )));
+        return Err(WindowError::EmptyWindow {
+            width: options.width,
+            height: options.height,
+        });
     }
-    let event_loop = EventLoop::new().map_err(|e| WindowError::Display(e.to_string()))?;
+    let event_loop = EventLoop::new().map_err(|source| WindowError::EventLoop { source })?;
     event_loop.set_control_flow(ControlFlow::Poll);
     let mut camera = scene.route.camera_at(scene.route.start());
     camera.aspect = options.width as f64 / options.height as f64;
@@ -174,7 +222,7 @@ pub fn run_viewer(
     app.route_t = app.scene.route.start();
     event_loop
         .run_app(&mut app)
-        .map_err(|e| WindowError::Display(e.to_string()))?;
+        .map_err(|source| WindowError::EventLoop { source })?;
     if let Some(e) = app.error {
         return Err(e);
     }
@@ -234,29 +282,28 @@ impl App {
         let window = Arc::new(
             event_loop
                 .create_window(attrs)
-                .map_err(|e| WindowError::Display(e.to_string()))?,
+                .map_err(|source| WindowError::CreateWindow { source })?,
         );
         let instance = wgpu::Instance::new(
             wgpu::InstanceDescriptor::new_with_display_handle_from_env(Box::new(window.clone())),
         );
         let surface = instance
             .create_surface(window.clone())
-            .map_err(|e| WindowError::Surface(e.to_string()))?;
+            .map_err(|source| WindowError::CreateSurface { source })?;
         let adapter = pollster::block_on(instance.request_adapter(&wgpu::RequestAdapterOptions {
             power_preference: wgpu::PowerPreference::HighPerformance,
             force_fallback_adapter: false,
             compatible_surface: Some(&surface),
             apply_limit_buckets: false,
         }))
-        .map_err(|e| RenderError::NoAdapter(e.to_string()))?;
+        .map_err(|source| RenderError::NoAdapter { source })?;
         let gpu = Gpu::from_adapter(adapter)?;
         let caps = surface.get_capabilities(&gpu.adapter);
         if !caps.usages.contains(wgpu::TextureUsages::COPY_DST) {
-            return Err(WindowError::Surface(format!(
-                "the surface on {} cannot be written to (usages {:?})",
-                gpu.adapter_name(),
-                caps.usages
-            )));
+            return Err(WindowError::SurfaceNotWritable {
+                adapter: gpu.adapter_name(),
+                usages: caps.usages,
+            });
         }
         // The renderer writes plain (non-sRGB) RGBA8: take a surface format with the same bytes.
         let (format, bgra) = [
@@ -267,18 +314,15 @@ impl App {
         ]
         .into_iter()
         .find(|(f, _)| caps.formats.contains(f))
-        .ok_or_else(|| {
-            WindowError::Surface(format!(
-                "no 8-bit RGBA/BGRA surface format among {:?}",
-                caps.formats
-            ))
+        .ok_or_else(|| WindowError::NoSurfaceFormat {
+            formats: caps.formats.clone(),
         })?;
         let size = window.inner_size();
         let (width, height) = (size.width.max(1), size.height.max(1));
         let mut config = surface
             .get_default_config(&gpu.adapter, width, height)
-            .ok_or_else(|| {
-                WindowError::Surface(format!("surface not supported by {}", gpu.adapter_name()))
+            .ok_or_else(|| WindowError::SurfaceUnsupported {
+                adapter: gpu.adapter_name(),
             })?;
         config.format = format;
         config.usage = wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::COPY_DST;
@@ -436,9 +480,7 @@ impl App {
                 return Ok(());
             }
             wgpu::CurrentSurfaceTexture::Validation => {
-                return Err(WindowError::Surface(
-                    "validation error acquiring a frame".into(),
-                ));
+                return Err(WindowError::AcquireFrame);
             }
         };
         let tex_size = texture.texture.size();
@@ -493,10 +535,12 @@ impl App {
         }
         if let Some(path) = &self.options.screenshot {
             if self.summary.frames >= self.options.frames.max(1) {
-                frame.save_png(path).map_err(|e| WindowError::Screenshot {
-                    path: path.clone(),
-                    message: e.to_string(),
-                })?;
+                frame
+                    .save_png(path)
+                    .map_err(|source| WindowError::Screenshot {
+                        path: path.clone(),
+                        source,
+                    })?;
                 self.summary.screenshot = Some(path.clone());
                 event_loop.exit();
             }

@@ -4,7 +4,7 @@
 //! registered with plotters once, so that plots look the same on every machine.
 
 use plotters::prelude::*;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::sync::Once;
 
 /// One named series of (x, y) points.
@@ -25,16 +25,32 @@ pub enum PlotKind {
     Points,
 }
 
-/// What went wrong writing a plot.
+/// What went wrong writing a plot. Every variant names the file.
 #[derive(Debug, thiserror::Error)]
 pub enum PlotError {
-    /// Drawing or writing failed.
-    #[error("{file}: {message}")]
+    /// The extension names no format plots are written in.
+    #[error("{file}: unknown plot format (expected .png or .svg)")]
+    Format {
+        /// The output file.
+        file: PathBuf,
+    },
+    /// plotters failed to draw (for SVG this includes writing the file).
+    #[error("{file}: drawing the plot failed: {source}")]
     Draw {
         /// The output file.
-        file: std::path::PathBuf,
-        /// What failed.
-        message: String,
+        file: PathBuf,
+        /// plotters' error (its type depends on the backend).
+        #[source]
+        source: Box<dyn std::error::Error + Send + Sync>,
+    },
+    /// The PNG could not be encoded or written.
+    #[error("{file}: writing the image failed: {source}")]
+    Image {
+        /// The output file.
+        file: PathBuf,
+        /// What `image` said.
+        #[source]
+        source: image::ImageError,
     },
 }
 
@@ -73,9 +89,9 @@ pub fn write_plot(
     series: &[Series],
     kind: PlotKind,
 ) -> Result<(), PlotError> {
-    let err = |message: String| PlotError::Draw {
+    let draw_err = |source: Box<dyn std::error::Error + Send + Sync>| PlotError::Draw {
         file: path.to_path_buf(),
-        message,
+        source,
     };
     let ext = path
         .extension()
@@ -85,20 +101,26 @@ pub fn write_plot(
     match ext.as_deref() {
         Some("svg") => {
             let backend = SVGBackend::new(path, PLOT_SIZE);
-            draw(backend, title, x_label, y_label, series, kind).map_err(err)
+            draw(backend, title, x_label, y_label, series, kind).map_err(|e| draw_err(e.into()))
         }
         Some("png") => {
             let (w, h) = PLOT_SIZE;
             let mut buf = vec![0u8; (w * h * 3) as usize];
             {
                 let backend = BitMapBackend::with_buffer(&mut buf, PLOT_SIZE);
-                draw(backend, title, x_label, y_label, series, kind).map_err(err)?;
+                draw(backend, title, x_label, y_label, series, kind)
+                    .map_err(|e| draw_err(e.into()))?;
             }
             let img = image::RgbImage::from_raw(w, h, buf)
-                .ok_or_else(|| err("plot buffer has the wrong size".into()))?;
-            img.save(path).map_err(|e| err(e.to_string()))
+                .expect("the buffer was allocated as width × height × 3");
+            img.save(path).map_err(|source| PlotError::Image {
+                file: path.to_path_buf(),
+                source,
+            })
         }
-        _ => Err(err("unknown plot format: use .png or .svg".into())),
+        _ => Err(PlotError::Format {
+            file: path.to_path_buf(),
+        }),
     }
 }
 
@@ -138,10 +160,9 @@ fn draw<DB: DrawingBackend>(
     y_label: &str,
     series: &[Series],
     kind: PlotKind,
-) -> Result<(), String> {
-    let e = |x: DrawingAreaErrorKind<DB::ErrorType>| x.to_string();
+) -> Result<(), DrawingAreaErrorKind<DB::ErrorType>> {
     let root = backend.into_drawing_area();
-    root.fill(&WHITE).map_err(e)?;
+    root.fill(&WHITE)?;
     let (x0, x1) = padded_range(series.iter().flat_map(|s| s.points.iter().map(|p| p.0)));
     let (y0, y1) = padded_range(series.iter().flat_map(|s| s.points.iter().map(|p| p.1)));
     // Times and counts are never negative: start the y axis at 0 when all values are.
@@ -155,8 +176,7 @@ fn draw<DB: DrawingBackend>(
         .margin(12)
         .x_label_area_size(40)
         .y_label_area_size(70)
-        .build_cartesian_2d(x0..x1, y0..y1)
-        .map_err(e)?;
+        .build_cartesian_2d(x0..x1, y0..y1)?;
     chart
         .configure_mesh()
         .x_desc(x_label)
@@ -164,8 +184,7 @@ fn draw<DB: DrawingBackend>(
         .x_label_formatter(&fmt_tick)
         .y_label_formatter(&fmt_tick)
         .label_style(("sans-serif", 14))
-        .draw()
-        .map_err(e)?;
+        .draw()?;
     for (i, s) in series.iter().enumerate() {
         let colour = COLOURS[i % COLOURS.len()];
         let pts: Vec<(f64, f64)> = s
@@ -176,16 +195,13 @@ fn draw<DB: DrawingBackend>(
             .collect();
         let width = if kind == PlotKind::Lines { 2 } else { 1 };
         chart
-            .draw_series(LineSeries::new(pts.clone(), colour.stroke_width(width)))
-            .map_err(e)?
+            .draw_series(LineSeries::new(pts.clone(), colour.stroke_width(width)))?
             .label(s.name.clone())
             .legend(move |(x, y)| {
                 PathElement::new(vec![(x, y), (x + 20, y)], colour.stroke_width(2))
             });
         if kind == PlotKind::Points {
-            chart
-                .draw_series(pts.iter().map(|&p| Circle::new(p, 3, colour.filled())))
-                .map_err(e)?;
+            chart.draw_series(pts.iter().map(|&p| Circle::new(p, 3, colour.filled())))?;
         }
     }
     if series.iter().any(|s| !s.name.is_empty()) {
@@ -195,10 +211,9 @@ fn draw<DB: DrawingBackend>(
             .border_style(BLACK)
             .label_font(("sans-serif", 14))
             .position(SeriesLabelPosition::UpperRight)
-            .draw()
-            .map_err(e)?;
+            .draw()?;
     }
-    root.present().map_err(e)?;
+    root.present()?;
     Ok(())
 }
 
@@ -255,6 +270,26 @@ mod tests {
             &demo(),
             PlotKind::Lines,
         );
-        assert!(bad.unwrap_err().to_string().contains("t.gif"));
+        let e = bad.unwrap_err();
+        assert!(
+            matches!(&e, PlotError::Format { file } if file.ends_with("t.gif")),
+            "{e:?}"
+        );
+        assert!(e.to_string().contains("t.gif"), "{e}");
+        // An SVG into a missing directory: plotters' I/O error is kept as the source.
+        let missing = dir.path().join("no such dir").join("t.svg");
+        let e = write_plot(&missing, "", "", "", &demo(), PlotKind::Lines).unwrap_err();
+        assert!(
+            matches!(&e, PlotError::Draw { file, .. } if file == &missing),
+            "{e:?}"
+        );
+        assert!(std::error::Error::source(&e).is_some());
+        // A PNG into a missing directory: the image crate's error is kept.
+        let missing = dir.path().join("no such dir").join("t.png");
+        let e = write_plot(&missing, "", "", "", &demo(), PlotKind::Lines).unwrap_err();
+        assert!(
+            matches!(&e, PlotError::Image { file, source: image::ImageError::IoError(_) } if file == &missing),
+            "{e:?}"
+        );
     }
 }

@@ -161,27 +161,39 @@ fn default_far() -> f64 {
 
 impl RouteFile {
     /// Reads a route file; `.json` is JSON, anything else TOML.
+    ///
+    /// # Errors
+    /// [`RouteError::Read`], [`RouteError::Json`] or [`RouteError::Toml`], naming the file.
     pub fn read(path: &Path) -> Result<Self, RouteError> {
-        let err = |message: String| RouteError::File {
-            file: path.to_path_buf(),
-            message,
-        };
-        let text = std::fs::read_to_string(path).map_err(|e| err(e.to_string()))?;
+        let file = || path.to_path_buf();
+        let text = std::fs::read_to_string(path).map_err(|source| RouteError::Read {
+            file: file(),
+            source,
+        })?;
         let is_json = path
             .extension()
             .is_some_and(|e| e.eq_ignore_ascii_case("json"));
         if is_json {
-            serde_json::from_str(&text).map_err(|e| err(format!("invalid route JSON: {e}")))
+            serde_json::from_str(&text).map_err(|source| RouteError::Json {
+                file: file(),
+                source,
+            })
         } else {
-            toml::from_str(&text).map_err(|e| err(format!("invalid route TOML: {e}")))
+            toml::from_str(&text).map_err(|source| RouteError::Toml {
+                file: file(),
+                source,
+            })
         }
     }
 
     /// Parses TOML text.
+    ///
+    /// # Errors
+    /// [`RouteError::Toml`] (its file is `<toml>`).
     pub fn from_toml(text: &str) -> Result<Self, RouteError> {
-        toml::from_str(text).map_err(|e| RouteError::File {
+        toml::from_str(text).map_err(|source| RouteError::Toml {
             file: "<toml>".into(),
-            message: e.to_string(),
+            source,
         })
     }
 

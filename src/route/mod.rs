@@ -50,13 +50,32 @@ pub enum RouteError {
         /// What is wrong.
         problem: String,
     },
-    /// Reading or parsing the file failed.
-    #[error("{file}: {message}")]
-    File {
+    /// The route file could not be read.
+    #[error("{file}: {source}")]
+    Read {
         /// The file.
         file: std::path::PathBuf,
-        /// What failed.
-        message: String,
+        /// The I/O error.
+        #[source]
+        source: std::io::Error,
+    },
+    /// The route file is not valid route JSON.
+    #[error("{file}: invalid route JSON: {source}")]
+    Json {
+        /// The file.
+        file: std::path::PathBuf,
+        /// What the parser said (with line and column).
+        #[source]
+        source: serde_json::Error,
+    },
+    /// The route file (or text) is not valid route TOML.
+    #[error("{file}: invalid route TOML: {source}")]
+    Toml {
+        /// The file, or `<toml>` for text given directly.
+        file: std::path::PathBuf,
+        /// What the parser said (with line and column).
+        #[source]
+        source: toml::de::Error,
     },
 }
 

@@ -147,9 +147,7 @@ pub fn run_on_views(
     progress: &mut dyn FnMut(usize, usize),
 ) -> Result<OcclusionBenchReport, VisibilityError> {
     if opts.resolutions.is_empty() {
-        return Err(VisibilityError::BadParameter(
-            "no cull map resolution given".into(),
-        ));
+        return Err(VisibilityError::NoResolutions);
     }
     let base = OcclusionCuller::new(scene.city, scene.layout, opts.culler)?;
     let cullers: Vec<OcclusionCuller> = opts

@@ -135,12 +135,18 @@ impl OcclusionCuller {
         max: DVec2,
         opts: CullerOptions,
     ) -> Result<Self, VisibilityError> {
-        let positive = |v: f64| v > 0.0; // false for NaN
-        if !positive(opts.local_radius) || !positive(opts.skip_height_factor) {
-            return Err(VisibilityError::BadParameter(format!(
-                "local radius {} and skip height factor {} must be > 0",
-                opts.local_radius, opts.skip_height_factor
-            )));
+        for (name, value) in [
+            ("local_radius", opts.local_radius),
+            ("skip_height_factor", opts.skip_height_factor),
+        ] {
+            // `!(v > 0)` is true for NaN too.
+            if !(value > 0.0) {
+                return Err(VisibilityError::BadParameter {
+                    name,
+                    value,
+                    expected: "> 0",
+                });
+            }
         }
         let map = CullMap::new(min, max, opts.resolution)?;
         Ok(Self {

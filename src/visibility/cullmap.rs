@@ -54,15 +54,24 @@ impl Grid {
         let cell = match resolution {
             Resolution::Cells(n) if n >= 1 && n as usize <= MAX_CELLS_PER_SIDE => side / n as f64,
             Resolution::CellSize(c) if c.is_finite() && c > 0.0 => c,
-            r => return Err(VisibilityError::BadResolution(format!("{r:?}"))),
+            resolution => {
+                return Err(VisibilityError::BadResolution {
+                    resolution,
+                    max: MAX_CELLS_PER_SIDE,
+                })
+            }
         };
         let nx = ((ext.x / cell).ceil() as usize).max(1);
         let ny = ((ext.y / cell).ceil() as usize).max(1);
         if nx > MAX_CELLS_PER_SIDE || ny > MAX_CELLS_PER_SIDE {
-            return Err(VisibilityError::BadResolution(format!(
-                "{resolution:?} gives {nx}×{ny} cells over {:.0}×{:.0} m (at most {MAX_CELLS_PER_SIDE} per side)",
-                ext.x, ext.y
-            )));
+            return Err(VisibilityError::TooManyCells {
+                resolution,
+                nx,
+                ny,
+                width: ext.x,
+                height: ext.y,
+                max: MAX_CELLS_PER_SIDE,
+            });
         }
         Ok(Self {
             origin: min,
@@ -955,11 +964,34 @@ mod tests {
     #[test]
     fn bad_resolutions_are_refused() {
         let (a, b) = (DVec2::ZERO, DVec2::splat(100.0));
-        assert!(CullMap::new(a, b, Resolution::Cells(0)).is_err());
-        assert!(CullMap::new(a, b, Resolution::Cells(5000)).is_err());
-        assert!(CullMap::new(a, b, Resolution::CellSize(0.001)).is_err());
-        assert!(CullMap::new(a, b, Resolution::CellSize(f64::NAN)).is_err());
-        assert!(CullMap::new(b, a, Resolution::Cells(4)).is_err());
+        for r in [
+            Resolution::Cells(0),
+            Resolution::Cells(5000),
+            Resolution::CellSize(f64::NAN),
+            Resolution::CellSize(-1.0),
+        ] {
+            let e = CullMap::new(a, b, r).unwrap_err();
+            assert!(
+                matches!(
+                    e,
+                    VisibilityError::BadResolution {
+                        max: MAX_CELLS_PER_SIDE,
+                        ..
+                    }
+                ),
+                "{r:?}: {e:?}"
+            );
+        }
+        let e = CullMap::new(a, b, Resolution::CellSize(0.001)).unwrap_err();
+        assert!(
+            matches!(e, VisibilityError::TooManyCells { nx, ny, max, .. } if nx > max && ny > max),
+            "{e:?}"
+        );
+        let e = CullMap::new(b, a, Resolution::Cells(4)).unwrap_err();
+        assert!(
+            matches!(e, VisibilityError::BadBounds { min, max } if min == [100.0; 2] && max == [0.0; 2]),
+            "{e:?}"
+        );
         let g = *CullMap::new(a, DVec2::new(100.0, 50.0), Resolution::Cells(64))
             .unwrap()
             .grid();

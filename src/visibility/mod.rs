@@ -43,10 +43,48 @@ pub enum VisibilityError {
         /// Upper corner.
         max: [f64; 2],
     },
-    /// The resolution is out of range.
-    #[error("cull map resolution out of range: {0}")]
-    BadResolution(String),
+    /// The resolution asks for no cells, more than [`cullmap::MAX_CELLS_PER_SIDE`] per side, or a
+    /// cell size that is not a finite positive length.
+    #[error(
+        "cull map resolution {resolution:?} is out of range (1..={max} cells per side, or a \
+         finite cell size > 0 m)"
+    )]
+    BadResolution {
+        /// The resolution asked for.
+        resolution: Resolution,
+        /// Most cells allowed per side.
+        max: usize,
+    },
+    /// The cell size gives too many cells over the bounds.
+    #[error(
+        "cull map resolution {resolution:?} gives {nx}×{ny} cells over {width:.0}×{height:.0} m \
+         (at most {max} per side)"
+    )]
+    TooManyCells {
+        /// The resolution asked for.
+        resolution: Resolution,
+        /// Cells along x it would give.
+        nx: usize,
+        /// Cells along y it would give.
+        ny: usize,
+        /// Width of the bounds, metres.
+        width: f64,
+        /// Height of the bounds, metres.
+        height: f64,
+        /// Most cells allowed per side.
+        max: usize,
+    },
     /// A parameter is out of range.
-    #[error("bad parameter: {0}")]
-    BadParameter(String),
+    #[error("bad parameter {name} = {value}: must be {expected}")]
+    BadParameter {
+        /// The parameter.
+        name: &'static str,
+        /// Its value.
+        value: f64,
+        /// What it must be.
+        expected: &'static str,
+    },
+    /// A benchmark was given no cull map resolution to measure.
+    #[error("no cull map resolution given")]
+    NoResolutions,
 }

@@ -72,9 +72,9 @@ pub fn write_geojson(city: &City, path: &Path) -> Result<(), ExportError> {
         source,
     })?;
     let mut w = std::io::BufWriter::new(f);
-    serde_json::to_writer(&mut w, &geojson_value(city)).map_err(|e| ExportError::Invalid {
+    serde_json::to_writer(&mut w, &geojson_value(city)).map_err(|source| ExportError::Json {
         file: path.to_path_buf(),
-        message: e.to_string(),
+        source,
     })?;
     use std::io::Write;
     w.flush().map_err(|source| ExportError::Io {

@@ -49,16 +49,13 @@ fn pad4(buf: &mut Vec<u8>, byte: u8) {
 /// The `.glb` file of a city and its meshes (`meshes[i]` is building `i`'s).
 ///
 /// # Errors
-/// [`ExportError::Invalid`] when `meshes` does not match the buildings.
+/// [`ExportError::MeshCount`] when `meshes` does not match the buildings (its file is `<glb>`).
 pub fn glb_bytes(city: &City, meshes: &[Mesh]) -> Result<(Vec<u8>, GlbStats), ExportError> {
     if meshes.len() != city.buildings.len() {
-        return Err(ExportError::Invalid {
+        return Err(ExportError::MeshCount {
             file: "<glb>".into(),
-            message: format!(
-                "{} meshes for {} buildings",
-                meshes.len(),
-                city.buildings.len()
-            ),
+            meshes: meshes.len(),
+            buildings: city.buildings.len(),
         });
     }
     let n_vert: usize = meshes.iter().map(|m| m.positions.len()).sum();
@@ -185,9 +182,9 @@ pub fn glb_bytes(city: &City, meshes: &[Mesh]) -> Result<(Vec<u8>, GlbStats), Ex
     if bin_len > 0 {
         doc["buffers"] = json!([{ "byteLength": bin_len }]);
     }
-    let mut json_bytes = serde_json::to_vec(&doc).map_err(|e| ExportError::Invalid {
+    let mut json_bytes = serde_json::to_vec(&doc).map_err(|source| ExportError::Json {
         file: "<glb>".into(),
-        message: e.to_string(),
+        source,
     })?;
     pad4(&mut json_bytes, b' ');
     pad4(&mut bin, 0);
@@ -213,13 +210,7 @@ pub fn glb_bytes(city: &City, meshes: &[Mesh]) -> Result<(Vec<u8>, GlbStats), Ex
 /// # Errors
 /// [`ExportError`] naming the file.
 pub fn write_glb(city: &City, meshes: &[Mesh], path: &Path) -> Result<GlbStats, ExportError> {
-    let (bytes, stats) = glb_bytes(city, meshes).map_err(|e| match e {
-        ExportError::Invalid { message, .. } => ExportError::Invalid {
-            file: path.to_path_buf(),
-            message,
-        },
-        other => other,
-    })?;
+    let (bytes, stats) = glb_bytes(city, meshes).map_err(|e| e.for_file(path))?;
     std::fs::write(path, bytes).map_err(|source| ExportError::Io {
         file: path.to_path_buf(),
         source,

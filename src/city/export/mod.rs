@@ -24,12 +24,46 @@ pub enum ExportError {
         #[source]
         source: std::io::Error,
     },
-    /// The meshes do not match the city, or the JSON could not be produced.
-    #[error("{file}: {message}")]
-    Invalid {
-        /// The file.
+    /// The meshes do not match the city's buildings.
+    #[error("{file}: {meshes} meshes for {buildings} buildings")]
+    MeshCount {
+        /// The file (`<glb>` when no file is written).
         file: PathBuf,
-        /// What is wrong.
-        message: String,
+        /// Meshes given.
+        meshes: usize,
+        /// Buildings in the city.
+        buildings: usize,
     },
+    /// The JSON (the glTF document or the GeoJSON) could not be serialised or written.
+    #[error("{file}: writing the JSON failed: {source}")]
+    Json {
+        /// The file (`<glb>` when no file is written).
+        file: PathBuf,
+        /// What `serde_json` said.
+        #[source]
+        source: serde_json::Error,
+    },
+}
+
+impl ExportError {
+    /// The same error naming `file` instead (for errors made before the file was known).
+    fn for_file(self, file: &std::path::Path) -> Self {
+        match self {
+            ExportError::Io { source, .. } => ExportError::Io {
+                file: file.to_path_buf(),
+                source,
+            },
+            ExportError::MeshCount {
+                meshes, buildings, ..
+            } => ExportError::MeshCount {
+                file: file.to_path_buf(),
+                meshes,
+                buildings,
+            },
+            ExportError::Json { source, .. } => ExportError::Json {
+                file: file.to_path_buf(),
+                source,
+            },
+        }
+    }
 }
