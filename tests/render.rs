@@ -285,3 +285,35 @@ fn bad_meshes_are_refused() {
     let e = MeshRenderer::new(&gpu, &[(BlockId(3), &m)]).unwrap_err();
     assert!(e.to_string().contains("block 3"), "{e}");
 }
+
+#[test]
+fn meshes_with_bad_appearance_are_refused() {
+    use blockwalk::city::VertexAppearance;
+    let Some(gpu) = gpu_or_skip("meshes_with_bad_appearance_are_refused") else {
+        return;
+    };
+    // One appearance entry short.
+    let mut m = box_mesh(&scene()[0].1);
+    m.styles.push(Default::default());
+    m.appearance = vec![VertexAppearance::default(); m.positions.len() - 1];
+    let e = MeshRenderer::new(&gpu, &[(BlockId(4), &m)]).unwrap_err();
+    assert!(matches!(e, RenderError::Input(_)), "{e}");
+    assert!(
+        e.to_string().contains("block 4") && e.to_string().contains("appearance"),
+        "{e}"
+    );
+    // A style index past the mesh's styles.
+    m.appearance.push(VertexAppearance { u_m: 0.0, style: 1 });
+    let e = MeshRenderer::new(&gpu, &[(BlockId(5), &m)]).unwrap_err();
+    assert!(
+        e.to_string().contains("block 5") && e.to_string().contains("style 1"),
+        "{e}"
+    );
+    // A bad ground mesh is named as such.
+    let ground = Mesh {
+        indices: vec![0, 1, 2],
+        ..Default::default()
+    };
+    let e = MeshRenderer::with_ground(&gpu, &[], &ground, RenderOptions::default()).unwrap_err();
+    assert!(e.to_string().contains("ground"), "{e}");
+}

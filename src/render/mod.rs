@@ -3,7 +3,8 @@
 //! - [`Gpu`]: adapter and device, created apart from the renderers so that tests and tools can
 //!   bring their own (`Gpu::new_headless`, or [`Gpu::from_parts`]).
 //! - [`MeshRenderer`]: uploads the block meshes once, then draws the blocks a culler lists, lit
-//!   (sun + ambient; roofs and facades told apart by the normal's z; ground plane; sky) or as flat
+//!   (the procedural appearance of [`crate::city::appearance`], mirrored in `mesh.wgsl`: facades
+//!   with windows, roofs, ground plane, streets and blocks' ground; sun + ambient; sky) or as flat
 //!   block IDs (for comparison with the CPU visibility oracle).
 //!
 //! ## Colour and depth for later passes
