@@ -243,7 +243,7 @@ fn only_listed_blocks_are_drawn_and_lit_frames_have_sky_and_ground() {
         .draw_shaded(&gpu, &cam, &[BlockId(7), BlockId(999)], Shading::Ids)
         .unwrap();
     let ids = only7.block_ids();
-    assert!(ids.iter().any(|i| *i == Some(BlockId(7))));
+    assert!(ids.contains(&Some(BlockId(7))));
     assert!(ids.iter().all(|i| i.is_none() || *i == Some(BlockId(7))));
     assert_eq!(only7.timings.blocks, 1);
     assert_eq!(only7.timings.triangles, 12);

@@ -183,7 +183,7 @@ fn push_mesh(
     mesh: &Mesh,
     what: &dyn Fn() -> String,
 ) -> Result<(), RenderError> {
-    if mesh.positions.len() != mesh.normals.len() || mesh.indices.len() % 3 != 0 {
+    if mesh.positions.len() != mesh.normals.len() || !mesh.indices.len().is_multiple_of(3) {
         return Err(RenderError::Input(format!(
             "{}: mesh has {} positions, {} normals, {} indices",
             what(),
