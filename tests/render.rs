@@ -245,7 +245,7 @@ fn only_listed_blocks_are_drawn_and_lit_frames_have_sky_and_ground() {
         .draw_shaded(&gpu, &cam, &[BlockId(7), BlockId(999)], Shading::Ids)
         .unwrap();
     let ids = only7.block_ids();
-    assert!(ids.iter().any(|i| *i == Some(BlockId(7))));
+    assert!(ids.contains(&Some(BlockId(7))));
     assert!(ids.iter().all(|i| i.is_none() || *i == Some(BlockId(7))));
     assert_eq!(only7.timings.blocks, 1);
     assert_eq!(only7.timings.triangles, 12);
@@ -396,4 +396,45 @@ fn frame_write_errors_keep_their_cause() {
     assert!(e.source().is_some());
     assert!(e.to_string().contains("no such dir"), "{e}");
     good.save_png(&dir.path().join("ok.png")).unwrap();
+}
+
+#[test]
+fn meshes_with_bad_appearance_are_refused() {
+    use blockwalk::city::VertexAppearance;
+    let Some(gpu) = gpu_or_skip("meshes_with_bad_appearance_are_refused") else {
+        return;
+    };
+    // One appearance entry short.
+    let mut m = box_mesh(&scene()[0].1);
+    m.styles.push(Default::default());
+    m.appearance = vec![VertexAppearance::default(); m.positions.len() - 1];
+    let e = MeshRenderer::new(&gpu, &[(BlockId(4), &m)]).unwrap_err();
+    assert!(
+        matches!(
+            e,
+            RenderError::BadAppearance {
+                block: BlockId(4),
+                ..
+            }
+        ),
+        "{e}"
+    );
+    assert!(
+        e.to_string().contains("block 4") && e.to_string().contains("appearance"),
+        "{e}"
+    );
+    // A style index past the mesh's styles.
+    m.appearance.push(VertexAppearance { u_m: 0.0, style: 1 });
+    let e = MeshRenderer::new(&gpu, &[(BlockId(5), &m)]).unwrap_err();
+    assert!(
+        e.to_string().contains("block 5") && e.to_string().contains("style 1"),
+        "{e}"
+    );
+    // A bad ground mesh is named as such.
+    let ground = Mesh {
+        indices: vec![0, 1, 2],
+        ..Default::default()
+    };
+    let e = MeshRenderer::with_ground(&gpu, &[], &ground, RenderOptions::default()).unwrap_err();
+    assert!(e.to_string().contains("ground"), "{e}");
 }

@@ -3,6 +3,7 @@
 
 use super::{Gpu, Readback, RenderError};
 use crate::blocks::BlockId;
+use crate::city::appearance::{self, BuildingStyle};
 use crate::city::Mesh;
 use crate::geom::Camera;
 use bytemuck::{Pod, Zeroable};
@@ -16,13 +17,16 @@ const COLOR_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba8Unorm;
 const DEPTH_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
 /// Instance id of the ground plane; must match `GROUND` in `mesh.wgsl`.
 const GROUND: u32 = 0x00FF_FFFF;
-/// Sky colour (linear RGB as written).
-const SKY: wgpu::Color = wgpu::Color {
-    r: 0.62,
-    g: 0.77,
-    b: 0.93,
-    a: 1.0,
-};
+/// Sky colour (linear RGB as written): [`appearance::SKY`].
+fn sky() -> wgpu::Color {
+    let [r, g, b] = appearance::unit_rgb(appearance::SKY);
+    wgpu::Color {
+        r: r as f64,
+        g: g as f64,
+        b: b as f64,
+        a: 1.0,
+    }
+}
 
 /// What a frame shows.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -119,11 +123,129 @@ impl Frame {
     }
 }
 
+/// One vertex as the shader reads it (32 bytes): position and normal (local frame), the
+/// along-wall coordinate `u` (m) and the index of its style in the style table.
 #[repr(C)]
 #[derive(Clone, Copy, Pod, Zeroable)]
 struct Vertex {
     position: [f32; 3],
     normal: [f32; 3],
+    u_m: f32,
+    style: u32,
+}
+
+/// [`BuildingStyle`] as `mesh.wgsl`'s `Style` (storage buffer, 64 bytes): the values exactly as
+/// computed on the CPU, so the shader's arithmetic starts from the same f32s.
+#[repr(C)]
+#[derive(Clone, Copy, Pod, Zeroable)]
+struct GpuStyle {
+    /// rgb facade, w window_half.
+    facade: [f32; 4],
+    /// rgb window, w inv_storey_m.
+    window: [f32; 4],
+    /// rgb roof, w inv_bay_m.
+    roof: [f32; 4],
+    /// x levels.
+    levels: [u32; 4],
+}
+
+impl From<&BuildingStyle> for GpuStyle {
+    fn from(s: &BuildingStyle) -> Self {
+        let c = |rgb: [f32; 3], w: f32| [rgb[0], rgb[1], rgb[2], w];
+        GpuStyle {
+            facade: c(s.facade, s.window_half),
+            window: c(s.window, s.inv_storey_m),
+            roof: c(s.roof, s.inv_bay_m),
+            levels: [s.levels, 0, 0, 0],
+        }
+    }
+}
+
+/// The `appearance` constants `mesh.wgsl` uses, as WGSL declarations printed from the Rust
+/// values (`{:?}` prints the shortest decimal that reads back as the same f32).
+fn wgsl_constants() -> String {
+    use appearance::*;
+    let u = unit_rgb(UNDERSIDE);
+    format!(
+        "const SILL: f32 = {SILL:?};\n\
+         const LINTEL: f32 = {LINTEL:?};\n\
+         const GROUND_SILL: f32 = {GROUND_SILL:?};\n\
+         const GROUND_LINTEL: f32 = {GROUND_LINTEL:?};\n\
+         const GROUND_FLOOR_SHADE: f32 = {GROUND_FLOOR_SHADE:?};\n\
+         const UNDERSIDE: vec3<f32> = vec3<f32>({:?}, {:?}, {:?});\n",
+        u[0], u[1], u[2]
+    )
+}
+
+/// Appends `mesh` to the shared buffers, its styles to the style table (a mesh without
+/// appearance gets style 0, the default).
+fn push_mesh(
+    vertices: &mut Vec<Vertex>,
+    indices: &mut Vec<u32>,
+    styles: &mut Vec<GpuStyle>,
+    offset: u32,
+    mesh: &Mesh,
+    block: BlockId,
+) -> Result<(), RenderError> {
+    if mesh.positions.len() != mesh.normals.len() || !mesh.indices.len().is_multiple_of(3) {
+        return Err(RenderError::BadMesh {
+            block,
+            positions: mesh.positions.len(),
+            normals: mesh.normals.len(),
+            indices: mesh.indices.len(),
+        });
+    }
+    if !mesh.appearance.is_empty() && mesh.appearance.len() != mesh.positions.len() {
+        return Err(RenderError::BadAppearance {
+            block,
+            positions: mesh.positions.len(),
+            appearance: mesh.appearance.len(),
+        });
+    }
+    if let Some(bad) = mesh
+        .appearance
+        .iter()
+        .find(|a| a.style as usize >= mesh.styles.len())
+    {
+        return Err(RenderError::StyleOutOfRange {
+            block,
+            style: bad.style,
+            styles: mesh.styles.len(),
+        });
+    }
+    if let Some(&bad) = mesh
+        .indices
+        .iter()
+        .find(|&&k| k as usize >= mesh.positions.len())
+    {
+        return Err(RenderError::IndexOutOfRange {
+            block,
+            index: bad,
+            vertices: mesh.positions.len(),
+        });
+    }
+    let style0 = styles.len() as u32;
+    styles.extend(mesh.styles.iter().map(GpuStyle::from));
+    vertices.extend(
+        mesh.positions
+            .iter()
+            .zip(&mesh.normals)
+            .enumerate()
+            .map(|(i, (p, n))| {
+                let (u_m, style) = mesh
+                    .appearance
+                    .get(i)
+                    .map_or((0.0, 0), |a| (a.u_m, style0 + a.style));
+                Vertex {
+                    position: p.to_array(),
+                    normal: n.to_array(),
+                    u_m,
+                    style,
+                }
+            }),
+    );
+    indices.extend(mesh.indices.iter().map(|k| k + offset));
+    Ok(())
 }
 
 #[repr(C)]
@@ -146,6 +268,8 @@ struct BlockRange {
 pub struct MeshRenderer {
     options: RenderOptions,
     pipeline: wgpu::RenderPipeline,
+    /// The ground layers: same shader, depth test always passing (painter's order).
+    ground_pipeline: wgpu::RenderPipeline,
     globals: wgpu::Buffer,
     bind_group: wgpu::BindGroup,
     vertices: wgpu::Buffer,
@@ -176,10 +300,25 @@ impl MeshRenderer {
     }
 
     /// Uploads the meshes (local frame, f32, as in [`Mesh`]); a block may appear several times
-    /// (one mesh per building), its meshes are drawn together.
+    /// (one mesh per building), its meshes are drawn together. Lit frames show the ground plane
+    /// only; see [`Self::with_ground`] for streets and blocks on the ground.
     pub fn with_options(
         gpu: &Gpu,
         blocks: &[(BlockId, &Mesh)],
+        options: RenderOptions,
+    ) -> Result<Self, RenderError> {
+        Self::with_ground(gpu, blocks, &Mesh::default(), options)
+    }
+
+    /// As [`Self::with_options`], with ground layers (streets, blocks' ground: a mesh such as
+    /// [`appearance::ground_mesh`] gives, flat at z = 0) drawn in lit frames: first the ground
+    /// plane, then `ground`'s triangles in their order, with the depth test always passing (so
+    /// later layers cover earlier ones without z-fighting and without z offsets), then the
+    /// blocks with the `Less` depth test. The ground is never drawn in [`Shading::Ids`] frames.
+    pub fn with_ground(
+        gpu: &Gpu,
+        blocks: &[(BlockId, &Mesh)],
+        ground_layers: &Mesh,
         options: RenderOptions,
     ) -> Result<Self, RenderError> {
         if options.width == 0 || options.height == 0 {
@@ -202,18 +341,26 @@ impl MeshRenderer {
         order.sort_by_key(|&i| blocks[i].0);
         let mut vertices: Vec<Vertex> = Vec::new();
         let mut indices: Vec<u32> = Vec::new();
-        // The ground plane comes first: a 40 km square at z = 0 around the local origin.
-        let g = 20_000.0f32;
-        for (x, y) in [(-g, -g), (g, -g), (g, g), (-g, g)] {
-            vertices.push(Vertex {
-                position: [x, y, 0.0],
-                normal: [0.0, 0.0, 1.0],
-            });
+        // Style 0: the default, for meshes without appearance.
+        let mut styles: Vec<GpuStyle> = vec![GpuStyle::from(&BuildingStyle::default())];
+        // The ground comes first: the plane (a 40 km square at z = 0 around the local origin),
+        // then the ground layers, in drawing order.
+        let plane = appearance::ground_plane(appearance::GROUND_PLANE_HALF_M);
+        for m in [&plane, ground_layers] {
+            let offset = vertices.len() as u32;
+            // The ground's own meshes report the ground's id.
+            push_mesh(
+                &mut vertices,
+                &mut indices,
+                &mut styles,
+                offset,
+                m,
+                BlockId(GROUND),
+            )?;
         }
-        indices.extend_from_slice(&[0, 1, 2, 0, 2, 3]);
         let ground = BlockRange {
             first_index: 0,
-            index_count: 6,
+            index_count: indices.len() as u32,
             base_vertex: 0,
         };
         let max_id = blocks.iter().map(|b| b.0 .0).max();
@@ -231,36 +378,15 @@ impl MeshRenderer {
             let first_index = indices.len();
             while i < order.len() && blocks[order[i]].0 == id {
                 let mesh = blocks[order[i]].1;
-                if mesh.positions.len() != mesh.normals.len() || mesh.indices.len() % 3 != 0 {
-                    return Err(RenderError::BadMesh {
-                        block: id,
-                        positions: mesh.positions.len(),
-                        normals: mesh.normals.len(),
-                        indices: mesh.indices.len(),
-                    });
-                }
                 let offset = (vertices.len() - base_vertex) as u32;
-                if let Some(&bad) = mesh
-                    .indices
-                    .iter()
-                    .find(|&&k| k as usize >= mesh.positions.len())
-                {
-                    return Err(RenderError::IndexOutOfRange {
-                        block: id,
-                        index: bad,
-                        vertices: mesh.positions.len(),
-                    });
-                }
-                vertices.extend(
-                    mesh.positions
-                        .iter()
-                        .zip(&mesh.normals)
-                        .map(|(p, n)| Vertex {
-                            position: p.to_array(),
-                            normal: n.to_array(),
-                        }),
-                );
-                indices.extend(mesh.indices.iter().map(|k| k + offset));
+                push_mesh(
+                    &mut vertices,
+                    &mut indices,
+                    &mut styles,
+                    offset,
+                    mesh,
+                    id,
+                )?;
                 i += 1;
             }
             ranges[id.0 as usize] = Some(BlockRange {
@@ -285,6 +411,11 @@ impl MeshRenderer {
             contents: bytemuck::cast_slice(&indices),
             usage: wgpu::BufferUsages::INDEX,
         });
+        let style_buffer = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("styles"),
+            contents: bytemuck::cast_slice(&styles),
+            usage: wgpu::BufferUsages::STORAGE,
+        });
         let globals = device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("globals"),
             size: std::mem::size_of::<Globals>() as u64,
@@ -293,77 +424,100 @@ impl MeshRenderer {
         });
         let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("globals"),
-            entries: &[wgpu::BindGroupLayoutEntry {
-                binding: 0,
-                visibility: wgpu::ShaderStages::VERTEX | wgpu::ShaderStages::FRAGMENT,
-                ty: wgpu::BindingType::Buffer {
-                    ty: wgpu::BufferBindingType::Uniform,
-                    has_dynamic_offset: false,
-                    min_binding_size: None,
+            entries: &[
+                wgpu::BindGroupLayoutEntry {
+                    binding: 0,
+                    visibility: wgpu::ShaderStages::VERTEX | wgpu::ShaderStages::FRAGMENT,
+                    ty: wgpu::BindingType::Buffer {
+                        ty: wgpu::BufferBindingType::Uniform,
+                        has_dynamic_offset: false,
+                        min_binding_size: None,
+                    },
+                    count: None,
                 },
-                count: None,
-            }],
+                wgpu::BindGroupLayoutEntry {
+                    binding: 1,
+                    visibility: wgpu::ShaderStages::FRAGMENT,
+                    ty: wgpu::BindingType::Buffer {
+                        ty: wgpu::BufferBindingType::Storage { read_only: true },
+                        has_dynamic_offset: false,
+                        min_binding_size: None,
+                    },
+                    count: None,
+                },
+            ],
         });
         let bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some("globals"),
             layout: &layout,
-            entries: &[wgpu::BindGroupEntry {
-                binding: 0,
-                resource: globals.as_entire_binding(),
-            }],
+            entries: &[
+                wgpu::BindGroupEntry {
+                    binding: 0,
+                    resource: globals.as_entire_binding(),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 1,
+                    resource: style_buffer.as_entire_binding(),
+                },
+            ],
         });
         let shader = device.create_shader_module(wgpu::ShaderModuleDescriptor {
             label: Some("mesh.wgsl"),
-            source: wgpu::ShaderSource::Wgsl(include_str!("mesh.wgsl").into()),
+            source: wgpu::ShaderSource::Wgsl((wgsl_constants() + include_str!("mesh.wgsl")).into()),
         });
         let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
             label: Some("mesh"),
             bind_group_layouts: &[Some(&layout)],
             immediate_size: 0,
         });
-        let attributes = wgpu::vertex_attr_array![0 => Float32x3, 1 => Float32x3];
-        let pipeline = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
-            label: Some("mesh"),
-            layout: Some(&pipeline_layout),
-            vertex: wgpu::VertexState {
-                module: &shader,
-                entry_point: Some("vs_main"),
-                compilation_options: Default::default(),
-                buffers: &[Some(wgpu::VertexBufferLayout {
-                    array_stride: std::mem::size_of::<Vertex>() as u64,
-                    step_mode: wgpu::VertexStepMode::Vertex,
-                    attributes: &attributes,
-                })],
-            },
-            primitive: wgpu::PrimitiveState {
-                topology: wgpu::PrimitiveTopology::TriangleList,
-                front_face: wgpu::FrontFace::Ccw,
-                // Meshes are closed and outward-oriented; no culling keeps open or flipped input
-                // visible rather than silently missing.
-                cull_mode: None,
-                ..Default::default()
-            },
-            depth_stencil: Some(wgpu::DepthStencilState {
-                format: DEPTH_FORMAT,
-                depth_write_enabled: Some(true),
-                depth_compare: Some(wgpu::CompareFunction::Less),
-                stencil: Default::default(),
-                bias: Default::default(),
-            }),
-            multisample: Default::default(),
-            fragment: Some(wgpu::FragmentState {
-                module: &shader,
-                entry_point: Some("fs_main"),
-                compilation_options: Default::default(),
-                targets: &[Some(wgpu::ColorTargetState {
-                    format: COLOR_FORMAT,
-                    blend: None,
-                    write_mask: wgpu::ColorWrites::ALL,
-                })],
-            }),
-            multiview_mask: None,
-            cache: None,
-        });
+        let attributes =
+            wgpu::vertex_attr_array![0 => Float32x3, 1 => Float32x3, 2 => Float32, 3 => Uint32];
+        let make_pipeline = |label, depth_compare| {
+            device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+                label: Some(label),
+                layout: Some(&pipeline_layout),
+                vertex: wgpu::VertexState {
+                    module: &shader,
+                    entry_point: Some("vs_main"),
+                    compilation_options: Default::default(),
+                    buffers: &[Some(wgpu::VertexBufferLayout {
+                        array_stride: std::mem::size_of::<Vertex>() as u64,
+                        step_mode: wgpu::VertexStepMode::Vertex,
+                        attributes: &attributes,
+                    })],
+                },
+                primitive: wgpu::PrimitiveState {
+                    topology: wgpu::PrimitiveTopology::TriangleList,
+                    front_face: wgpu::FrontFace::Ccw,
+                    // Meshes are closed and outward-oriented; no culling keeps open or flipped input
+                    // visible rather than silently missing.
+                    cull_mode: None,
+                    ..Default::default()
+                },
+                depth_stencil: Some(wgpu::DepthStencilState {
+                    format: DEPTH_FORMAT,
+                    depth_write_enabled: Some(true),
+                    depth_compare: Some(depth_compare),
+                    stencil: Default::default(),
+                    bias: Default::default(),
+                }),
+                multisample: Default::default(),
+                fragment: Some(wgpu::FragmentState {
+                    module: &shader,
+                    entry_point: Some("fs_main"),
+                    compilation_options: Default::default(),
+                    targets: &[Some(wgpu::ColorTargetState {
+                        format: COLOR_FORMAT,
+                        blend: None,
+                        write_mask: wgpu::ColorWrites::ALL,
+                    })],
+                }),
+                multiview_mask: None,
+                cache: None,
+            })
+        };
+        let pipeline = make_pipeline("mesh", wgpu::CompareFunction::Less);
+        let ground_pipeline = make_pipeline("ground", wgpu::CompareFunction::Always);
 
         let size = wgpu::Extent3d {
             width: options.width,
@@ -420,6 +574,7 @@ impl MeshRenderer {
         Ok(Self {
             options,
             pipeline,
+            ground_pipeline,
             globals,
             bind_group,
             vertices: vertex_buffer,
@@ -470,12 +625,11 @@ impl MeshRenderer {
     ) -> Result<Frame, RenderError> {
         let start = Instant::now();
         let m = crate::city::LocalFrame::round_matrix_to_f32(camera.clip_from_world());
-        // Sun from the south-east, 50° up; ambient 0.35.
-        let sun =
-            crate::city::LocalFrame::round_to_f32(glam::DVec3::new(0.5, -0.6, 1.3).normalize());
+        // appearance::shade: the sun and the ambient term.
+        let sun = appearance::sun_direction();
         let globals = Globals {
             clip_from_world: m.to_cols_array_2d(),
-            sun: [sun.x, sun.y, sun.z, 0.35],
+            sun: [sun.x, sun.y, sun.z, appearance::AMBIENT],
             mode: [matches!(shading, Shading::Ids) as u32, 0, 0, 0],
         };
         gpu.queue
@@ -491,7 +645,7 @@ impl MeshRenderer {
         let mut triangles = 0u64;
         {
             let clear = match shading {
-                Shading::Lit => SKY,
+                Shading::Lit => sky(),
                 Shading::Ids => wgpu::Color::BLACK,
             };
             let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
@@ -523,11 +677,12 @@ impl MeshRenderer {
                 occlusion_query_set: None,
                 multiview_mask: None,
             });
-            pass.set_pipeline(&self.pipeline);
             pass.set_bind_group(0, &self.bind_group, &[]);
             pass.set_vertex_buffer(0, self.vertices.slice(..));
             pass.set_index_buffer(self.indices.slice(..), wgpu::IndexFormat::Uint32);
             if shading == Shading::Lit {
+                // Ground plane and layers in order, depth test always passing.
+                pass.set_pipeline(&self.ground_pipeline);
                 let g = self.ground;
                 pass.draw_indexed(
                     g.first_index..g.first_index + g.index_count,
@@ -535,6 +690,7 @@ impl MeshRenderer {
                     GROUND..GROUND + 1,
                 );
             }
+            pass.set_pipeline(&self.pipeline);
             for id in visible {
                 let Some(Some(r)) = self.ranges.get(id.0 as usize) else {
                     continue;

@@ -1,7 +1,12 @@
-// Block meshes: lit colour pass and flat block-ID pass (one pipeline, `mode` chooses).
+// Block meshes: lit colour pass and flat block-ID pass (one shader, `mode` chooses).
 //
 // The block id arrives as the instance index: every block is drawn as one instance whose
 // first_instance is its BlockId, so no per-vertex id is stored.
+//
+// The colours are `city::appearance`, mirrored here operation for operation (see that module's
+// docs for the formulas and why they reproduce bit for bit). Its constants (SILL, LINTEL,
+// GROUND_SILL, GROUND_LINTEL, GROUND_FLOOR_SHADE, UNDERSIDE) are not written here: `render/mesh.rs`
+// prepends them, printed from the Rust values, so there is one definition.
 
 struct Globals {
     // clip_from_world for the local frame (f64 on the CPU, cast once).
@@ -12,7 +17,20 @@ struct Globals {
     mode: vec4<u32>,
 };
 
+// `appearance::BuildingStyle` as uploaded (`GpuStyle` in render/mesh.rs).
+struct Style {
+    // rgb: facade; w: window_half.
+    facade: vec4<f32>,
+    // rgb: window glass; w: inv_storey_m.
+    window: vec4<f32>,
+    // rgb: roof (or ground surface); w: inv_bay_m.
+    roof: vec4<f32>,
+    // x: levels.
+    levels: vec4<u32>,
+};
+
 @group(0) @binding(0) var<uniform> g: Globals;
+@group(0) @binding(1) var<storage, read> styles: array<Style>;
 
 // The ground plane is drawn as this instance id (never a block id).
 const GROUND: u32 = 0xFFFFFFu;
@@ -21,25 +39,67 @@ struct VsOut {
     @builtin(position) clip: vec4<f32>,
     @location(0) normal: vec3<f32>,
     @location(1) @interpolate(flat) block: u32,
+    // x: along-wall u (m); y: height above the ground z (m).
+    @location(2) uz: vec2<f32>,
+    @location(3) @interpolate(flat) style: u32,
 };
 
 @vertex
 fn vs_main(
     @location(0) position: vec3<f32>,
     @location(1) normal: vec3<f32>,
+    @location(2) u_m: f32,
+    @location(3) style: u32,
     @builtin(instance_index) block: u32,
 ) -> VsOut {
     var out: VsOut;
     out.clip = g.clip_from_world * vec4<f32>(position, 1.0);
     out.normal = normal;
     out.block = block;
+    out.uz = vec2<f32>(u_m, position.z);
+    out.style = style;
     return out;
 }
 
-// A small deterministic tint per block so neighbouring blocks can be told apart.
-fn tint(id: u32) -> f32 {
-    let h = (id * 2654435761u) >> 24u;
-    return 0.9 + 0.2 * f32(h) / 255.0;
+// appearance::facade_color.
+fn facade_color(s: Style, u_m: f32, z_m: f32) -> vec3<f32> {
+    let t = z_m * s.window.w;
+    let st = floor(t);
+    let v = t - st;
+    if s.levels.x == 0u || st < 0.0 || st >= f32(s.levels.x) {
+        return s.facade.rgb;
+    }
+    let ground = st < 1.0;
+    var v0 = SILL;
+    var v1 = LINTEL;
+    if ground {
+        v0 = GROUND_SILL;
+        v1 = GROUND_LINTEL;
+    }
+    let b = u_m * s.roof.w;
+    let f = b - floor(b);
+    if v >= v0 && v < v1 && abs(f - 0.5) < s.facade.w {
+        return s.window.rgb;
+    }
+    if ground {
+        return s.facade.rgb * GROUND_FLOOR_SHADE;
+    }
+    return s.facade.rgb;
+}
+
+// appearance::roof_color.
+fn roof_color(s: Style) -> vec3<f32> {
+    return s.roof.rgb;
+}
+
+// appearance::surface_color.
+fn surface_color(s: Style, n: vec3<f32>, u_m: f32, z_m: f32) -> vec3<f32> {
+    if n.z > 0.5 {
+        return roof_color(s);
+    } else if n.z < -0.5 {
+        return UNDERSIDE;
+    }
+    return facade_color(s, u_m, z_m);
 }
 
 @fragment
@@ -55,19 +115,8 @@ fn fs_main(in: VsOut) -> @location(0) vec4<f32> {
         ) / 255.0;
     }
     let n = normalize(in.normal);
+    // appearance::shade.
     let light = g.sun.w + (1.0 - g.sun.w) * max(dot(n, g.sun.xyz), 0.0);
-    var base: vec3<f32>;
-    if in.block == GROUND {
-        base = vec3<f32>(0.55, 0.58, 0.50);
-    } else if n.z > 0.5 {
-        // Roofs.
-        base = vec3<f32>(0.70, 0.36, 0.28) * tint(in.block);
-    } else if n.z < -0.5 {
-        // Undersides (overhangs).
-        base = vec3<f32>(0.35, 0.35, 0.35);
-    } else {
-        // Facades.
-        base = vec3<f32>(0.86, 0.82, 0.72) * tint(in.block);
-    }
+    let base = surface_color(styles[in.style], n, in.uz.x, in.uz.y);
     return vec4<f32>(min(base * light, vec3<f32>(1.0)), 1.0);
 }

@@ -4,7 +4,8 @@
 //!   bring their own (`Gpu::new_headless`, or [`Gpu::from_parts`]).
 //! - [`GpuFrameRenderer`]: the walk's [`crate::visibility::FrameRenderer`] on a headless device.
 //! - [`MeshRenderer`]: uploads the block meshes once, then draws the blocks a culler lists, lit
-//!   (sun + ambient; roofs and facades told apart by the normal's z; ground plane; sky) or as flat
+//!   (the procedural appearance of [`crate::city::appearance`], mirrored in `mesh.wgsl`: facades
+//!   with windows, roofs, ground plane, streets and blocks' ground; sun + ambient; sky) or as flat
 //!   block IDs (for comparison with the CPU visibility oracle).
 //!
 //! ## Colour and depth for later passes
@@ -153,6 +154,29 @@ pub enum RenderError {
         normals: usize,
         /// Indices.
         indices: usize,
+    },
+    /// A block mesh's appearance array does not match its vertices.
+    #[error(
+        "render: block {}: mesh has {positions} positions but {appearance} appearance entries",
+        block.0
+    )]
+    BadAppearance {
+        /// The block.
+        block: BlockId,
+        /// Positions.
+        positions: usize,
+        /// Appearance entries.
+        appearance: usize,
+    },
+    /// A vertex names a style the mesh does not have.
+    #[error("render: block {}: style {style} out of range ({styles} styles)", block.0)]
+    StyleOutOfRange {
+        /// The block.
+        block: BlockId,
+        /// The style index.
+        style: u32,
+        /// Styles in the mesh.
+        styles: usize,
     },
     /// A block mesh's index points past its vertices.
     #[error("render: block {}: index {index} out of range ({vertices} vertices)", block.0)]

@@ -253,7 +253,7 @@ pub fn block_meshes(city: &City, layout: &BlockLayout) -> Vec<(BlockId, Mesh)> {
             let mut m = Mesh::default();
             for b in &block.buildings {
                 if let Some(part) = per_building.get_mut(b.0 as usize).and_then(Option::take) {
-                    m.append(part);
+                    m.append(&part);
                 }
             }
             (block.id, m)

@@ -8,10 +8,11 @@
 //! counts as visible wherever any of its triangles wins the depth test.
 
 use crate::blocks::BlockId;
+use crate::city::appearance::{self, BuildingStyle};
 use crate::city::Mesh;
 use crate::geom::clip::clip_polygon;
 use crate::geom::Camera;
-use glam::{DVec3, DVec4};
+use glam::{DVec2, DVec3, DVec4, Vec3};
 use rayon::prelude::*;
 use std::collections::BTreeSet;
 
@@ -41,41 +42,82 @@ impl IdBuffer {
     }
 }
 
+/// Id of a pixel that shows the ground (plane, streets, blocks' ground) in [`shade_with_ground`];
+/// never in an [`IdBuffer`] that [`render_ids`] returns.
+const GROUND_ID: u32 = u32::MAX - 1;
+
+/// What shading a triangle needs (the lit pass only).
+#[derive(Clone, Copy, Debug)]
+struct TriShading {
+    style: BuildingStyle,
+    /// The mesh normal (flat: that of the first vertex), as the shader gets it.
+    normal: Vec3,
+    /// 1/w of the three screen vertices, for perspective-correct interpolation.
+    inv_w: [f64; 3],
+    /// (u, z) of the three screen vertices.
+    uz: [DVec2; 3],
+}
+
 #[derive(Clone, Copy, Debug)]
 struct ScreenTri {
     p: [DVec3; 3],
     id: u32,
-    color: [u8; 3],
+    /// Ground layers: drawn in order, the depth test always passing (as the GPU does).
+    always: bool,
     ymin: i64,
     ymax: i64,
 }
 
-fn facade_color(n: DVec3, id: u32) -> [u8; 3] {
-    let light = DVec3::new(0.35, 0.55, 0.76).normalize();
-    let lambert = n.dot(light).abs() * 0.6 + 0.4;
-    // A small per-block tint so neighbours can be told apart.
-    let h = id.wrapping_mul(2654435761) >> 24;
-    let tint = (h % 32) as f64 / 255.0;
-    let base = if n.z.abs() > 0.7 {
-        [0.62 + tint, 0.36, 0.30]
-    } else {
-        [0.86, 0.80 - tint, 0.68]
-    };
-    base.map(|c| (c * lambert * 255.0).clamp(0.0, 255.0) as u8)
+/// A clip-space vertex and the attributes (u, z) carried through clipping.
+#[derive(Clone, Copy, Debug)]
+struct ClipVertex {
+    c: DVec4,
+    a: DVec2,
 }
 
+fn clip_polygon(
+    poly: &mut Vec<ClipVertex>,
+    tmp: &mut Vec<ClipVertex>,
+    dist: impl Fn(DVec4) -> f64,
+) {
+    tmp.clear();
+    let n = poly.len();
+    for k in 0..n {
+        let a = poly[k];
+        let b = poly[(k + 1) % n];
+        let (da, db) = (dist(a.c), dist(b.c));
+        if da >= 0.0 {
+            tmp.push(a);
+        }
+        if (da >= 0.0) != (db >= 0.0) {
+            let t = da / (da - db);
+            tmp.push(ClipVertex {
+                c: a.c + (b.c - a.c) * t,
+                a: a.a + (b.a - a.a) * t,
+            });
+        }
+    }
+    std::mem::swap(poly, tmp);
+}
+
+/// One mesh to project: its id, whether it is a ground layer, and the mesh.
+type Layer<'a> = (u32, bool, &'a Mesh);
+
 fn project(
-    blocks: &[(BlockId, &Mesh)],
+    layers: &[Layer<'_>],
     camera: &Camera,
     width: u32,
     height: u32,
-) -> Vec<ScreenTri> {
+    with_shading: bool,
+) -> (Vec<ScreenTri>, Vec<TriShading>) {
     let m = camera.clip_from_world();
     let (w, h) = (width as f64, height as f64);
     let mut out = Vec::new();
+    // Parallel to `out` when shading (kept apart so that the id pass stays lean).
+    let mut shadings = Vec::new();
     let mut poly = Vec::with_capacity(8);
     let mut tmp = Vec::with_capacity(8);
-    for (id, mesh) in blocks {
+    for &(id, always, mesh) in layers {
         for t in mesh.indices.chunks_exact(3) {
             let Some(v) = t
                 .iter()
@@ -94,7 +136,17 @@ fn project(
                 continue;
             }
             poly.clear();
-            poly.extend_from_slice(&c);
+            poly.extend(c.iter().zip(t).zip(&v).map(|((&c, &i), p)| {
+                let u = if with_shading {
+                    mesh.vertex_style(i as usize).1 as f64
+                } else {
+                    0.0
+                };
+                ClipVertex {
+                    c,
+                    a: DVec2::new(u, p.z),
+                }
+            }));
             clip_polygon(&mut poly, &mut tmp, |q| q.z); // near: z ≥ 0
             if poly.len() < 3 {
                 continue;
@@ -103,11 +155,17 @@ fn project(
             if poly.len() < 3 {
                 continue;
             }
-            let n = (v[1] - v[0]).cross(v[2] - v[0]).normalize_or_zero();
-            let color = facade_color(n, id.0);
+            let style = with_shading.then(|| {
+                let i = t[0] as usize;
+                (
+                    mesh.vertex_style(i).0,
+                    mesh.normals.get(i).copied().unwrap_or(Vec3::Z),
+                )
+            });
             let s: Vec<DVec3> = poly
                 .iter()
                 .map(|q| {
+                    let q = q.c;
                     DVec3::new(
                         (q.x / q.w + 1.0) * 0.5 * w,
                         (1.0 - q.y / q.w) * 0.5 * h,
@@ -122,17 +180,26 @@ fn project(
                 if !(ymin.is_finite() && ymax.is_finite()) {
                     continue;
                 }
+                if let Some((style, normal)) = style {
+                    let q = [poly[0], poly[k], poly[k + 1]];
+                    shadings.push(TriShading {
+                        style,
+                        normal,
+                        inv_w: q.map(|v| 1.0 / v.c.w),
+                        uz: q.map(|v| v.a),
+                    });
+                }
                 out.push(ScreenTri {
                     p,
-                    id: id.0,
-                    color,
+                    id,
+                    always,
                     ymin: (ymin - 0.5).ceil().max(0.0) as i64,
                     ymax: ((ymax - 0.5).floor()).min(h - 1.0) as i64,
                 });
             }
         }
     }
-    out
+    (out, shadings)
 }
 
 #[inline]
@@ -150,6 +217,7 @@ fn owns_tie(a: DVec3, b: DVec3) -> bool {
 
 fn raster(
     tris: &[ScreenTri],
+    shadings: &[TriShading],
     width: u32,
     mut colors: Option<&mut [[u8; 3]]>,
     ids: &mut [u32],
@@ -159,17 +227,22 @@ fn raster(
     let w = width as usize;
     let rows = ids.len() / w.max(1);
     let (r0, r1) = (row0 as i64, (row0 + rows) as i64 - 1);
-    for t in tris {
+    for (i, t) in tris.iter().enumerate() {
         if t.ymax < r0 || t.ymin > r1 {
             continue;
         }
         let mut p = t.p;
+        let mut shading = shadings.get(i).copied();
         let mut area = edge(p[0], p[1], p[2].x, p[2].y);
         if area == 0.0 || !area.is_finite() {
             continue;
         }
         if area < 0.0 {
             p.swap(1, 2);
+            if let Some(s) = shading.as_mut() {
+                s.inv_w.swap(1, 2);
+                s.uz.swap(1, 2);
+            }
             area = -area;
         }
         let xmin = p.iter().map(|q| q.x).fold(f64::INFINITY, f64::min);
@@ -197,11 +270,11 @@ fn raster(
                 }
                 let z = ((e0 * p[0].z + e1 * p[1].z + e2 * p[2].z) / area) as f32;
                 let k = row + x as usize;
-                if z < depth[k] {
+                if t.always || z < depth[k] {
                     depth[k] = z;
                     ids[k] = t.id;
-                    if let Some(c) = colors.as_deref_mut() {
-                        c[k] = t.color;
+                    if let (Some(c), Some(s)) = (colors.as_deref_mut(), shading.as_ref()) {
+                        c[k] = pixel_color(s, [e0, e1, e2]);
                     }
                 }
             }
@@ -209,16 +282,32 @@ fn raster(
     }
 }
 
+/// The lit colour of a pixel with screen-space edge functions `e` (barycentrics × area): u and
+/// z interpolated perspective-correctly (as the GPU interpolates its varyings), then
+/// [`appearance::surface_color`] and [`appearance::shade`], as `mesh.wgsl` does.
+fn pixel_color(s: &TriShading, e: [f64; 3]) -> [u8; 3] {
+    let wgt = [e[0] * s.inv_w[0], e[1] * s.inv_w[1], e[2] * s.inv_w[2]];
+    let sum = wgt[0] + wgt[1] + wgt[2];
+    let uz = if sum != 0.0 && sum.is_finite() {
+        (s.uz[0] * wgt[0] + s.uz[1] * wgt[1] + s.uz[2] * wgt[2]) / sum
+    } else {
+        s.uz[0]
+    };
+    let n = s.normal.normalize_or_zero();
+    let base = appearance::surface_color(&s.style, n, uz.x as f32, uz.y as f32);
+    appearance::to_rgb8(appearance::shade(base, n))
+}
+
 const BAND: usize = 16;
 
 fn render(
-    blocks: &[(BlockId, &Mesh)],
+    layers: &[Layer<'_>],
     camera: &Camera,
     width: u32,
     height: u32,
     with_color: bool,
 ) -> (IdBuffer, Vec<[u8; 3]>) {
-    let tris = project(blocks, camera, width, height);
+    let (tris, shadings) = project(layers, camera, width, height, with_color);
     let n = width as usize * height as usize;
     let mut ids = vec![SKY; n];
     let mut depth = vec![1.0f32; n];
@@ -230,12 +319,14 @@ fn render(
                 .zip(depth.par_chunks_mut(band))
                 .zip(colors.par_chunks_mut(band))
                 .enumerate()
-                .for_each(|(b, ((i, d), c))| raster(&tris, width, Some(c), i, d, b * BAND));
+                .for_each(|(b, ((i, d), c))| {
+                    raster(&tris, &shadings, width, Some(c), i, d, b * BAND)
+                });
         } else {
             ids.par_chunks_mut(band)
                 .zip(depth.par_chunks_mut(band))
                 .enumerate()
-                .for_each(|(b, (i, d))| raster(&tris, width, None, i, d, b * BAND));
+                .for_each(|(b, (i, d))| raster(&tris, &shadings, width, None, i, d, b * BAND));
         }
     }
     (
@@ -249,6 +340,10 @@ fn render(
     )
 }
 
+fn block_layers<'a>(blocks: &[(BlockId, &'a Mesh)]) -> Vec<Layer<'a>> {
+    blocks.iter().map(|(id, m)| (id.0, false, *m)).collect()
+}
+
 /// Draws the blocks' meshes (local frame) seen by `camera` into an id and depth buffer.
 pub fn render_ids(
     blocks: &[(BlockId, &Mesh)],
@@ -256,7 +351,7 @@ pub fn render_ids(
     width: u32,
     height: u32,
 ) -> IdBuffer {
-    render(blocks, camera, width, height, false).0
+    render(&block_layers(blocks), camera, width, height, false).0
 }
 
 /// The blocks with at least one pixel in a `width × height` image from `camera`: the visibility
@@ -270,22 +365,38 @@ pub fn visible_blocks(
     render_ids(blocks, camera, width, height).visible()
 }
 
-/// A shaded image of the blocks: roofs and facades coloured by their normal with one directional
-/// light, a sky gradient behind. A fallback for drawing frames without a GPU.
+/// A lit image of the blocks on the ground plane under the sky: the CPU fallback of the GPU
+/// mesh renderer's lit frames, with the same appearance ([`crate::city::appearance`]: facade
+/// windows, roofs, ground floors, the same sun and ambient term). See [`shade_with_ground`].
 pub fn shade(
     blocks: &[(BlockId, &Mesh)],
     camera: &Camera,
     width: u32,
     height: u32,
 ) -> image::RgbaImage {
-    let (buf, colors) = render(blocks, camera, width, height, true);
-    let mut img = image::RgbaImage::new(width, height);
+    shade_with_ground(blocks, &Mesh::default(), camera, width, height)
+}
+
+/// As [`shade`], with ground layers (streets, blocks' ground; e.g.
+/// [`appearance::ground_mesh`]) drawn as the GPU renderer draws them: the ground plane, then
+/// `ground`'s triangles in order with the depth test always passing, then the blocks with the
+/// `<` depth test. Pixel colours are `appearance::shade(appearance::surface_color(..))` at the
+/// perspective-correct (u, z) of the pixel centre, rounded to 8 bits.
+pub fn shade_with_ground(
+    blocks: &[(BlockId, &Mesh)],
+    ground: &Mesh,
+    camera: &Camera,
+    width: u32,
+    height: u32,
+) -> image::RgbaImage {
+    let plane = appearance::ground_plane(appearance::GROUND_PLANE_HALF_M);
+    let mut layers: Vec<Layer<'_>> = vec![(GROUND_ID, true, &plane), (GROUND_ID, true, ground)];
+    layers.extend(block_layers(blocks));
+    let (buf, colors) = render(&layers, camera, width, height, true);
+    let [r, g, b] = appearance::SKY;
+    let mut img = image::RgbaImage::from_pixel(width, height, image::Rgba([r, g, b, 255]));
     for (k, px) in img.pixels_mut().enumerate() {
-        if buf.ids[k] == SKY {
-            let y = (k / width as usize) as f64 / height.max(1) as f64;
-            let c = |top: f64, bottom: f64| (top + (bottom - top) * y) as u8;
-            *px = image::Rgba([c(110.0, 200.0), c(160.0, 220.0), c(230.0, 245.0), 255]);
-        } else {
+        if buf.ids[k] != SKY {
             let [r, g, b] = colors[k];
             *px = image::Rgba([r, g, b, 255]);
         }
