@@ -11,7 +11,7 @@
 //! | option | default | meaning |
 //! |---|---|---|
 //! | `snap_tolerance` | 0.05 m | points closer than this are one node; a line end this close to another line joins it (a T-junction that misses by 1 mm joins) |
-//! | `grade_separated_cut` | `false` | bridges and tunnels do not cut blocks |
+//! | `grade_separation` | `false` | every street line bounds blocks, bridges and tunnels too (the planar reference); `true` leaves them out |
 //! | `outskirts_link` | 30 m | outskirts buildings closer than this form one group (outline: convex hull) |
 //! | `street_width` | 20 m | blocks from footprints: buildings closer than this are in one block |
 //! | `force_source` | none | else streets → parcels → footprints, the first layer present |
@@ -23,9 +23,8 @@
 //!   in faces, 48 in one outskirts group; 89 street edges and 11 dead ends (node degree 1; the
 //!   data README's "14 dangles" counts differently: the graph is the same at snap tolerances 0,
 //!   0.05 and 1).
-//! - Helsinki, `streets_blockclass`: with `grade_separated_cut` the 70 reference faces, each IoU
-//!   1.00000, 893,374 m². By default bridges do not cut, so one bridge no longer splits a face: 69
-//!   faces, 892,494 m². The reference made no exception for bridges.
+//! - Helsinki, `streets_blockclass`: the 70 reference faces, each IoU 1.00000, 893,374 m². With
+//!   `grade_separation` one bridge no longer splits a face: 69 faces, 892,494 m².
 //! - Bubeneč without streets. Parcel blocks: 33, and each street face with buildings holds its
 //!   buildings in exactly one parcel block, which lies inside the face, at IoU 0.67–0.76.
 //!   Footprint blocks (20 m, UTM copy): 8, grouped the same way, at IoU 0.30–0.59. IoU is lower
