@@ -34,6 +34,7 @@
 //!   assigned, in about 0.33 s for `detect` (`blockwalk blocks --json`, `ms`).
 
 pub mod assign;
+pub mod conformance;
 pub mod detect;
 pub mod export;
 pub mod faces;
