@@ -135,8 +135,8 @@ fn ring_json(r: &LineString<f64>) -> serde_json::Value {
     r.0.iter().map(|c| serde_json::json!([c.x, c.y])).collect()
 }
 
-/// With `BLOCKWALK_CONFORMANCE_DUMP=DIR`: our faces, the street graph's edges and the mismatches as GeoJSON (in the
-/// input's coordinates), to look at the differences in a GIS.
+/// With `BLOCKWALK_CONFORMANCE_DUMP=DIR`: our faces, the street graph's edges and the mismatches
+/// as GeoJSON (in the input's coordinates), to look at the differences in a GIS.
 fn dump(
     dir: &Path,
     city: &str,
