@@ -328,8 +328,9 @@ fn bubenec_city_pipeline_areas_in_input_units() {
     );
 }
 
-/// Helsinki through the City: by default bridges do not cut blocks (one face fewer than the
-/// reference); with `grade_separated_cut` the reference's plain polygonize is reproduced.
+/// Helsinki through the City: by default every street line bounds blocks, bridges included, and
+/// the reference's plain polygonize is reproduced; with `grade_separation` a bridge no longer
+/// splits the face under it.
 #[test]
 fn helsinki_city_bridges_option() {
     use blockwalk::blocks::export::summary;
@@ -338,24 +339,25 @@ fn helsinki_city_bridges_option() {
         Some("helsinki/streets_blockclass.shp"),
         None,
     );
-    let default = blockwalk::blocks::detect(&c, &BlockOptions::default()).unwrap();
-    let cut = BlockOptions {
-        grade_separated_cut: true,
+    let polygonize = blockwalk::blocks::detect(&c, &BlockOptions::default()).unwrap();
+    let separated = BlockOptions {
+        grade_separation: true,
         ..BlockOptions::default()
     };
-    let polygonize = blockwalk::blocks::detect(&c, &cut).unwrap();
-    let (sd, sc) = (
-        summary(&default, &c.transform),
+    let separated = blockwalk::blocks::detect(&c, &separated).unwrap();
+    let (sd, ss) = (
         summary(&polygonize, &c.transform),
+        summary(&separated, &c.transform),
     );
     println!(
-        "default {} faces {:.0} m²; bridges cut {} faces {:.0} m²",
-        sd.blocks, sd.total_area_m2, sc.blocks, sc.total_area_m2
+        "default {} faces {:.0} m²; grade separation {} faces {:.0} m²",
+        sd.blocks, sd.total_area_m2, ss.blocks, ss.total_area_m2
     );
-    assert_eq!(sc.blocks, 70);
-    assert!((sc.total_area_m2 - 893_374.0).abs() / 893_374.0 < 1e-3);
-    assert!(sd.blocks < sc.blocks, "a bridge no longer splits a face");
+    assert_eq!(sd.blocks, 70);
+    assert!((sd.total_area_m2 - 893_374.0).abs() / 893_374.0 < 1e-3);
     assert!(c.streets.iter().any(|s| s.grade_separated));
-    check_partition(&default, c.buildings.len());
+    assert_eq!(ss.blocks, 69, "a bridge no longer splits a face");
+    assert!(ss.total_area_m2 < sd.total_area_m2);
     check_partition(&polygonize, c.buildings.len());
+    check_partition(&separated, c.buildings.len());
 }

@@ -19,10 +19,17 @@ pub struct BlockOptions {
     pub snap_tolerance: f64,
     /// Use this source instead of the first available of streets → parcels → footprints.
     pub force_source: Option<BlockSource>,
-    /// Let bridges and tunnels (`Street::grade_separated`) cut blocks. Default `false`: a street
-    /// passing over or under a block does not bound it. (`true` reproduces a plain
-    /// `polygonize(union_all(lines))` of a layer that still holds its bridges.)
-    pub grade_separated_cut: bool,
+    /// Honour grade separation: leave bridges and tunnels (`Street::grade_separated`) out of the
+    /// street graph, so a street passing over or under land does not bound a block.
+    ///
+    /// Default `false`: every street line bounds blocks, as in the planar reference (seed 003 §3
+    /// "completely surrounded by streets"; momepy's `enclosures` and shapely's
+    /// `polygonize(union_all(lines))` use every line). A bridge over water or a railway then closes
+    /// the blocks on either side, which is what a block layer is expected to show. Set it when the
+    /// layer holds bridges or tunnels that cross the middle of built land (a flyover above a
+    /// street block, a road tunnel under one): with the default they would split that block in
+    /// two.
+    pub grade_separation: bool,
     /// Outskirts buildings within this distance of each other form one group. Default
     /// [`DEFAULT_OUTSKIRTS_LINK`] (30 m).
     pub outskirts_link: f64,
@@ -36,7 +43,7 @@ impl Default for BlockOptions {
         Self {
             snap_tolerance: DEFAULT_SNAP_TOLERANCE,
             force_source: None,
-            grade_separated_cut: false,
+            grade_separation: false,
             outskirts_link: DEFAULT_OUTSKIRTS_LINK,
             street_width: DEFAULT_STREET_WIDTH,
         }
@@ -122,7 +129,7 @@ pub fn detect(city: &City, opts: &BlockOptions) -> Result<BlockLayout, BlockErro
                 id: s.source_id.clone(),
             });
         }
-        if opts.grade_separated_cut || !s.grade_separated {
+        if !(opts.grade_separation && s.grade_separated) {
             lines.push(s.line.clone());
         }
     }

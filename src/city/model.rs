@@ -49,7 +49,8 @@ pub struct Street {
     pub source_id: String,
     /// Centre line, metric world coordinates.
     pub line: LineString<f64>,
-    /// True for bridges and tunnels, which do not cut blocks.
+    /// True for bridges and tunnels. They bound blocks like any street unless the block stage is
+    /// asked to honour grade separation (`blocks::BlockOptions::grade_separation`).
     pub grade_separated: bool,
     /// The source attributes.
     pub attributes: Attributes,

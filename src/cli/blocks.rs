@@ -39,8 +39,15 @@ pub struct Args {
     /// Snap tolerance, metres.
     #[arg(long, default_value_t = blockwalk::blocks::noding::DEFAULT_SNAP_TOLERANCE)]
     pub snap: f64,
-    /// Let bridges and tunnels cut blocks (as a plain polygonize of the lines does).
+    /// Bridges and tunnels (a `bridge` or `tunnel` attribute) do not bound blocks. By default
+    /// every street line bounds blocks, as in a plain polygonize of the lines (momepy, shapely), so
+    /// a bridge over water or a railway closes the blocks beside it. Use this flag when the layer
+    /// holds flyovers or tunnels that cross the middle of built blocks, which would otherwise be
+    /// split in two.
     #[arg(long)]
+    pub grade_separated_bridges: bool,
+    /// Former name of today's default (bridges and tunnels cut blocks); accepted, does nothing.
+    #[arg(long, hide = true, conflicts_with = "grade_separated_bridges")]
     pub bridges_cut: bool,
     /// Street width threshold for blocks from footprints, metres.
     #[arg(long, default_value_t = blockwalk::blocks::infer::DEFAULT_STREET_WIDTH)]
@@ -64,7 +71,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             SourceArg::Parcels => BlockSource::Parcels,
             SourceArg::Footprints => BlockSource::Footprints,
         }),
-        grade_separated_cut: args.bridges_cut,
+        grade_separation: args.grade_separated_bridges,
         outskirts_link: args.outskirts_link,
         street_width: args.street_width,
     };

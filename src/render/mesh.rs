@@ -17,6 +17,8 @@ const COLOR_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba8Unorm;
 const DEPTH_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
 /// Instance id of the ground plane; must match `GROUND` in `mesh.wgsl`.
 const GROUND: u32 = 0x00FF_FFFF;
+/// The ground's id (for naming its meshes in errors).
+pub(crate) const GROUND_ID: u32 = GROUND;
 /// Sky colour (linear RGB as written): [`appearance::SKY`].
 fn sky() -> wgpu::Color {
     let [r, g, b] = appearance::unit_rgb(appearance::SKY);

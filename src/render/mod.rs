@@ -28,6 +28,16 @@ pub use mesh::{Frame, FrameTimings, MeshRenderer, RenderOptions, Shading};
 
 use crate::blocks::BlockId;
 
+/// Names a mesh in errors: `block N`, or `the ground` for the renderer's own ground meshes
+/// (which carry the ground's id).
+fn mesh_name(block: crate::blocks::BlockId) -> String {
+    if block.0 == mesh::GROUND_ID {
+        "the ground".to_string()
+    } else {
+        format!("block {}", block.0)
+    }
+}
+
 /// What can go wrong on the GPU side. Failures of wgpu and `image` keep their error as the
 /// [`source`](std::error::Error::source); bad input says what input and what is wrong with it.
 #[derive(Debug, thiserror::Error)]
@@ -142,8 +152,8 @@ pub enum RenderError {
     /// A block mesh's arrays disagree: positions and normals differ in length, or the index
     /// count is not a multiple of 3.
     #[error(
-        "render: block {}: mesh has {positions} positions, {normals} normals, {indices} indices",
-        block.0
+        "render: {}: mesh has {positions} positions, {normals} normals, {indices} indices",
+        mesh_name(*block)
     )]
     BadMesh {
         /// The block.
@@ -157,8 +167,8 @@ pub enum RenderError {
     },
     /// A block mesh's appearance array does not match its vertices.
     #[error(
-        "render: block {}: mesh has {positions} positions but {appearance} appearance entries",
-        block.0
+        "render: {}: mesh has {positions} positions but {appearance} appearance entries",
+        mesh_name(*block)
     )]
     BadAppearance {
         /// The block.
@@ -169,7 +179,7 @@ pub enum RenderError {
         appearance: usize,
     },
     /// A vertex names a style the mesh does not have.
-    #[error("render: block {}: style {style} out of range ({styles} styles)", block.0)]
+    #[error("render: {}: style {style} out of range ({styles} styles)", mesh_name(*block))]
     StyleOutOfRange {
         /// The block.
         block: BlockId,
@@ -179,7 +189,7 @@ pub enum RenderError {
         styles: usize,
     },
     /// A block mesh's index points past its vertices.
-    #[error("render: block {}: index {index} out of range ({vertices} vertices)", block.0)]
+    #[error("render: {}: index {index} out of range ({vertices} vertices)", mesh_name(*block))]
     IndexOutOfRange {
         /// The block.
         block: BlockId,
