@@ -312,10 +312,10 @@ mod gpu {
                 eprintln!("{test}: adapter {}", g.adapter_name());
                 Some(g)
             }
-            Err(RenderError::NoAdapter(why))
+            Err(RenderError::NoAdapter { source })
                 if std::env::var_os("BLOCKWALK_REQUIRE_GPU").is_none() =>
             {
-                eprintln!("{test}: SKIPPED, no GPU adapter ({why}); set BLOCKWALK_REQUIRE_GPU=1 to fail instead");
+                eprintln!("{test}: SKIPPED, no GPU adapter ({source}); set BLOCKWALK_REQUIRE_GPU=1 to fail instead");
                 None
             }
             Err(e) => panic!("{test}: no usable GPU: {e}"),

@@ -311,7 +311,10 @@ fn bad_culler_options_are_errors_naming_the_parameter() {
     };
     let none = BenchOptions {
         resolutions: vec![],
-        views: 2,
+        views: ViewOptions {
+            views: 2,
+            ..Default::default()
+        },
         ..Default::default()
     };
     let e = run_occlusion_bench(&scene, &none, &mut |_, _| {}).unwrap_err();

@@ -75,29 +75,36 @@ struct ClipVertex {
     a: DVec2,
 }
 
-fn clip_polygon(
-    poly: &mut Vec<ClipVertex>,
-    tmp: &mut Vec<ClipVertex>,
-    dist: impl Fn(DVec4) -> f64,
-) {
-    tmp.clear();
-    let n = poly.len();
-    for k in 0..n {
-        let a = poly[k];
-        let b = poly[(k + 1) % n];
-        let (da, db) = (dist(a.c), dist(b.c));
-        if da >= 0.0 {
-            tmp.push(a);
-        }
-        if (da >= 0.0) != (db >= 0.0) {
-            let t = da / (da - db);
-            tmp.push(ClipVertex {
-                c: a.c + (b.c - a.c) * t,
-                a: a.a + (b.a - a.a) * t,
-            });
+// Clipping interpolates the clip-space position and the attributes together
+// (geom::clip::clip_polygon works on any vector-like vertex).
+impl std::ops::Add for ClipVertex {
+    type Output = ClipVertex;
+    fn add(self, o: ClipVertex) -> ClipVertex {
+        ClipVertex {
+            c: self.c + o.c,
+            a: self.a + o.a,
         }
     }
-    std::mem::swap(poly, tmp);
+}
+
+impl std::ops::Sub for ClipVertex {
+    type Output = ClipVertex;
+    fn sub(self, o: ClipVertex) -> ClipVertex {
+        ClipVertex {
+            c: self.c - o.c,
+            a: self.a - o.a,
+        }
+    }
+}
+
+impl std::ops::Mul<f64> for ClipVertex {
+    type Output = ClipVertex;
+    fn mul(self, t: f64) -> ClipVertex {
+        ClipVertex {
+            c: self.c * t,
+            a: self.a * t,
+        }
+    }
 }
 
 /// One mesh to project: its id, whether it is a ground layer, and the mesh.
@@ -147,11 +154,11 @@ fn project(
                     a: DVec2::new(u, p.z),
                 }
             }));
-            clip_polygon(&mut poly, &mut tmp, |q| q.z); // near: z ≥ 0
+            clip_polygon(&mut poly, &mut tmp, |q| q.c.z); // near: z ≥ 0
             if poly.len() < 3 {
                 continue;
             }
-            clip_polygon(&mut poly, &mut tmp, |q| q.w - q.z); // far: z ≤ w
+            clip_polygon(&mut poly, &mut tmp, |q| q.c.w - q.c.z); // far: z ≤ w
             if poly.len() < 3 {
                 continue;
             }
