@@ -2,7 +2,7 @@
 //! in `data/helsinki/` (EPSG:3067).
 #![cfg(feature = "osm")]
 
-use blockwalk_importers::{osm, shp, AttrValue, Crs, Feature, Layer, Theme};
+use blockwalk_importers::{osm, shp, AttrValue, Crs, Feature, ImportError, Layer, Theme};
 use geo::{Area, MapCoords};
 use geo_types::{Coord, Geometry};
 use std::collections::{HashMap, HashSet};
@@ -205,8 +205,12 @@ fn bad_input() {
     let p = dir.path().join("x.osm.pbf");
     std::fs::write(&p, b"\0\0\0\x0enot a pbf at all, sorry").unwrap();
     let e = osm::read(&p, &Theme::Buildings).unwrap_err();
+    assert!(matches!(e, ImportError::Truncated { .. }), "{e:?}");
     assert!(e.to_string().contains("x.osm.pbf"), "{e}");
     let e = osm::read(&data("originals/Helsinki.osm.pbf"), &Theme::Parcels).unwrap_err();
     assert!(e.to_string().contains("Parcels"), "{e}");
-    assert!(osm::read(&dir.path().join("none.pbf"), &Theme::Streets).is_err());
+    assert!(matches!(
+        osm::read(&dir.path().join("none.pbf"), &Theme::Streets),
+        Err(ImportError::Io { .. })
+    ));
 }
