@@ -661,19 +661,14 @@ impl Crs {
                 }
                 if let Some((unit, factor)) = linear_unit(&root) {
                     if (factor - 1.0).abs() > 1e-9 {
-                        return Err(CrsError::NotMetres {
-                            name,
-                            unit,
-                            factor,
-                        });
+                        return Err(CrsError::NotMetres { name, unit, factor });
                     }
                 }
-                let mut proj4 = proj4wkt::wkt_to_projstring(text).map_err(|e| {
-                    CrsError::WktConversion {
+                let mut proj4 =
+                    proj4wkt::wkt_to_projstring(text).map_err(|e| CrsError::WktConversion {
                         name: name.clone(),
                         source: e.into(),
-                    }
-                })?;
+                    })?;
                 if !proj4.contains("+towgs84=") && !proj4.contains("+datum=") {
                     let datum = root.find("DATUM").and_then(|d| d.name()).unwrap_or("");
                     if let Some(shift) = datum_shift_for(datum) {

@@ -328,9 +328,10 @@ fn table_crs(
         (Some(o), Some(c)) if o.eq_ignore_ascii_case("EPSG") && c > 0 => {
             match u32::try_from(c).map_err(|_| crate::CrsError::UnknownEpsg { code: u32::MAX }) {
                 Ok(c) => match (Crs::from_epsg(c), from_def()) {
-                    (Ok(Crs::Projected { epsg, proj4, .. }), Some(Ok(Crs::Projected { name, .. }))) => {
-                        Crs::Projected { epsg, name, proj4 }
-                    }
+                    (
+                        Ok(Crs::Projected { epsg, proj4, .. }),
+                        Some(Ok(Crs::Projected { name, .. })),
+                    ) => Crs::Projected { epsg, name, proj4 },
                     (Ok(crs), _) => crs,
                     // A code the registry lacks: the definition may still say what it is.
                     (Err(_), Some(Ok(crs))) => crs,

@@ -78,7 +78,8 @@ fn leading_number(s: &str) -> Option<f64> {
     // A decimal comma between digits ("12,5") is a decimal point; a list ("5;6", "5,6,7") is not.
     let t: String = if t.matches(',').count() == 1
         && !t.contains('.')
-        && t.split(',').all(|p| p.trim().chars().next().is_some_and(|c| c.is_ascii_digit()))
+        && t.split(',')
+            .all(|p| p.trim().chars().next().is_some_and(|c| c.is_ascii_digit()))
     {
         t.replacen(',', ".", 1)
     } else {

@@ -87,7 +87,11 @@ pub fn format_groups(groups: &[ReasonGroup]) -> String {
                 g.count,
                 g.reason,
                 g.examples.join(", "),
-                if g.count > g.examples.len() { ", …" } else { "" }
+                if g.count > g.examples.len() {
+                    ", …"
+                } else {
+                    ""
+                }
             )
         })
         .collect::<Vec<_>>()

@@ -94,14 +94,37 @@ pub fn read(path: &Path) -> Result<Layer, ImportError> {
     // Attributes: a record that cannot be read costs its feature, not the layer.
     let dbf_bytes = std::fs::read(&dbf_path).map_err(io(&dbf_path))?;
     let decimals = dbf_decimals(&dbf_bytes);
-    let mut dbf = dbase::Reader::new(Cursor::new(dbf_bytes)).map_err(|source| {
-        ImportError::Dbase {
+    let mut dbf =
+        dbase::Reader::new(Cursor::new(dbf_bytes)).map_err(|source| ImportError::Dbase {
             file: dbf_path.clone(),
             what: "not a readable dBase table".into(),
             source,
+        })?;
+    let declared = dbf.header().num_records as usize;
+    if declared != shapes.len() {
+        return Err(ImportError::Format {
+            file: path.to_path_buf(),
+            message: format!(
+                "{} shapes in the .shp but {declared} records in {}",
+                shapes.len(),
+                dbf_path.display()
+            ),
+        });
+    }
+    // The reader yields the same I/O error forever once the file ends: stop at the first one.
+    let mut records: Vec<Result<dbase::Record, dbase::Error>> = Vec::with_capacity(declared);
+    for (i, r) in dbf.iter_records().take(declared).enumerate() {
+        if let Err(e) = &r {
+            if matches!(e.kind(), dbase::ErrorKind::IoError(_)) {
+                return Err(ImportError::Dbase {
+                    file: dbf_path.clone(),
+                    what: format!("record {i} of {declared} cannot be read (truncated file)"),
+                    source: r.err().expect("an error"),
+                });
+            }
         }
-    })?;
-    let records: Vec<Result<dbase::Record, dbase::Error>> = dbf.iter_records().collect();
+        records.push(r);
+    }
     if records.len() != shapes.len() {
         return Err(ImportError::Format {
             file: path.to_path_buf(),
@@ -126,7 +149,10 @@ pub fn read(path: &Path) -> Result<Layer, ImportError> {
             Err(e) => {
                 report.refuse(
                     fid,
-                    format!("attribute record cannot be read from {}: {e}", dbf_path.display()),
+                    format!(
+                        "attribute record cannot be read from {}: {e}",
+                        dbf_path.display()
+                    ),
                 );
                 continue;
             }

@@ -8,7 +8,9 @@ use blockwalk_importers::{
 use std::path::{Path, PathBuf};
 
 fn data(rel: &str) -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../data").join(rel)
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../data")
+        .join(rel)
 }
 
 /// Copies a Shapefile's parts to `dir/l.*` and returns the `.shp` path.
@@ -78,7 +80,11 @@ fn shp_damaged_shx_is_handled_like_a_missing_one() {
     let p = copy_shp("bubenec/streets", dir.path());
     let reference = shp::read(&p).unwrap();
     // Garbage index.
-    write(dir.path(), "l.shx", b"this is no index at all, just some bytes of text");
+    write(
+        dir.path(),
+        "l.shx",
+        b"this is no index at all, just some bytes of text",
+    );
     let l = shp::read(&p).unwrap();
     assert_eq!(l.features.len(), reference.features.len());
     assert!(
@@ -404,7 +410,10 @@ fn pbf_truncated_is_truncated_not_an_empty_layer() {
     for cut in [b.len() / 2, b.len() - 1, 20] {
         let p = write(dir.path(), "t.osm.pbf", &b[..cut]);
         let e = osm::read(&p, &Theme::Buildings).unwrap_err();
-        assert!(matches!(e, ImportError::Truncated { .. }), "cut {cut}: {e:?}");
+        assert!(
+            matches!(e, ImportError::Truncated { .. }),
+            "cut {cut}: {e:?}"
+        );
         assert!(e.to_string().contains("t.osm.pbf"));
     }
 }

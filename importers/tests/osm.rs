@@ -205,7 +205,7 @@ fn bad_input() {
     let p = dir.path().join("x.osm.pbf");
     std::fs::write(&p, b"\0\0\0\x0enot a pbf at all, sorry").unwrap();
     let e = osm::read(&p, &Theme::Buildings).unwrap_err();
-    assert!(matches!(e, ImportError::Truncated { .. }), "{e:?}");
+    assert!(matches!(e, ImportError::Format { .. }), "{e:?}");
     assert!(e.to_string().contains("x.osm.pbf"), "{e}");
     let e = osm::read(&data("originals/Helsinki.osm.pbf"), &Theme::Parcels).unwrap_err();
     assert!(e.to_string().contains("Parcels"), "{e}");

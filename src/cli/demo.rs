@@ -83,14 +83,18 @@ fn find_data(given: Option<&Path>) -> anyhow::Result<PathBuf> {
         return Ok(d.to_path_buf());
     }
     let candidates = data_candidates();
-    candidates.iter().find(|d| has_data(d)).cloned().ok_or_else(|| {
-        let looked: Vec<String> = candidates.iter().map(|c| c.display().to_string()).collect();
-        anyhow::anyhow!(
-            "the bundled data (bubenec/buildings.shp, helsinki/buildings.shp) was not found; \
+    candidates
+        .iter()
+        .find(|d| has_data(d))
+        .cloned()
+        .ok_or_else(|| {
+            let looked: Vec<String> = candidates.iter().map(|c| c.display().to_string()).collect();
+            anyhow::anyhow!(
+                "the bundled data (bubenec/buildings.shp, helsinki/buildings.shp) was not found; \
              looked in: {}; run from the repository or pass --data DIR",
-            looked.join(", ")
-        )
-    })
+                looked.join(", ")
+            )
+        })
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {

@@ -66,7 +66,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                     Some(BuildError::NoBuildings { reasons, .. }) => json!(reasons),
                     _ => json!([]),
                 };
-                println!("{}", json!({"error": format!("{e:#}"), "refused_by_reason": reasons}));
+                println!(
+                    "{}",
+                    json!({"error": format!("{e:#}"), "refused_by_reason": reasons})
+                );
             }
             return Err(e);
         }
@@ -162,7 +165,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 "implausible heights: {} ({}{})",
                 r.implausible_heights.len(),
                 ids.join(", "),
-                if r.implausible_heights.len() > 5 { ", …" } else { "" }
+                if r.implausible_heights.len() > 5 {
+                    ", …"
+                } else {
+                    ""
+                }
             );
         }
         for n in r.notes.iter().filter(|n| n.starts_with("warning:")) {

@@ -19,7 +19,10 @@ fn recognises_the_bundled_prj_files() {
         Crs::Projected { epsg, name, proj4 } => {
             assert_eq!(epsg, Some(32633));
             assert_eq!(name, "WGS_1984_UTM_Zone_33N");
-            assert!(proj4.contains("+proj=tmerc") && proj4.contains("+lon_0=15"), "{proj4}");
+            assert!(
+                proj4.contains("+proj=tmerc") && proj4.contains("+lon_0=15"),
+                "{proj4}"
+            );
         }
         other => panic!("{other:?}"),
     }
@@ -96,7 +99,10 @@ fn web_mercator_known_point() {
     let merc = Frame::new(WEB_MERCATOR).unwrap();
     let wgs = Frame::new(WGS84_LONLAT).unwrap();
     let [lo, la] = merc.project(&wgs, [x, y]).unwrap();
-    assert!((lo - lon).abs() < 1e-9 && (la - lat).abs() < 1e-9, "{lo} {la}");
+    assert!(
+        (lo - lon).abs() < 1e-9 && (la - lat).abs() < 1e-9,
+        "{lo} {la}"
+    );
     // Prague Bubeneč is near 14.40°E 50.10°N.
     assert!((lo - 14.405).abs() < 0.01 && (la - 50.104).abs() < 0.01);
     let back = wgs.project(&merc, [lo, la]).unwrap();
@@ -240,6 +246,13 @@ fn layers_in_other_crs_land_in_the_same_frame() {
     let pu = wgs.project(&u, ll).unwrap();
     let a = merc.try_to_metric([1_603_599.221, 6_464_369.816]).unwrap();
     let b = utm.try_to_metric(pu).unwrap();
-    assert!((a[0] - b[0]).abs() < 1e-6 && (a[1] - b[1]).abs() < 1e-6, "{a:?} {b:?}");
-    assert!(utm.describe().contains("reprojected into the frame"), "{}", utm.describe());
+    assert!(
+        (a[0] - b[0]).abs() < 1e-6 && (a[1] - b[1]).abs() < 1e-6,
+        "{a:?} {b:?}"
+    );
+    assert!(
+        utm.describe().contains("reprojected into the frame"),
+        "{}",
+        utm.describe()
+    );
 }

@@ -51,8 +51,7 @@ impl Node {
     pub fn authority_epsg(&self) -> Option<u32> {
         self.children()
             .filter(|c| {
-                c.keyword.eq_ignore_ascii_case("AUTHORITY")
-                    || c.keyword.eq_ignore_ascii_case("ID")
+                c.keyword.eq_ignore_ascii_case("AUTHORITY") || c.keyword.eq_ignore_ascii_case("ID")
             })
             .find(|c| c.name().is_some_and(|n| n.eq_ignore_ascii_case("EPSG")))
             .and_then(|c| match c.items.get(1) {

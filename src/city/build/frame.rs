@@ -151,12 +151,10 @@ pub fn layer_transform(
             Ok(Crs::Unknown.metric_transform([0.0, 0.0]))
         }
         (_, other) => {
-            let t = frame
-                .for_layer(other)
-                .map_err(|source| BuildError::Crs {
-                    layer: layer.source.display().to_string(),
-                    source,
-                })?;
+            let t = frame.for_layer(other).map_err(|source| BuildError::Crs {
+                layer: layer.source.display().to_string(),
+                source,
+            })?;
             notes.push(format!("{name}: {}", t.describe()));
             Ok(t)
         }

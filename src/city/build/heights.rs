@@ -155,7 +155,11 @@ pub fn heights_from_attributes(attrs: &Attributes, f: &HeightFields) -> Heights 
         if m.is_finite() && (0.0..=MAX_PLAUSIBLE_HEIGHT_M).contains(&m) {
             min_height_m = m;
         } else {
-            flag(&name, why_implausible(m, "bottom height from levels"), &mut notes);
+            flag(
+                &name,
+                why_implausible(m, "bottom height from levels"),
+                &mut notes,
+            );
         }
     }
     if min_height_m >= height_m {
@@ -235,7 +239,11 @@ mod tests {
         assert_eq!(h.source, HeightSource::Default);
         assert_eq!(h.implausible.len(), 1);
         assert_eq!(h.implausible[0].field, "height");
-        assert!(h.implausible[0].why.contains("above 1000"), "{:?}", h.implausible);
+        assert!(
+            h.implausible[0].why.contains("above 1000"),
+            "{:?}",
+            h.implausible
+        );
         let h = heights_from_attributes(&attrs(&[("height", AttrValue::Text("1.2e1".into()))]), &f);
         assert_eq!((h.height_m, h.source), (12.0, HeightSource::Height));
         let h = heights_from_attributes(&attrs(&[("height", AttrValue::Float(-4.0))]), &f);

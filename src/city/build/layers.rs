@@ -4,7 +4,9 @@
 use blockwalk_importers::{format_groups, group_reasons, Layer, MetricTransform};
 use geo_types::{Coord, LineString};
 
-use super::geometry::{geometry_kind, has_tag, lines_of, polygons_of, to_metric_line, to_metric_polygon, truthy};
+use super::geometry::{
+    geometry_kind, has_tag, lines_of, polygons_of, to_metric_line, to_metric_polygon, truthy,
+};
 use super::BuildOptions;
 use crate::city::model::{CityReport, Parcel, Street};
 use crate::geom::repair::repair_polygon;
@@ -40,14 +42,23 @@ fn unusable(
     })
 }
 
-fn summary_note(kind: &str, name: &str, read: usize, kept: &str, refused: &[(String, String)]) -> String {
+fn summary_note(
+    kind: &str,
+    name: &str,
+    read: usize,
+    kept: &str,
+    refused: &[(String, String)],
+) -> String {
     format!(
         "{kind} {name}: {read} read, {kept}, {} refused{}",
         refused.len(),
         if refused.is_empty() {
             String::new()
         } else {
-            let list: Vec<String> = refused.iter().map(|(id, r)| format!("{id} ({r})")).collect();
+            let list: Vec<String> = refused
+                .iter()
+                .map(|(id, r)| format!("{id} ({r})"))
+                .collect();
             format!(": {}", list.join(", "))
         }
     )
@@ -66,7 +77,12 @@ pub(crate) fn build_streets(
         .report
         .refused
         .iter()
-        .map(|r| (format!("{name}:{}", r.fid), format!("importer: {}", r.reason)))
+        .map(|r| {
+            (
+                format!("{name}:{}", r.fid),
+                format!("importer: {}", r.reason),
+            )
+        })
         .collect();
     for f in &layer.features {
         let id = format!("{name}:{}", f.fid);
@@ -87,7 +103,11 @@ pub(crate) fn build_streets(
             .any(|k| f.attributes.get(*k).map(truthy).unwrap_or(false));
         let n = lines.len();
         for (k, l) in lines.iter().enumerate() {
-            let part = if n == 1 { id.clone() } else { format!("{id}.{k}") };
+            let part = if n == 1 {
+                id.clone()
+            } else {
+                format!("{id}.{k}")
+            };
             let mut pts: Vec<Coord<f64>> = match to_metric_line(l, t) {
                 Ok(p) => p,
                 Err(e) => {
@@ -131,18 +151,28 @@ pub(crate) fn build_parcels(
         .report
         .refused
         .iter()
-        .map(|r| (format!("{name}:{}", r.fid), format!("importer: {}", r.reason)))
+        .map(|r| {
+            (
+                format!("{name}:{}", r.fid),
+                format!("importer: {}", r.reason),
+            )
+        })
         .collect();
     let mut repaired = 0usize;
     for f in &layer.features {
         let id = format!("{name}:{}", f.fid);
         let Some(ps) = polygons_of(&f.geometry) else {
-            refused.push((id, format!("{} is not a polygon", geometry_kind(&f.geometry))));
+            refused.push((
+                id,
+                format!("{} is not a polygon", geometry_kind(&f.geometry)),
+            ));
             continue;
         };
         let mut parts = Vec::new();
         for p in &ps {
-            match to_metric_polygon(p, t).and_then(|m| repair_polygon(&m).map_err(|e| e.to_string())) {
+            match to_metric_polygon(p, t)
+                .and_then(|m| repair_polygon(&m).map_err(|e| e.to_string()))
+            {
                 Ok(r) => {
                     if r.was_repaired() {
                         repaired += 1;

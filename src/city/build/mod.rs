@@ -308,7 +308,10 @@ mod tests {
         let outliers: Vec<&str> = r.frame.outliers.iter().map(|o| o.0.as_str()).collect();
         assert_eq!(outliers, ["b:1.0", "b:1.1"]);
         assert!(!r.frame.f32_ok && r.frame.f32_spacing_m >= 0.25);
-        assert!(r.notes.iter().any(|n| n.contains("b:1.0") && n.contains("far from")));
+        assert!(r
+            .notes
+            .iter()
+            .any(|n| n.contains("b:1.0") && n.contains("far from")));
     }
 
     #[test]
@@ -364,13 +367,18 @@ mod tests {
         let l = layer(vec![], 3);
         let e = build_city(&l, None, None, &BuildOptions::default()).unwrap_err();
         match &e {
-            BuildError::NoBuildings { read: 3, reasons, .. } => {
+            BuildError::NoBuildings {
+                read: 3, reasons, ..
+            } => {
                 assert_eq!(reasons.len(), 1);
                 assert_eq!(reasons[0].count, 3);
                 assert_eq!(reasons[0].examples, ["b:1000", "b:1001", "b:1002"]);
             }
             other => panic!("{other:?}"),
         }
-        assert!(e.to_string().contains("3 × importer: truncated record"), "{e}");
+        assert!(
+            e.to_string().contains("3 × importer: truncated record"),
+            "{e}"
+        );
     }
 }
