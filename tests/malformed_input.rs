@@ -319,7 +319,7 @@ fn a_usable_street_layer_is_not_flagged() {
 fn every_feature_refused_groups_the_reasons() {
     let dir = tempfile::tempdir().unwrap();
     let line = r#"{"type":"Feature","properties":{},"geometry":{"type":"LineString","coordinates":[[24.9,60.1],[24.91,60.1]]}}"#;
-    let flat = r#"{"type":"Feature","properties":{},"geometry":{"type":"Polygon","coordinates":[[[24.9,60.1],[24.91,60.1],[24.92,60.1],[24.9,60.1]]]}}"#;
+    let flat = r#"{"type":"Feature","properties":{},"geometry":{"type":"Polygon","coordinates":[[[24.9,60.1],[24.9,60.1],[24.9,60.1],[24.9,60.1]]]}}"#;
     let p = write(
         dir.path(),
         "b.geojson",

@@ -161,6 +161,8 @@ const WEB_MERCATOR: &str = "+proj=merc +a=6378137 +b=6378137 +lat_ts=0 +lon_0=0 
                             +k=1 +units=m +nadgrids=@null +no_defs";
 /// EPSG codes that mean Web Mercator (3857 and its historical aliases).
 const WEB_MERCATOR_CODES: [u32; 5] = [3857, 900913, 3785, 102100, 102113];
+/// The Web Mercator square's half side, π × 6 378 137 m.
+const WEB_MERCATOR_LIMIT: f64 = std::f64::consts::PI * 6_378_137.0;
 /// Coordinates that come back from lon/lat further than this (metres, plus 1e-9 of their size)
 /// are outside the projection's valid range.
 const ROUND_TRIP_TOLERANCE_M: f64 = 1e-3;
@@ -338,6 +340,13 @@ impl MetricTransform {
             return Ok(());
         };
         let crs = || self.crs.describe();
+        // EPSG:3857's area of use ends at ±85.06° latitude: |x|, |y| ≤ π·R (the formula goes on
+        // to the pole, the system does not).
+        if self.crs == Crs::WebMercator
+            && (x.abs() > WEB_MERCATOR_LIMIT || y.abs() > WEB_MERCATOR_LIMIT)
+        {
+            return Err(CoordError::OutsideProjection { x, y, crs: crs() });
+        }
         let lonlat = if i.source.degrees {
             p
         } else {

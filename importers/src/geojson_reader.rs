@@ -12,8 +12,9 @@
 //! - CRS: the legacy `"crs": {"type": "name", "properties": {"name": "urn:ogc:def:crs:EPSG::3857"}}`
 //!   member (also `EPSG:n` and `OGC:CRS84`) gives the CRS; a member that names an unknown code or
 //!   nothing usable is an [`ImportError::Crs`]. Without it RFC 7946 says WGS84
-//!   longitude/latitude; when the coordinates clearly are not degrees (|x| > 180 or |y| > 90)
-//!   the CRS is [`Crs::Unknown`] and a note says why.
+//!   longitude/latitude; when most features clearly are not degrees (|x| > 360 or |y| > 180)
+//!   the CRS is [`Crs::Unknown`] and a note says why. A few features beyond ±90° latitude do not
+//!   make a layer metric: they stay degrees and are refused for it by the city build.
 //! - A feature with null geometry, an empty geometry, NaN/infinite coordinates or an invalid
 //!   structure is refused with its index and the reason.
 
@@ -89,6 +90,8 @@ pub fn read(path: &Path) -> Result<Layer, ImportError> {
         f64::NEG_INFINITY,
         f64::NEG_INFINITY,
     ];
+    // Features whose coordinates cannot be degrees even by mistake (beyond ±360, ±180).
+    let mut metric_looking = 0usize;
     for (i, v) in raw.into_iter().enumerate() {
         let fid = i as u64;
         let feature = match serde_json::from_value::<geojson::Feature>(v) {
@@ -104,6 +107,16 @@ pub fn read(path: &Path) -> Result<Layer, ImportError> {
         };
         match convert(&g.value) {
             Ok(geometry) => {
+                let mut own = [
+                    f64::INFINITY,
+                    f64::INFINITY,
+                    f64::NEG_INFINITY,
+                    f64::NEG_INFINITY,
+                ];
+                grow_bbox(&geometry, &mut own);
+                if own[0] < -360.0 || own[2] > 360.0 || own[1] < -180.0 || own[3] > 180.0 {
+                    metric_looking += 1;
+                }
                 grow_bbox(&geometry, &mut bbox);
                 let attributes = feature
                     .properties
@@ -132,8 +145,9 @@ pub fn read(path: &Path) -> Result<Layer, ImportError> {
             crs
         }
         None => {
-            let degrees = !bbox[0].is_finite()
-                || (bbox[0] >= -180.0 && bbox[2] <= 180.0 && bbox[1] >= -90.0 && bbox[3] <= 90.0);
+            // Most features far beyond any degree value: metres without a CRS. Otherwise degrees
+            // as RFC 7946 says; a latitude of 95 is then refused feature by feature downstream.
+            let degrees = metric_looking * 2 <= features.len();
             if degrees {
                 report
                     .notes
