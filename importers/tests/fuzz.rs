@@ -93,7 +93,7 @@ fn accounted(l: &Layer) {
 /// Iterations per file: more for small files, fewer for large ones (the whole test stays within
 /// about 20 s in the test profile).
 fn iterations(len: usize) -> usize {
-    (300_000 / len.max(1)).clamp(3, 40)
+    (200_000 / len.max(1)).clamp(3, 30)
 }
 
 #[test]
