@@ -73,7 +73,7 @@ pub fn group_reasons<'a>(items: impl IntoIterator<Item = (String, &'a str)>) -> 
         }
     }
     let mut out: Vec<ReasonGroup> = groups.into_iter().map(|(_, g)| g).collect();
-    out.sort_by(|a, b| b.count.cmp(&a.count));
+    out.sort_by_key(|g| std::cmp::Reverse(g.count));
     out
 }
 

@@ -119,7 +119,7 @@ pub fn read(path: &Path) -> Result<Layer, ImportError> {
                 return Err(ImportError::Dbase {
                     file: dbf_path.clone(),
                     what: format!("record {i} of {declared} cannot be read (truncated file)"),
-                    source: r.err().expect("an error"),
+                    source: r.expect_err("an error"),
                 });
             }
         }
