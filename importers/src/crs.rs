@@ -1,20 +1,34 @@
-//! Coordinate reference systems and the transform to a metric ground frame.
+//! Coordinate reference systems, reprojection between layers, and the metric ground frame.
 //!
-//! A [`Crs`] is recognised from a WKT text ([`Crs::from_wkt`]: a Shapefile `.prj`, a GeoPackage
-//! `gpkg_spatial_ref_sys.definition`) or from an EPSG code ([`Crs::from_epsg`]). Only what
-//! blockwalk needs is kept: is it true ground metres (projected), Web Mercator, or geographic
-//! degrees.
+//! The projections themselves are `proj4rs` (a pure-Rust port of PROJ.4); EPSG codes are turned
+//! into PROJ strings by `crs-definitions`, and WKT (a Shapefile `.prj`, a GeoPackage
+//! `gpkg_spatial_ref_sys.definition`) by `proj4wkt`. What this module still does itself:
 //!
-//! [`Crs::metric_transform`] builds the map to ground metres. Projected and unknown systems are
-//! used as they are. Web Mercator is first inverted to WGS84 longitude/latitude on its sphere
-//! (R = 6 378 137 m, EPSG:3857 guidance note 7-2 §1.3.3.2), then, like geographic coordinates,
-//! projected with a transverse Mercator on the WGS84 ellipsoid centred on the data (Krüger
-//! series to order n⁶, in the form given by Karney, "Transverse Mercator with an accuracy of a few
-//! nanometers", J. Geodesy 85 (2011), eqs. 7–11, 35–36). The central meridian and the origin
-//! latitude are the data centre, the scale factor is 1 and there is no false easting/northing,
-//! so metric coordinates are small around the data and scale error is below 1e-7 within 3 km.
+//! - classify a CRS the way blockwalk needs it ([`Crs`]: projected metres, Web Mercator, geographic
+//!   degrees, or none given) and name it, reading authority codes and names from the WKT (a small
+//!   tree parser, `crs::wkt`), and recognising Web Mercator under its ESRI names;
+//! - fill in the datum shift of a WKT that names its datum without a `TOWGS84` (for example British
+//!   National Grid on OSGB 1936 as ESRI writes it): PROJ takes it from its database, `proj4wkt`
+//!   has none, so the datum's name is looked up among the EPSG definitions that carry one
+//!   ([`datum_shift_for`]);
+//! - check coordinates against their CRS ([`MetricTransform::check`]): latitudes beyond ±90°,
+//!   longitudes beyond ±180°, and projected coordinates that the projection cannot take back to
+//!   the ellipsoid and forward again to the same point (beyond the projection's valid range);
+//! - build the metric ground frame ([`Crs::try_metric_transform`]): projected systems are used as
+//!   they are; Web Mercator and geographic coordinates are projected with a transverse Mercator
+//!   on WGS84 (k0 = 1, no false origin) centred on the data, so that lengths and areas are ground
+//!   metres (scale error below 1e-7 within 3 km of the centre);
+//! - reproject another layer into that frame ([`MetricTransform::for_layer`]), datum shifts
+//!   included (PROJ.4's `towgs84` Helmert transformation through WGS84).
+//!
+//! An EPSG code that is not in the EPSG registry (`EPSG:99999`) or a WKT that cannot be read is an
+//! error ([`CrsError`]), never "metres as they are".
 
+mod wkt;
+
+use proj4rs::proj::Proj;
 use serde::Serialize;
+use std::sync::Arc;
 
 /// A coordinate reference system, as far as blockwalk needs to know it.
 #[derive(Clone, Debug, PartialEq, Serialize)]
@@ -27,11 +41,14 @@ pub enum Crs {
         epsg: Option<u32>,
         /// Human-readable name.
         name: String,
+        /// The PROJ string of the projection and its datum.
+        proj4: String,
     },
     /// Web Mercator (EPSG:3857 / 900913): metres on the projection, 1/cos(latitude) too long on
     /// the ground.
     WebMercator,
-    /// Geographic longitude/latitude in degrees (WGS84 / EPSG:4326, OSM, RFC 7946 GeoJSON).
+    /// Geographic longitude/latitude in degrees (WGS84 / EPSG:4326, OSM, RFC 7946 GeoJSON). The
+    /// datum is the EPSG code's (WGS84 when there is none).
     Geographic {
         /// EPSG code when known.
         epsg: Option<u32>,
@@ -40,58 +57,360 @@ pub enum Crs {
     Unknown,
 }
 
-/// WGS84 semi-major axis (m), also the radius of the Web Mercator sphere.
-const WGS84_A: f64 = 6_378_137.0;
-/// WGS84 flattening.
-const WGS84_F: f64 = 1.0 / 298.257_223_563;
+/// Why a CRS could not be recognised or set up.
+#[derive(Debug, thiserror::Error)]
+pub enum CrsError {
+    /// The EPSG code is not in the registry that `crs-definitions` carries.
+    #[error("EPSG:{code} is not a known coordinate reference system")]
+    UnknownEpsg {
+        /// The code.
+        code: u32,
+    },
+    /// The text is not a WKT coordinate system.
+    #[error("not a WKT coordinate system ({why})")]
+    NotWkt {
+        /// What is wrong.
+        why: String,
+    },
+    /// The WKT was read but `proj4wkt` cannot turn it into a projection.
+    #[error("the WKT coordinate system {name:?} cannot be converted to a projection: {source}")]
+    WktConversion {
+        /// The WKT's name.
+        name: String,
+        /// The converter's error.
+        #[source]
+        source: Box<dyn std::error::Error + Send + Sync>,
+    },
+    /// The linear unit is not metres.
+    #[error("{name}: the linear unit is {unit} ({factor} m), not metres")]
+    NotMetres {
+        /// The CRS name.
+        name: String,
+        /// The unit's name.
+        unit: String,
+        /// Metres per unit.
+        factor: f64,
+    },
+    /// `proj4rs` cannot set up the projection.
+    #[error("projection {definition:?} cannot be set up: {source}")]
+    Projection {
+        /// The PROJ string.
+        definition: String,
+        /// The projection library's error.
+        #[source]
+        source: proj4rs::errors::Error,
+    },
+}
 
-/// Maps a layer's own coordinates to a metric ground frame and back.
+/// Why one coordinate does not fit its CRS.
+#[derive(Debug, thiserror::Error)]
+pub enum CoordError {
+    /// NaN or infinity.
+    #[error("non-finite coordinate ({x}, {y})")]
+    NonFinite {
+        /// x as read.
+        x: f64,
+        /// y as read.
+        y: f64,
+    },
+    /// A latitude beyond ±90°.
+    #[error("latitude {lat}° is beyond ±90° in {crs}")]
+    Latitude {
+        /// The latitude, degrees.
+        lat: f64,
+        /// The CRS.
+        crs: String,
+    },
+    /// A longitude beyond ±180°.
+    #[error("longitude {lon}° is beyond ±180° in {crs}")]
+    Longitude {
+        /// The longitude, degrees.
+        lon: f64,
+        /// The CRS.
+        crs: String,
+    },
+    /// The projection cannot take the point back to the ellipsoid and forward to itself.
+    #[error("({x}, {y}) is outside the valid range of {crs}")]
+    OutsideProjection {
+        /// x as read.
+        x: f64,
+        /// y as read.
+        y: f64,
+        /// The CRS.
+        crs: String,
+    },
+    /// `proj4rs` refused the point.
+    #[error("({x}, {y}) cannot be transformed from {crs}: {source}")]
+    Transform {
+        /// x as read.
+        x: f64,
+        /// y as read.
+        y: f64,
+        /// The CRS.
+        crs: String,
+        /// The projection library's error.
+        #[source]
+        source: proj4rs::errors::Error,
+    },
+}
+
+/// The PROJ string of WGS84 longitude/latitude.
+const WGS84_LONLAT: &str = "+proj=longlat +datum=WGS84 +no_defs";
+/// The EPSG:3857 PROJ string (spherical Mercator on the WGS84 semi-major axis, no datum shift).
+const WEB_MERCATOR: &str = "+proj=merc +a=6378137 +b=6378137 +lat_ts=0 +lon_0=0 +x_0=0 +y_0=0 \
+                            +k=1 +units=m +nadgrids=@null +no_defs";
+/// EPSG codes that mean Web Mercator (3857 and its historical aliases).
+const WEB_MERCATOR_CODES: [u32; 5] = [3857, 900913, 3785, 102100, 102113];
+/// The Web Mercator square's half side, π × 6 378 137 m.
+const WEB_MERCATOR_LIMIT: f64 = std::f64::consts::PI * 6_378_137.0;
+/// Coordinates that come back from lon/lat further than this (metres, plus 1e-9 of their size)
+/// are outside the projection's valid range.
+const ROUND_TRIP_TOLERANCE_M: f64 = 1e-3;
+
+fn proj(definition: &str) -> Result<Proj, CrsError> {
+    Proj::from_proj_string(definition).map_err(|source| CrsError::Projection {
+        definition: definition.to_string(),
+        source,
+    })
+}
+
+/// A `proj4rs` projection and whether it takes degrees (geographic) rather than metres.
+#[derive(Clone)]
+struct Frame {
+    proj: Arc<Proj>,
+    degrees: bool,
+}
+
+impl std::fmt::Debug for Frame {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "Frame({})", self.proj.projname())
+    }
+}
+
+impl Frame {
+    fn new(definition: &str) -> Result<Frame, CrsError> {
+        let proj = proj(definition)?;
+        Ok(Frame {
+            degrees: proj.is_latlong(),
+            proj: Arc::new(proj),
+        })
+    }
+
+    /// `p` in this frame → `to` (degrees in and out for geographic frames).
+    fn project(&self, to: &Frame, p: [f64; 2]) -> Result<[f64; 2], proj4rs::errors::Error> {
+        let mut q = if self.degrees {
+            (p[0].to_radians(), p[1].to_radians(), 0.0)
+        } else {
+            (p[0], p[1], 0.0)
+        };
+        proj4rs::transform::transform(&self.proj, &to.proj, &mut q)?;
+        let out = if to.degrees {
+            [q.0.to_degrees(), q.1.to_degrees()]
+        } else {
+            [q.0, q.1]
+        };
+        if out[0].is_finite() && out[1].is_finite() {
+            Ok(out)
+        } else {
+            Err(proj4rs::errors::Error::CoordinateOutOfRange)
+        }
+    }
+}
+
+/// The geographic frame on the same datum as `definition` (the datum tokens kept, the
+/// projection dropped), so that checking a point needs no datum shift.
+fn lonlat_on_same_datum(definition: &str) -> String {
+    let keep = [
+        "datum", "ellps", "a", "b", "rf", "f", "R", "towgs84", "nadgrids", "pm",
+    ];
+    let mut out = String::from("+proj=longlat");
+    for tok in definition.split_whitespace() {
+        let key = tok
+            .trim_start_matches('+')
+            .split('=')
+            .next()
+            .unwrap_or_default();
+        if keep.contains(&key) {
+            out.push(' ');
+            out.push_str(tok);
+        }
+    }
+    out.push_str(" +no_defs");
+    out
+}
+
+/// Maps a layer's own coordinates to a metric ground frame and back, checking them against
+/// their CRS on the way.
 ///
-/// For a projected CRS this is the identity. For Web Mercator and geographic coordinates it is a
-/// local transverse Mercator projection (WGS84) centred on the data, so that distances and areas
-/// are true ground metres.
-#[derive(Clone, Debug, PartialEq, Serialize)]
+/// For a projected CRS the map is the identity. For Web Mercator and geographic coordinates it
+/// is a local transverse Mercator on WGS84 centred on the data, so that distances and areas are
+/// ground metres. [`MetricTransform::for_layer`] gives the map of another layer (in its own
+/// CRS) into the same frame.
+#[derive(Clone, Debug, Serialize)]
 pub struct MetricTransform {
     /// The CRS it maps from.
     pub crs: Crs,
     /// Longitude/latitude (degrees) of the local projection's centre, for non-projected CRS.
     pub center_lonlat: Option<[f64; 2]>,
-    /// The local transverse Mercator, when the transform is not the identity.
+    /// The metric frame's own CRS, when the layer was reprojected into another layer's frame.
+    pub frame_crs: Option<Crs>,
     #[serde(skip)]
-    tm: Option<LocalTm>,
+    inner: Option<Inner>,
+}
+
+impl PartialEq for MetricTransform {
+    fn eq(&self, other: &Self) -> bool {
+        self.crs == other.crs
+            && self.center_lonlat == other.center_lonlat
+            && self.frame_crs == other.frame_crs
+    }
+}
+
+#[derive(Clone, Debug)]
+struct Inner {
+    /// The layer's CRS.
+    source: Frame,
+    /// Geographic on the source's datum, for checks.
+    source_lonlat: Frame,
+    /// The metric frame.
+    metric: Frame,
+    /// True when source and metric frame are the same CRS: coordinates pass unchanged.
+    identity: bool,
 }
 
 impl MetricTransform {
-    /// Layer coordinates → metric ground coordinates.
-    ///
-    /// Projected/unknown: the identity. Web Mercator: inverse spherical Mercator, then the local
-    /// transverse Mercator. Geographic (lon, lat in degrees): the local transverse Mercator.
+    /// Layer coordinates → metric ground coordinates, without checks: NaN for a point that the
+    /// projection refuses. [`Self::try_to_metric`] checks and says why.
     pub fn to_metric(&self, p: [f64; 2]) -> [f64; 2] {
-        match (&self.crs, &self.tm) {
-            (Crs::WebMercator, Some(tm)) => {
-                let [lon, lat] = web_mercator_to_lonlat(p);
-                tm.forward(lon, lat)
-            }
-            (Crs::Geographic { .. }, Some(tm)) => tm.forward(p[0], p[1]),
+        match &self.inner {
+            Some(i) if !i.identity => i
+                .source
+                .project(&i.metric, p)
+                .unwrap_or([f64::NAN, f64::NAN]),
             _ => p,
         }
     }
 
-    /// Metric ground coordinates → layer coordinates (inverse of [`Self::to_metric`]).
-    pub fn from_metric(&self, p: [f64; 2]) -> [f64; 2] {
-        match (&self.crs, &self.tm) {
-            (Crs::WebMercator, Some(tm)) => {
-                let [lon, lat] = tm.inverse(p);
-                lonlat_to_web_mercator([lon, lat])
+    /// Layer coordinates → metric ground coordinates, after [`Self::check`].
+    ///
+    /// # Errors
+    /// [`CoordError`] when the point does not fit the layer's CRS or cannot be transformed.
+    pub fn try_to_metric(&self, p: [f64; 2]) -> Result<[f64; 2], CoordError> {
+        self.check(p)?;
+        match &self.inner {
+            Some(i) if !i.identity => {
+                i.source
+                    .project(&i.metric, p)
+                    .map_err(|source| CoordError::Transform {
+                        x: p[0],
+                        y: p[1],
+                        crs: self.crs.describe(),
+                        source,
+                    })
             }
-            (Crs::Geographic { .. }, Some(tm)) => tm.inverse(p),
+            _ => Ok(p),
+        }
+    }
+
+    /// Metric ground coordinates → layer coordinates (inverse of [`Self::to_metric`]); NaN for a
+    /// point the projection refuses.
+    pub fn from_metric(&self, p: [f64; 2]) -> [f64; 2] {
+        match &self.inner {
+            Some(i) if !i.identity => i
+                .metric
+                .project(&i.source, p)
+                .unwrap_or([f64::NAN, f64::NAN]),
             _ => p,
         }
+    }
+
+    /// Checks one coordinate against the layer's CRS: finite; for geographic systems a latitude
+    /// within ±90° and a longitude within ±180°; for projected systems (Web Mercator included) a
+    /// point that the projection takes to the ellipsoid, within those bounds, and back to itself
+    /// within 1 mm (beyond a projection's valid range the inverse fails or does not come back).
+    ///
+    /// # Errors
+    /// The [`CoordError`] that says what does not fit.
+    pub fn check(&self, p: [f64; 2]) -> Result<(), CoordError> {
+        let [x, y] = p;
+        if !(x.is_finite() && y.is_finite()) {
+            return Err(CoordError::NonFinite { x, y });
+        }
+        let Some(i) = &self.inner else {
+            return Ok(());
+        };
+        let crs = || self.crs.describe();
+        // EPSG:3857's area of use ends at ±85.06° latitude: |x|, |y| ≤ π·R (the formula goes on
+        // to the pole, the system does not).
+        if self.crs == Crs::WebMercator
+            && (x.abs() > WEB_MERCATOR_LIMIT || y.abs() > WEB_MERCATOR_LIMIT)
+        {
+            return Err(CoordError::OutsideProjection { x, y, crs: crs() });
+        }
+        let lonlat = if i.source.degrees {
+            p
+        } else {
+            i.source
+                .project(&i.source_lonlat, p)
+                .map_err(|_| CoordError::OutsideProjection { x, y, crs: crs() })?
+        };
+        let [lon, lat] = lonlat;
+        if lat.abs() > 90.0 {
+            return Err(CoordError::Latitude { lat, crs: crs() });
+        }
+        if lon.abs() > 180.0 + 1e-9 {
+            return Err(CoordError::Longitude { lon, crs: crs() });
+        }
+        if !i.source.degrees {
+            let back = i
+                .source_lonlat
+                .project(&i.source, lonlat)
+                .map_err(|_| CoordError::OutsideProjection { x, y, crs: crs() })?;
+            let tol = ROUND_TRIP_TOLERANCE_M + 1e-9 * x.abs().max(y.abs());
+            if (back[0] - x).abs() > tol || (back[1] - y).abs() > tol {
+                return Err(CoordError::OutsideProjection { x, y, crs: crs() });
+            }
+        }
+        Ok(())
     }
 
     /// True when [`Self::to_metric`] is the identity.
     pub fn is_identity(&self) -> bool {
-        self.tm.is_none()
+        self.inner.as_ref().is_none_or(|i| i.identity)
+    }
+
+    /// The map of a layer in `crs` into this transform's metric frame (a street layer in UTM
+    /// into the frame of footprints in Web Mercator, say). The same CRS gives a copy of `self`.
+    ///
+    /// # Errors
+    /// [`CrsError`] when `crs` cannot be set up. A layer without CRS ([`Crs::Unknown`]), or a frame
+    /// without one, cannot be reprojected: the caller decides (blockwalk takes it as being in
+    /// the frame, with a note); this returns the identity for it.
+    pub fn for_layer(&self, crs: &Crs) -> Result<MetricTransform, CrsError> {
+        if crs == &self.crs {
+            return Ok(self.clone());
+        }
+        let (Some(frame), Some(def)) = (&self.inner, crs.proj4()) else {
+            return Ok(MetricTransform {
+                crs: crs.clone(),
+                center_lonlat: self.center_lonlat,
+                frame_crs: Some(self.crs.clone()),
+                inner: None,
+            });
+        };
+        let source = Frame::new(&def)?;
+        let source_lonlat = Frame::new(&lonlat_on_same_datum(&def))?;
+        Ok(MetricTransform {
+            crs: crs.clone(),
+            center_lonlat: self.center_lonlat,
+            frame_crs: Some(self.crs.clone()),
+            inner: Some(Inner {
+                source,
+                source_lonlat,
+                metric: frame.metric.clone(),
+                identity: false,
+            }),
+        })
     }
 
     /// One line for the summary: what CRS was found and what was done with it.
@@ -100,6 +419,13 @@ impl MetricTransform {
             .center_lonlat
             .map(|[lon, lat]| format_lonlat(lon, lat))
             .unwrap_or_default();
+        if let Some(frame) = &self.frame_crs {
+            return format!(
+                "{}: reprojected into the frame of {}",
+                self.crs.describe(),
+                frame.describe()
+            );
+        }
         match &self.crs {
             Crs::WebMercator => {
                 let lat = self.center_lonlat.map(|c| c[1]).unwrap_or(0.0);
@@ -130,196 +456,198 @@ fn format_lonlat(lon: f64, lat: f64) -> String {
     format!("{:.3}°{ns} {:.3}°{ew}", lat.abs(), lon.abs())
 }
 
-/// Web Mercator (x, y) → WGS84 (lon, lat) in degrees, on the sphere of radius a
-/// (EPSG guidance note 7-2, "Popular Visualisation Pseudo Mercator", reverse case).
-pub fn web_mercator_to_lonlat(p: [f64; 2]) -> [f64; 2] {
-    let lon = (p[0] / WGS84_A).to_degrees();
-    let lat = (p[1] / WGS84_A).sinh().atan().to_degrees();
-    [lon, lat]
+/// The name of an EPSG definition, from its WKT (`PROJCS["name", …`).
+fn epsg_name(code: u32) -> Option<String> {
+    let def = crs_definitions::from_code(u16::try_from(code).ok()?)?;
+    wkt::parse(def.wkt).and_then(|n| n.name().map(str::to_string))
 }
 
-/// WGS84 (lon, lat) in degrees → Web Mercator (x, y) (forward case of the same formula).
-pub fn lonlat_to_web_mercator(p: [f64; 2]) -> [f64; 2] {
-    let x = WGS84_A * p[0].to_radians();
-    let y = WGS84_A * p[1].to_radians().tan().asinh();
-    [x, y]
+fn normalise(name: &str) -> String {
+    name.chars()
+        .filter(|c| c.is_ascii_alphanumeric())
+        .collect::<String>()
+        .to_ascii_lowercase()
+        .trim_start_matches('d')
+        .to_string()
 }
 
-/// A transverse Mercator on the WGS84 ellipsoid with k0 = 1, central meridian `lon0` and the
-/// northing measured from latitude `lat0` (Karney 2011, Krüger series to order n⁶).
-#[derive(Clone, Debug, PartialEq)]
-struct LocalTm {
-    lon0: f64,
-    /// Rectifying radius A (Karney eq. 14).
-    a_rect: f64,
-    /// First eccentricity.
-    e: f64,
-    alpha: [f64; 6],
-    beta: [f64; 6],
-    /// Northing of the origin latitude on the central meridian, subtracted from every y.
-    y0: f64,
-}
-
-impl LocalTm {
-    fn new(lon0: f64, lat0: f64) -> Self {
-        let f = WGS84_F;
-        let n = f / (2.0 - f);
-        let (n2, n3) = (n * n, n * n * n);
-        let (n4, n5, n6) = (n2 * n2, n2 * n3, n3 * n3);
-        let a_rect = WGS84_A / (1.0 + n) * (1.0 + n2 / 4.0 + n4 / 64.0 + n6 / 256.0);
-        // Karney 2011 eq. 35.
-        let alpha = [
-            n / 2.0 - 2.0 * n2 / 3.0 + 5.0 * n3 / 16.0 + 41.0 * n4 / 180.0 - 127.0 * n5 / 288.0
-                + 7891.0 * n6 / 37800.0,
-            13.0 * n2 / 48.0 - 3.0 * n3 / 5.0 + 557.0 * n4 / 1440.0 + 281.0 * n5 / 630.0
-                - 1983433.0 * n6 / 1935360.0,
-            61.0 * n3 / 240.0 - 103.0 * n4 / 140.0
-                + 15061.0 * n5 / 26880.0
-                + 167603.0 * n6 / 181440.0,
-            49561.0 * n4 / 161280.0 - 179.0 * n5 / 168.0 + 6601661.0 * n6 / 7257600.0,
-            34729.0 * n5 / 80640.0 - 3418889.0 * n6 / 1995840.0,
-            212378941.0 * n6 / 319334400.0,
-        ];
-        // Karney 2011 eq. 36.
-        let beta = [
-            n / 2.0 - 2.0 * n2 / 3.0 + 37.0 * n3 / 96.0 - n4 / 360.0 - 81.0 * n5 / 512.0
-                + 96199.0 * n6 / 604800.0,
-            n2 / 48.0 + n3 / 15.0 - 437.0 * n4 / 1440.0 + 46.0 * n5 / 105.0
-                - 1118711.0 * n6 / 3870720.0,
-            17.0 * n3 / 480.0 - 37.0 * n4 / 840.0 - 209.0 * n5 / 4480.0 + 5569.0 * n6 / 90720.0,
-            4397.0 * n4 / 161280.0 - 11.0 * n5 / 504.0 - 830251.0 * n6 / 7257600.0,
-            4583.0 * n5 / 161280.0 - 108847.0 * n6 / 3991680.0,
-            20648693.0 * n6 / 638668800.0,
-        ];
-        let e = (f * (2.0 - f)).sqrt();
-        let mut tm = LocalTm {
-            lon0,
-            a_rect,
-            e,
-            alpha,
-            beta,
-            y0: 0.0,
-        };
-        tm.y0 = tm.forward(lon0, lat0)[1];
-        tm
+/// The datum part (`+datum=…` or `+towgs84=…`) of the first EPSG definition whose WKT datum
+/// has the same name as `datum` (compared without case, spaces, `_` and ESRI's `D_` prefix) and
+/// a datum shift: what PROJ would take from its database for a WKT without `TOWGS84`.
+pub fn datum_shift_for(datum: &str) -> Option<String> {
+    let want = normalise(datum);
+    if want.is_empty() {
+        return None;
     }
-
-    /// (lon, lat) degrees → (x, y) metres.
-    fn forward(&self, lon: f64, lat: f64) -> [f64; 2] {
-        let phi = lat.to_radians();
-        let mut dl = lon - self.lon0;
-        if dl > 180.0 {
-            dl -= 360.0;
-        } else if dl < -180.0 {
-            dl += 360.0;
+    (1024..=32767u16).find_map(|code| {
+        let def = crs_definitions::from_code(code)?;
+        // Geographic 2D definitions name the datum in their first DATUM node.
+        if !def.proj4.starts_with("+proj=longlat") {
+            return None;
         }
-        let lam = dl.to_radians();
-        // Conformal latitude as tan χ (Karney eqs. 7–9).
-        let s = phi.sin();
-        let t = (s.atanh() - self.e * (self.e * s).atanh()).sinh();
-        let xi_p = t.atan2(lam.cos());
-        let eta_p = (lam.sin() / (1.0 + t * t).sqrt()).atanh();
-        let mut xi = xi_p;
-        let mut eta = eta_p;
-        for (j, a) in self.alpha.iter().enumerate() {
-            let k = 2.0 * (j + 1) as f64;
-            xi += a * (k * xi_p).sin() * (k * eta_p).cosh();
-            eta += a * (k * xi_p).cos() * (k * eta_p).sinh();
+        let node = wkt::parse(def.wkt)?;
+        let d = node.find("DATUM")?;
+        if normalise(d.name()?) != want {
+            return None;
         }
-        [self.a_rect * eta, self.a_rect * xi - self.y0]
-    }
-
-    /// (x, y) metres → (lon, lat) degrees.
-    fn inverse(&self, p: [f64; 2]) -> [f64; 2] {
-        let xi = (p[1] + self.y0) / self.a_rect;
-        let eta = p[0] / self.a_rect;
-        let mut xi_p = xi;
-        let mut eta_p = eta;
-        for (j, b) in self.beta.iter().enumerate() {
-            let k = 2.0 * (j + 1) as f64;
-            xi_p -= b * (k * xi).sin() * (k * eta).cosh();
-            eta_p -= b * (k * xi).cos() * (k * eta).sinh();
-        }
-        let sh = eta_p.sinh();
-        let c = xi_p.cos();
-        let tau_p = xi_p.sin() / (sh * sh + c * c).sqrt();
-        let lam = sh.atan2(c);
-        // Newton iteration for tan φ from the conformal tan χ (Karney eqs. 19–21).
-        let e2 = self.e * self.e;
-        let mut tau = tau_p;
-        for _ in 0..8 {
-            let s1 = (1.0 + tau * tau).sqrt();
-            let sigma = (self.e * (self.e * tau / s1).atanh()).sinh();
-            let tau_i = tau * (1.0 + sigma * sigma).sqrt() - sigma * s1;
-            let d = (tau_p - tau_i) / (1.0 + tau_i * tau_i).sqrt() * (1.0 + (1.0 - e2) * tau * tau)
-                / ((1.0 - e2) * s1);
-            tau += d;
-            if d.abs() < 1e-15 * tau.abs().max(1.0) {
-                break;
-            }
-        }
-        [self.lon0 + lam.to_degrees(), tau.atan().to_degrees()]
-    }
+        def.proj4
+            .split_whitespace()
+            .find(|t| t.starts_with("+datum=") || t.starts_with("+towgs84="))
+            .map(str::to_string)
+    })
 }
 
 impl Crs {
-    /// Builds the transform to metric ground coordinates for data centred at `center` (in this
-    /// CRS's own coordinates).
-    ///
-    /// A centre that is not finite, or a latitude beyond ±89°, is clamped so that the transform is
-    /// always defined (such data are not city data anyway).
-    pub fn metric_transform(&self, center: [f64; 2]) -> MetricTransform {
-        let lonlat = match self {
-            Crs::WebMercator => Some(web_mercator_to_lonlat(center)),
-            Crs::Geographic { .. } => Some(center),
-            Crs::Projected { .. } | Crs::Unknown => None,
-        };
-        let lonlat = lonlat.map(|[lon, lat]| {
-            let lon = if lon.is_finite() { lon } else { 0.0 };
-            let lon = (lon + 180.0).rem_euclid(360.0) - 180.0;
-            let lat = if lat.is_finite() { lat } else { 0.0 };
-            [lon, lat.clamp(-89.0, 89.0)]
-        });
-        MetricTransform {
-            crs: self.clone(),
-            center_lonlat: lonlat,
-            tm: lonlat.map(|[lon, lat]| LocalTm::new(lon, lat)),
+    /// The PROJ string of this CRS (`None` for [`Crs::Unknown`]).
+    pub fn proj4(&self) -> Option<String> {
+        match self {
+            Crs::Projected { proj4, .. } => Some(proj4.clone()),
+            Crs::WebMercator => Some(WEB_MERCATOR.into()),
+            Crs::Geographic { epsg: Some(code) } => {
+                let def = u16::try_from(*code)
+                    .ok()
+                    .and_then(crs_definitions::from_code)
+                    .map(|d| d.proj4)
+                    .unwrap_or(WGS84_LONLAT);
+                Some(def.into())
+            }
+            Crs::Geographic { epsg: None } => Some(WGS84_LONLAT.into()),
+            Crs::Unknown => None,
         }
     }
 
-    /// The CRS for an EPSG code. Web Mercator codes (3857, 900913, 3785, 102100, 102113) give
-    /// [`Crs::WebMercator`]; geographic 2D codes (4326, 4258, 4269, and the 4000–4999 block) give
-    /// [`Crs::Geographic`]; every other code is taken as a projected CRS in metres.
-    pub fn from_epsg(code: u32) -> Crs {
-        match code {
-            3857 | 900913 | 3785 | 102100 | 102113 => Crs::WebMercator,
-            4000..=4999 => Crs::Geographic { epsg: Some(code) },
-            _ => Crs::Projected {
-                epsg: Some(code),
-                name: epsg_name(code),
-            },
+    /// Builds the transform to metric ground coordinates for data centred at `center` (in this
+    /// CRS's own coordinates).
+    ///
+    /// A centre that is not finite, or a latitude beyond ±89°, is clamped so that the local
+    /// projection is always defined (such data are refused coordinate by coordinate anyway).
+    ///
+    /// # Errors
+    /// [`CrsError::Projection`] when the CRS's PROJ string cannot be set up.
+    pub fn try_metric_transform(&self, center: [f64; 2]) -> Result<MetricTransform, CrsError> {
+        let Some(def) = self.proj4() else {
+            return Ok(MetricTransform {
+                crs: Crs::Unknown,
+                center_lonlat: None,
+                frame_crs: None,
+                inner: None,
+            });
+        };
+        let source = Frame::new(&def)?;
+        let source_lonlat = Frame::new(&lonlat_on_same_datum(&def))?;
+        if let Crs::Projected { .. } = self {
+            return Ok(MetricTransform {
+                crs: self.clone(),
+                center_lonlat: None,
+                frame_crs: None,
+                inner: Some(Inner {
+                    metric: source.clone(),
+                    source,
+                    source_lonlat,
+                    identity: true,
+                }),
+            });
         }
+        let wgs84 = Frame::new(WGS84_LONLAT)?;
+        let [lon, lat] = source.project(&wgs84, center).unwrap_or([0.0, 0.0]);
+        let lon = if lon.is_finite() { lon } else { 0.0 };
+        let lon = (lon + 180.0).rem_euclid(360.0) - 180.0;
+        let lat = if lat.is_finite() { lat } else { 0.0 };
+        let lat = lat.clamp(-89.0, 89.0);
+        let metric = Frame::new(&format!(
+            "+proj=tmerc +lat_0={lat} +lon_0={lon} +k=1 +x_0=0 +y_0=0 +datum=WGS84 +units=m +no_defs"
+        ))?;
+        Ok(MetricTransform {
+            crs: self.clone(),
+            center_lonlat: Some([lon, lat]),
+            frame_crs: None,
+            inner: Some(Inner {
+                source,
+                source_lonlat,
+                metric,
+                identity: false,
+            }),
+        })
+    }
+
+    /// [`Self::try_metric_transform`] for a CRS known to be good (every [`Crs`] this crate's
+    /// readers return is).
+    ///
+    /// # Panics
+    /// When the CRS's PROJ string cannot be set up (a hand-made [`Crs::Projected`]).
+    pub fn metric_transform(&self, center: [f64; 2]) -> MetricTransform {
+        self.try_metric_transform(center)
+            .unwrap_or_else(|e| panic!("metric transform of {}: {e}", self.describe()))
+    }
+
+    /// The CRS for an EPSG code: Web Mercator codes (3857, 900913, 3785, 102100, 102113) give
+    /// [`Crs::WebMercator`]; geographic codes [`Crs::Geographic`]; projected codes
+    /// [`Crs::Projected`] with the registry's name and PROJ string.
+    ///
+    /// # Errors
+    /// [`CrsError::UnknownEpsg`] for a code that is not in the registry; [`CrsError::NotMetres`]
+    /// for a projected system whose unit is not the metre (US feet, say).
+    pub fn from_epsg(code: u32) -> Result<Crs, CrsError> {
+        if WEB_MERCATOR_CODES.contains(&code) {
+            return Ok(Crs::WebMercator);
+        }
+        let def = u16::try_from(code)
+            .ok()
+            .and_then(crs_definitions::from_code)
+            .ok_or(CrsError::UnknownEpsg { code })?;
+        let name = epsg_name(code).unwrap_or_else(|| format!("EPSG:{code}"));
+        let p = proj(def.proj4)?;
+        if p.is_latlong() {
+            return Ok(Crs::Geographic { epsg: Some(code) });
+        }
+        let factor = p.to_meter();
+        if (factor - 1.0).abs() > 1e-9 {
+            return Err(CrsError::NotMetres {
+                name,
+                unit: p.units().to_string(),
+                factor,
+            });
+        }
+        Ok(Crs::Projected {
+            epsg: Some(code),
+            name,
+            proj4: def.proj4.to_string(),
+        })
     }
 
     /// Recognises a WKT (WKT1 as in `.prj` files and GDAL/OGC, or WKT2) coordinate system.
     ///
     /// Web Mercator is recognised by an EPSG authority, by name (Web Mercator, Pseudo-Mercator,
-    /// Mercator auxiliary sphere) or by a `Mercator_1SP` projection on a sphere of radius
-    /// 6 378 137 m. Any other `PROJCS` is [`Crs::Projected`], with the EPSG code from its
-    /// `AUTHORITY`, or inferred for UTM zones and ETRS-TM35FIN. A lone `GEOGCS` is
-    /// [`Crs::Geographic`]. Returns `None` when the text is not WKT at all.
-    pub fn from_wkt(text: &str) -> Option<Crs> {
-        let root = wkt::parse(text)?;
+    /// Mercator auxiliary sphere) or by a `Mercator_1SP` on a sphere of radius 6 378 137 m. A
+    /// system with an EPSG authority takes its definition from the registry; any other is
+    /// converted by `proj4wkt`, with the datum shift filled in by name when the WKT has none
+    /// ([`datum_shift_for`]), and with the EPSG code inferred for UTM zones and ETRS-TM35FIN.
+    ///
+    /// # Errors
+    /// [`CrsError::NotWkt`] when the text is not WKT, [`CrsError::UnknownEpsg`] for an authority
+    /// code not in the registry, [`CrsError::WktConversion`] or [`CrsError::Projection`] for a
+    /// projection `proj4rs` does not have, [`CrsError::NotMetres`] for a unit other than the metre.
+    pub fn from_wkt(text: &str) -> Result<Crs, CrsError> {
+        let text = text.trim().trim_start_matches('\u{feff}');
+        let root = wkt::parse(text).ok_or_else(|| CrsError::NotWkt {
+            why: format!(
+                "expected KEYWORD[...], found {:?}",
+                text.chars().take(40).collect::<String>()
+            ),
+        })?;
         let kw = root.keyword.to_ascii_uppercase();
         let root_epsg = root.authority_epsg();
+        let name = root.name().unwrap_or("").to_string();
         match kw.as_str() {
             "PROJCS" | "PROJCRS" | "PROJECTEDCRS" => {
                 if let Some(code) = root_epsg {
-                    if let Crs::WebMercator = Crs::from_epsg(code) {
-                        return Some(Crs::WebMercator);
-                    }
+                    return match Crs::from_epsg(code)? {
+                        Crs::Projected { epsg, proj4, .. } if !name.is_empty() => {
+                            Ok(Crs::Projected { epsg, name, proj4 })
+                        }
+                        crs => Ok(crs),
+                    };
                 }
-                let name = root.name().unwrap_or("").to_string();
                 let lname = name.to_ascii_lowercase().replace(['_', '-'], " ");
                 let method = root
                     .find("PROJECTION")
@@ -338,27 +666,56 @@ impl Crs {
                             || ext.contains("auxiliary")
                     });
                 if is_webmerc {
-                    return Some(Crs::WebMercator);
+                    return Ok(Crs::WebMercator);
                 }
-                let epsg = root_epsg.or_else(|| infer_epsg(&root, &lname, &method));
+                if let Some((unit, factor)) = linear_unit(&root) {
+                    if (factor - 1.0).abs() > 1e-9 {
+                        return Err(CrsError::NotMetres { name, unit, factor });
+                    }
+                }
+                let mut proj4 =
+                    proj4wkt::wkt_to_projstring(text).map_err(|e| CrsError::WktConversion {
+                        name: name.clone(),
+                        source: e.into(),
+                    })?;
+                if !proj4.contains("+towgs84=") && !proj4.contains("+datum=") {
+                    let datum = root.find("DATUM").and_then(|d| d.name()).unwrap_or("");
+                    if let Some(shift) = datum_shift_for(datum) {
+                        proj4.push(' ');
+                        proj4.push_str(&shift);
+                    }
+                }
+                proj(&proj4)?;
+                let epsg = infer_epsg(&root, &lname, &method);
                 let name = if name.is_empty() {
-                    epsg.map(epsg_name)
+                    epsg.and_then(epsg_name)
                         .unwrap_or_else(|| "unnamed projected CRS".into())
                 } else {
                     name
                 };
-                Some(Crs::Projected { epsg, name })
+                Ok(Crs::Projected { epsg, name, proj4 })
             }
             "GEOGCS" | "GEOGCRS" | "GEOGRAPHICCRS" | "GEODCRS" => {
-                let epsg = root_epsg.or_else(|| {
-                    let datum = root.find("DATUM").and_then(|d| d.name()).unwrap_or("");
-                    let d = datum.to_ascii_lowercase();
-                    (d.contains("wgs_1984") || d.contains("wgs 1984") || d.contains("wgs84"))
-                        .then_some(4326)
-                });
-                Some(Crs::Geographic { epsg })
+                if let Some(code) = root_epsg {
+                    return Crs::from_epsg(code);
+                }
+                let datum = root.find("DATUM").and_then(|d| d.name()).unwrap_or("");
+                let d = normalise(datum);
+                let epsg = if d.contains("wgs1984") || d.contains("wgs84") || d.is_empty() {
+                    Some(4326)
+                } else {
+                    // The geographic EPSG code whose datum has this name, for its datum shift.
+                    (4000..=4999u16).find_map(|code| {
+                        let def = crs_definitions::from_code(code)?;
+                        let node = wkt::parse(def.wkt)?;
+                        (normalise(node.find("DATUM")?.name()?) == d).then_some(u32::from(code))
+                    })
+                };
+                Ok(Crs::Geographic { epsg })
             }
-            _ => None,
+            other => Err(CrsError::NotWkt {
+                why: format!("{other} is not a coordinate system keyword"),
+            }),
         }
     }
 
@@ -368,8 +725,11 @@ impl Crs {
             Crs::Projected {
                 epsg: Some(code),
                 name,
+                ..
             } => format!("EPSG:{code} {name}"),
-            Crs::Projected { epsg: None, name } => format!("{name} (projected, no EPSG code)"),
+            Crs::Projected {
+                epsg: None, name, ..
+            } => format!("{name} (projected, no EPSG code)"),
             Crs::WebMercator => "EPSG:3857 Web Mercator".into(),
             Crs::Geographic { epsg: Some(code) } => format!("EPSG:{code} geographic lon/lat"),
             Crs::Geographic { epsg: None } => "geographic lon/lat".into(),
@@ -378,9 +738,8 @@ impl Crs {
     }
 }
 
-/// The linear unit of a projected WKT, as (name, metres per unit), when it states one.
-pub(crate) fn wkt_linear_unit(text: &str) -> Option<(String, f64)> {
-    let root = wkt::parse(text)?;
+/// The linear unit of a projected WKT node, as (name, metres per unit), when it states one.
+fn linear_unit(root: &wkt::Node) -> Option<(String, f64)> {
     let unit = root
         .children()
         .find(|c| {
@@ -392,22 +751,9 @@ pub(crate) fn wkt_linear_unit(text: &str) -> Option<(String, f64)> {
     Some((name, factor))
 }
 
-fn epsg_name(code: u32) -> String {
-    match code {
-        3067 => "ETRS89 / TM35FIN(E,N)".into(),
-        32601..=32660 => format!("WGS 84 / UTM zone {}N", code - 32600),
-        32701..=32760 => format!("WGS 84 / UTM zone {}S", code - 32700),
-        25828..=25838 => format!("ETRS89 / UTM zone {}N", code - 25800),
-        26901..=26923 => format!("NAD83 / UTM zone {}N", code - 26900),
-        5514 => "S-JTSK / Krovak East North".into(),
-        2154 => "RGF93 v1 / Lambert-93".into(),
-        27700 => "OSGB36 / British National Grid".into(),
-        _ => format!("EPSG:{code}"),
-    }
-}
-
 /// EPSG code of a projected WKT without an authority: UTM zones (by name, or by a transverse
 /// Mercator with k0 = 0.9996 and false easting 500 000 on a 6° zone meridian) and ETRS-TM35FIN.
+/// Only names the system: its definition is the WKT's own.
 fn infer_epsg(root: &wkt::Node, lname: &str, method: &str) -> Option<u32> {
     let datum = root
         .find("DATUM")
@@ -467,287 +813,5 @@ fn infer_epsg(root: &wkt::Node, lname: &str, method: &str) -> Option<u32> {
     }
 }
 
-/// A small WKT tree parser: `KEYWORD[item, item, ...]` where an item is a quoted string, a
-/// number, a bare word or a nested node. Accepts `[]` and `()` brackets.
-mod wkt {
-    #[derive(Debug)]
-    pub(super) enum Item {
-        Text(String),
-        Word(String),
-        Node(Node),
-    }
-
-    #[derive(Debug)]
-    pub(super) struct Node {
-        pub keyword: String,
-        pub items: Vec<Item>,
-    }
-
-    impl Node {
-        pub fn name(&self) -> Option<&str> {
-            match self.items.first() {
-                Some(Item::Text(s)) => Some(s),
-                _ => None,
-            }
-        }
-        /// The `i`-th item as a number.
-        pub fn number(&self, i: usize) -> Option<f64> {
-            match self.items.get(i) {
-                Some(Item::Word(w)) | Some(Item::Text(w)) => w.trim().parse().ok(),
-                _ => None,
-            }
-        }
-        pub fn children(&self) -> impl Iterator<Item = &Node> {
-            self.items.iter().filter_map(|i| match i {
-                Item::Node(n) => Some(n),
-                _ => None,
-            })
-        }
-        /// Depth-first search for the first node with this keyword.
-        pub fn find(&self, keyword: &str) -> Option<&Node> {
-            for c in self.children() {
-                if c.keyword.eq_ignore_ascii_case(keyword) {
-                    return Some(c);
-                }
-                if let Some(n) = c.find(keyword) {
-                    return Some(n);
-                }
-            }
-            None
-        }
-        /// The EPSG code of this node's own `AUTHORITY["EPSG","n"]` or `ID["EPSG",n]`.
-        pub fn authority_epsg(&self) -> Option<u32> {
-            self.children()
-                .filter(|c| {
-                    c.keyword.eq_ignore_ascii_case("AUTHORITY")
-                        || c.keyword.eq_ignore_ascii_case("ID")
-                })
-                .find(|c| c.name().is_some_and(|n| n.eq_ignore_ascii_case("EPSG")))
-                .and_then(|c| match c.items.get(1) {
-                    Some(Item::Text(s)) | Some(Item::Word(s)) => s.trim().parse().ok(),
-                    _ => None,
-                })
-        }
-    }
-
-    pub(super) fn parse(text: &str) -> Option<Node> {
-        let chars: Vec<char> = text.trim().trim_start_matches('\u{feff}').chars().collect();
-        let mut pos = 0;
-        let node = parse_node(&chars, &mut pos, 0)?;
-        Some(node)
-    }
-
-    fn skip_ws(c: &[char], pos: &mut usize) {
-        while *pos < c.len() && c[*pos].is_whitespace() {
-            *pos += 1;
-        }
-    }
-
-    fn parse_node(c: &[char], pos: &mut usize, depth: usize) -> Option<Node> {
-        if depth > 64 {
-            return None;
-        }
-        skip_ws(c, pos);
-        let start = *pos;
-        while *pos < c.len() && (c[*pos].is_ascii_alphanumeric() || c[*pos] == '_') {
-            *pos += 1;
-        }
-        if *pos == start {
-            return None;
-        }
-        let keyword: String = c[start..*pos].iter().collect();
-        skip_ws(c, pos);
-        if *pos >= c.len() || !(c[*pos] == '[' || c[*pos] == '(') {
-            return None;
-        }
-        *pos += 1;
-        let mut items = Vec::new();
-        loop {
-            skip_ws(c, pos);
-            if *pos >= c.len() {
-                return None;
-            }
-            match c[*pos] {
-                ']' | ')' => {
-                    *pos += 1;
-                    break;
-                }
-                ',' => *pos += 1,
-                '"' => {
-                    *pos += 1;
-                    let mut s = String::new();
-                    loop {
-                        if *pos >= c.len() {
-                            return None;
-                        }
-                        if c[*pos] == '"' {
-                            // A doubled quote is an escaped quote.
-                            if *pos + 1 < c.len() && c[*pos + 1] == '"' {
-                                s.push('"');
-                                *pos += 2;
-                                continue;
-                            }
-                            *pos += 1;
-                            break;
-                        }
-                        s.push(c[*pos]);
-                        *pos += 1;
-                    }
-                    items.push(Item::Text(s));
-                }
-                _ => {
-                    // A nested node or a bare word (number, enumeration value).
-                    let save = *pos;
-                    let mut p2 = *pos;
-                    while p2 < c.len() && (c[p2].is_ascii_alphanumeric() || c[p2] == '_') {
-                        p2 += 1;
-                    }
-                    let mut p3 = p2;
-                    skip_ws(c, &mut p3);
-                    if p2 > save && p3 < c.len() && (c[p3] == '[' || c[p3] == '(') {
-                        items.push(Item::Node(parse_node(c, pos, depth + 1)?));
-                    } else {
-                        let mut w = String::new();
-                        while *pos < c.len() && !matches!(c[*pos], ',' | ']' | ')') {
-                            w.push(c[*pos]);
-                            *pos += 1;
-                        }
-                        items.push(Item::Word(w.trim().to_string()));
-                    }
-                }
-            }
-        }
-        Some(Node { keyword, items })
-    }
-}
-
 #[cfg(test)]
-mod tests {
-    use super::*;
-
-    const BUBENEC_PRJ: &str = r#"PROJCS["WGS_1984_Web_Mercator_Auxiliary_Sphere",GEOGCS["GCS_WGS_1984",DATUM["D_WGS_1984",SPHEROID["WGS_1984",6378137.0,298.257223563]],PRIMEM["Greenwich",0.0],UNIT["Degree",0.0174532925199433]],PROJECTION["Mercator_Auxiliary_Sphere"],PARAMETER["False_Easting",0.0],PARAMETER["False_Northing",0.0],PARAMETER["Central_Meridian",0.0],PARAMETER["Standard_Parallel_1",0.0],PARAMETER["Auxiliary_Sphere_Type",0.0],UNIT["Meter",1.0]]"#;
-    const UTM33_PRJ: &str = r#"PROJCS["WGS_1984_UTM_Zone_33N",GEOGCS["GCS_WGS_1984",DATUM["D_WGS_1984",SPHEROID["WGS_1984",6378137.0,298.257223563]],PRIMEM["Greenwich",0.0],UNIT["Degree",0.0174532925199433]],PROJECTION["Transverse_Mercator"],PARAMETER["False_Easting",500000.0],PARAMETER["False_Northing",0.0],PARAMETER["Central_Meridian",15.0],PARAMETER["Scale_Factor",0.9996],PARAMETER["Latitude_Of_Origin",0.0],UNIT["Meter",1.0]]"#;
-    const TM35_PRJ: &str = r#"PROJCS["EUREF-FIN_TM35FIN",GEOGCS["GCS_EUREF_FIN",DATUM["EUREF-FIN",SPHEROID["GRS_1980",6378137.0,298.257222101]],PRIMEM["Greenwich",0.0],UNIT["Degree",0.0174532925199433]],PROJECTION["Transverse_Mercator"],PARAMETER["False_Easting",500000.0],PARAMETER["False_Northing",0.0],PARAMETER["Central_Meridian",27.0],PARAMETER["Scale_Factor",0.9996],PARAMETER["Latitude_Of_Origin",0.0],UNIT["Meter",1.0]]"#;
-    const OGC_3857: &str = r#"PROJCS["WGS 84 / Pseudo-Mercator",GEOGCS["WGS 84",DATUM["WGS_1984",SPHEROID["WGS 84",6378137,298.257223563,AUTHORITY["EPSG","7030"]],AUTHORITY["EPSG","6326"]],PRIMEM["Greenwich",0,AUTHORITY["EPSG","8901"]],UNIT["degree",0.0174532925199433,AUTHORITY["EPSG","9122"]],AUTHORITY["EPSG","4326"]],PROJECTION["Mercator_1SP"],PARAMETER["central_meridian",0],PARAMETER["scale_factor",1],PARAMETER["false_easting",0],PARAMETER["false_northing",0],UNIT["metre",1,AUTHORITY["EPSG","9001"]],AXIS["Easting",EAST],AXIS["Northing",NORTH],EXTENSION["PROJ4","+proj=merc +a=6378137 +b=6378137 +lat_ts=0 +lon_0=0 +x_0=0 +y_0=0 +k=1 +units=m +nadgrids=@null +wktext +no_defs"]]"#;
-
-    #[test]
-    fn recognises_the_bundled_prj_files() {
-        assert_eq!(Crs::from_wkt(BUBENEC_PRJ), Some(Crs::WebMercator));
-        assert_eq!(Crs::from_wkt(OGC_3857), Some(Crs::WebMercator));
-        assert_eq!(
-            Crs::from_wkt(UTM33_PRJ),
-            Some(Crs::Projected {
-                epsg: Some(32633),
-                name: "WGS_1984_UTM_Zone_33N".into()
-            })
-        );
-        assert!(matches!(
-            Crs::from_wkt(TM35_PRJ),
-            Some(Crs::Projected {
-                epsg: Some(3067),
-                ..
-            })
-        ));
-        assert_eq!(wkt_linear_unit(TM35_PRJ), Some(("Meter".to_string(), 1.0)));
-    }
-
-    #[test]
-    fn geographic_and_authority_and_garbage() {
-        let g = r#"GEOGCS["WGS 84",DATUM["WGS_1984",SPHEROID["WGS 84",6378137,298.257223563]],PRIMEM["Greenwich",0],UNIT["degree",0.0174532925199433],AUTHORITY["EPSG","4326"]]"#;
-        assert_eq!(Crs::from_wkt(g), Some(Crs::Geographic { epsg: Some(4326) }));
-        let p = r#"PROJCS["Some grid",GEOGCS["x",DATUM["y",SPHEROID["z",1,2]]],PROJECTION["Lambert_Conformal_Conic_2SP"],UNIT["metre",1],AUTHORITY["EPSG","2154"]]"#;
-        assert_eq!(
-            Crs::from_wkt(p),
-            Some(Crs::Projected {
-                epsg: Some(2154),
-                name: "Some grid".into()
-            })
-        );
-        assert_eq!(Crs::from_wkt("not a wkt"), None);
-        assert_eq!(Crs::from_wkt("PROJCS[\"unterminated\""), None);
-        assert_eq!(Crs::from_epsg(3857), Crs::WebMercator);
-        assert_eq!(Crs::from_epsg(4326), Crs::Geographic { epsg: Some(4326) });
-        assert_eq!(
-            Crs::from_epsg(32633).describe(),
-            "EPSG:32633 WGS 84 / UTM zone 33N"
-        );
-    }
-
-    /// The textbook spherical formula, written independently: lat = 2·atan(e^(y/R)) − π/2.
-    #[test]
-    fn web_mercator_known_point() {
-        let (x, y) = (1_603_599.221, 6_464_369.816);
-        let r = 6_378_137.0_f64;
-        let lon = x / r * 180.0 / std::f64::consts::PI;
-        let lat = (2.0 * (y / r).exp().atan() - std::f64::consts::FRAC_PI_2) * 180.0
-            / std::f64::consts::PI;
-        let [lo, la] = web_mercator_to_lonlat([x, y]);
-        assert!((lo - lon).abs() < 1e-12 && (la - lat).abs() < 1e-12);
-        // Prague Bubeneč is near 14.40°E 50.10°N.
-        assert!(
-            (lo - 14.405).abs() < 0.01 && (la - 50.104).abs() < 0.01,
-            "{lo} {la}"
-        );
-        let back = lonlat_to_web_mercator([lo, la]);
-        assert!((back[0] - x).abs() < 1e-6 && (back[1] - y).abs() < 1e-6);
-    }
-
-    /// On the central meridian, northing from the equator is the meridian arc; 1° of latitude at
-    /// 50°N is 111 229.0 m on WGS84 (meridian arc series, Bowring's table).
-    #[test]
-    fn tm_meridian_arc_and_scale() {
-        let tm = LocalTm::new(15.0, 0.0);
-        let a = tm.forward(15.0, 49.5)[1];
-        let b = tm.forward(15.0, 50.5)[1];
-        // Independent check: numerical integral of the meridian radius M(φ) = a(1−e²)/(1−e²sin²φ)^1.5.
-        let e2 = WGS84_F * (2.0 - WGS84_F);
-        let n = 20_000;
-        let (p0, p1) = (49.5_f64.to_radians(), 50.5_f64.to_radians());
-        let h = (p1 - p0) / n as f64;
-        let mut s = 0.0;
-        for i in 0..n {
-            let p = p0 + (i as f64 + 0.5) * h;
-            s += WGS84_A * (1.0 - e2) / (1.0 - e2 * p.sin().powi(2)).powf(1.5) * h;
-        }
-        assert!(((b - a) - s).abs() < 1e-4, "{} vs {s}", b - a);
-        // East-west at the central meridian: parallel radius N cos φ per radian.
-        let p = 50.0_f64.to_radians();
-        let nrad = WGS84_A / (1.0 - e2 * p.sin().powi(2)).sqrt();
-        let tm50 = LocalTm::new(15.0, 50.0);
-        let dx = tm50.forward(15.0 + 1e-4, 50.0)[0] - tm50.forward(15.0 - 1e-4, 50.0)[0];
-        let expect = nrad * p.cos() * (2e-4_f64).to_radians();
-        assert!((dx - expect).abs() / expect < 1e-9, "{dx} vs {expect}");
-        // The origin maps to (0, 0).
-        let o = tm50.forward(15.0, 50.0);
-        assert!(o[0].abs() < 1e-9 && o[1].abs() < 1e-9);
-    }
-
-    #[test]
-    fn round_trips() {
-        let t = Crs::WebMercator.metric_transform([1_603_900.0, 6_464_700.0]);
-        assert!(!t.is_identity());
-        for dx in [-3000.0, -500.0, 0.0, 700.0, 2500.0] {
-            for dy in [-2000.0, 0.0, 1000.0, 4000.0] {
-                let p = [1_603_900.0 + dx, 6_464_700.0 + dy];
-                let m = t.to_metric(p);
-                let q = t.from_metric(m);
-                let m2 = t.to_metric(q);
-                assert!((m2[0] - m[0]).abs() < 1e-6 && (m2[1] - m[1]).abs() < 1e-6);
-                assert!((q[0] - p[0]).abs() < 1e-6 && (q[1] - p[1]).abs() < 1e-6);
-            }
-        }
-        let g = Crs::Geographic { epsg: Some(4326) }.metric_transform([24.94, 60.17]);
-        for p in [[24.93, 60.16], [24.96, 60.18], [24.94, 60.17]] {
-            let m = g.to_metric(p);
-            let q = g.from_metric(m);
-            assert!((q[0] - p[0]).abs() < 1e-11 && (q[1] - p[1]).abs() < 1e-11);
-            let m2 = g.to_metric(q);
-            assert!((m2[0] - m[0]).abs() < 1e-6 && (m2[1] - m[1]).abs() < 1e-6);
-        }
-        let p = Crs::from_epsg(3067).metric_transform([385_000.0, 6_672_000.0]);
-        assert!(p.is_identity());
-        assert_eq!(p.to_metric([1.0, 2.0]), [1.0, 2.0]);
-        assert!(t.describe().contains("1.56×"), "{}", t.describe());
-        assert!(t.describe().contains("50.10"), "{}", t.describe());
-    }
-}
+mod tests;

@@ -8,14 +8,17 @@
 //!   taken as written (first ring outer, then holes); winding is not changed.
 //! - Properties → attributes: strings → text, integers → int, other numbers → float, booleans →
 //!   bool, null → null, arrays and objects → their JSON text.
+//! - A UTF-8 byte order mark before the JSON is skipped; an empty file is [`ImportError::Empty`].
 //! - CRS: the legacy `"crs": {"type": "name", "properties": {"name": "urn:ogc:def:crs:EPSG::3857"}}`
-//!   member (also `EPSG:n` and `OGC:CRS84`) gives the CRS. Without it RFC 7946 says WGS84
-//!   longitude/latitude; when the coordinates clearly are not degrees (|x| > 180 or |y| > 90)
-//!   the CRS is [`Crs::Unknown`] and a note says why.
+//!   member (also `EPSG:n` and `OGC:CRS84`) gives the CRS; a member that names an unknown code or
+//!   nothing usable is an [`ImportError::Crs`]. Without it RFC 7946 says WGS84
+//!   longitude/latitude; when most features clearly are not degrees (|x| > 360 or |y| > 180)
+//!   the CRS is [`Crs::Unknown`] and a note says why. A few features beyond ±90° latitude do not
+//!   make a layer metric: they stay degrees and are refused for it by the city build.
 //! - A feature with null geometry, an empty geometry, NaN/infinite coordinates or an invalid
 //!   structure is refused with its index and the reason.
 
-use crate::crs::Crs;
+use crate::crs::{Crs, CrsError};
 use crate::{AttrValue, Feature, ImportError, ImportReport, Layer};
 use geo_types::{
     Coord, Geometry, GeometryCollection, LineString, MultiLineString, MultiPoint, MultiPolygon,
@@ -28,8 +31,9 @@ use std::path::Path;
 /// Reads a GeoJSON layer.
 ///
 /// # Errors
-/// [`ImportError::Io`] when the file cannot be read; [`ImportError::Format`] when it is not JSON
-/// or its top level is not a GeoJSON object.
+/// [`ImportError::Io`] when the file cannot be read; [`ImportError::Empty`] when it is empty;
+/// [`ImportError::Json`] when it is not JSON; [`ImportError::Format`] when its top level is not a
+/// GeoJSON object; [`ImportError::Crs`] for an unusable `crs` member.
 pub fn read(path: &Path) -> Result<Layer, ImportError> {
     let text = std::fs::read(path).map_err(|source| ImportError::Io {
         file: path.to_path_buf(),
@@ -39,8 +43,19 @@ pub fn read(path: &Path) -> Result<Layer, ImportError> {
         file: path.to_path_buf(),
         message,
     };
-    let root: Value =
-        serde_json::from_slice(&text).map_err(|e| format(format!("not valid JSON: {e}")))?;
+    if text.iter().all(u8::is_ascii_whitespace) {
+        return Err(ImportError::Empty {
+            file: path.to_path_buf(),
+            what: "expected a GeoJSON object".into(),
+        });
+    }
+    // A UTF-8 byte order mark (written by some Windows tools) is not JSON; RFC 8259 §8.1 lets a
+    // parser ignore it.
+    let body = text.strip_prefix(b"\xEF\xBB\xBF").unwrap_or(&text);
+    let root: Value = serde_json::from_slice(body).map_err(|source| ImportError::Json {
+        file: path.to_path_buf(),
+        source,
+    })?;
     let Value::Object(obj) = &root else {
         return Err(format("the top level is not a JSON object".into()));
     };
@@ -75,6 +90,8 @@ pub fn read(path: &Path) -> Result<Layer, ImportError> {
         f64::NEG_INFINITY,
         f64::NEG_INFINITY,
     ];
+    // Features whose coordinates cannot be degrees even by mistake (beyond ±360, ±180).
+    let mut metric_looking = 0usize;
     for (i, v) in raw.into_iter().enumerate() {
         let fid = i as u64;
         let feature = match serde_json::from_value::<geojson::Feature>(v) {
@@ -90,6 +107,16 @@ pub fn read(path: &Path) -> Result<Layer, ImportError> {
         };
         match convert(&g.value) {
             Ok(geometry) => {
+                let mut own = [
+                    f64::INFINITY,
+                    f64::INFINITY,
+                    f64::NEG_INFINITY,
+                    f64::NEG_INFINITY,
+                ];
+                grow_bbox(&geometry, &mut own);
+                if own[0] < -360.0 || own[2] > 360.0 || own[1] < -180.0 || own[3] > 180.0 {
+                    metric_looking += 1;
+                }
                 grow_bbox(&geometry, &mut bbox);
                 let attributes = feature
                     .properties
@@ -106,23 +133,21 @@ pub fn read(path: &Path) -> Result<Layer, ImportError> {
     }
     report.imported = features.len();
     let crs = match obj.get("crs") {
-        Some(c) => match crs_member(c) {
-            Some(crs) => {
-                report
-                    .notes
-                    .push(format!("CRS from the `crs` member: {}", crs.describe()));
-                crs
-            }
-            None => {
-                report.notes.push(format!(
-                    "the `crs` member {c} is not recognised: CRS unknown, coordinates taken as metres"
-                ));
-                Crs::Unknown
-            }
-        },
+        Some(c) => {
+            let crs = crs_member(c).map_err(|source| ImportError::Crs {
+                file: path.to_path_buf(),
+                from: format!("the `crs` member {c}"),
+                source,
+            })?;
+            report
+                .notes
+                .push(format!("CRS from the `crs` member: {}", crs.describe()));
+            crs
+        }
         None => {
-            let degrees = !bbox[0].is_finite()
-                || (bbox[0] >= -180.0 && bbox[2] <= 180.0 && bbox[1] >= -90.0 && bbox[3] <= 90.0);
+            // Most features far beyond any degree value: metres without a CRS. Otherwise degrees
+            // as RFC 7946 says; a latitude of 95 is then refused feature by feature downstream.
+            let degrees = metric_looking * 2 <= features.len();
             if degrees {
                 report
                     .notes
@@ -138,6 +163,7 @@ pub fn read(path: &Path) -> Result<Layer, ImportError> {
             }
         }
     };
+    report.group_refusals();
     let name = obj
         .get("name")
         .and_then(Value::as_str)
@@ -154,25 +180,41 @@ pub fn read(path: &Path) -> Result<Layer, ImportError> {
 }
 
 /// The CRS named by a legacy GeoJSON `crs` member.
-fn crs_member(c: &Value) -> Option<Crs> {
-    let name = c.get("properties")?.get("name")?.as_str()?;
+fn crs_member(c: &Value) -> Result<Crs, CrsError> {
+    let name = c
+        .get("properties")
+        .and_then(|p| p.get("name"))
+        .and_then(Value::as_str)
+        .ok_or_else(|| CrsError::NotWkt {
+            why: "a `crs` member needs properties.name".into(),
+        })?;
     crs_from_name(name)
 }
 
 /// Recognises `urn:ogc:def:crs:EPSG::3857`, `EPSG:3857`, `urn:ogc:def:crs:OGC:1.3:CRS84`.
-pub(crate) fn crs_from_name(name: &str) -> Option<Crs> {
+///
+/// # Errors
+/// [`CrsError::UnknownEpsg`] for a code not in the registry, [`CrsError::NotWkt`] for a name
+/// that is neither.
+pub(crate) fn crs_from_name(name: &str) -> Result<Crs, CrsError> {
     let n = name.trim().to_ascii_uppercase();
     if n.ends_with("CRS84") || n.ends_with("CRS:84") {
-        return Some(Crs::Geographic { epsg: Some(4326) });
+        return Ok(Crs::Geographic { epsg: Some(4326) });
     }
-    let pos = n.find("EPSG")?;
-    let digits: String = n[pos + 4..]
-        .chars()
-        .skip_while(|c| !c.is_ascii_digit())
-        .take_while(|c| c.is_ascii_digit())
-        .collect();
-    let code: u32 = digits.parse().ok()?;
-    Some(Crs::from_epsg(code))
+    let code = n.find("EPSG").and_then(|pos| {
+        let digits: String = n[pos + 4..]
+            .chars()
+            .skip_while(|c| !c.is_ascii_digit())
+            .take_while(|c| c.is_ascii_digit())
+            .collect();
+        digits.parse::<u32>().ok()
+    });
+    match code {
+        Some(code) => Crs::from_epsg(code),
+        None => Err(CrsError::NotWkt {
+            why: format!("{name:?} names no EPSG code or CRS84"),
+        }),
+    }
 }
 
 fn attr(v: Value) -> AttrValue {
@@ -320,14 +362,24 @@ mod tests {
     #[test]
     fn crs_names() {
         assert_eq!(
-            crs_from_name("urn:ogc:def:crs:EPSG::3857"),
-            Some(Crs::WebMercator)
+            crs_from_name("urn:ogc:def:crs:EPSG::3857").unwrap(),
+            Crs::WebMercator
         );
-        assert_eq!(crs_from_name("EPSG:3067"), Some(Crs::from_epsg(3067)));
         assert_eq!(
-            crs_from_name("urn:ogc:def:crs:OGC:1.3:CRS84"),
-            Some(Crs::Geographic { epsg: Some(4326) })
+            crs_from_name("EPSG:3067").unwrap(),
+            Crs::from_epsg(3067).unwrap()
         );
-        assert_eq!(crs_from_name("local"), None);
+        assert_eq!(
+            crs_from_name("urn:ogc:def:crs:OGC:1.3:CRS84").unwrap(),
+            Crs::Geographic { epsg: Some(4326) }
+        );
+        assert!(matches!(
+            crs_from_name("local"),
+            Err(CrsError::NotWkt { .. })
+        ));
+        assert!(matches!(
+            crs_from_name("EPSG:99999"),
+            Err(CrsError::UnknownEpsg { code: 99999 })
+        ));
     }
 }

@@ -39,18 +39,29 @@ pub struct FeatureTable {
 fn sql_err(path: &Path, what: &str) -> impl Fn(rusqlite::Error) -> ImportError {
     let file = path.to_path_buf();
     let what = what.to_string();
-    move |e| ImportError::Format {
+    move |source| ImportError::Sqlite {
         file: file.clone(),
-        message: format!("{what}: {e}"),
+        what: what.clone(),
+        source,
     }
 }
 
 fn open(path: &Path) -> Result<Connection, ImportError> {
-    if let Err(source) = std::fs::metadata(path) {
-        return Err(ImportError::Io {
-            file: path.to_path_buf(),
-            source,
-        });
+    match std::fs::metadata(path) {
+        Err(source) => {
+            return Err(ImportError::Io {
+                file: path.to_path_buf(),
+                source,
+            })
+        }
+        // SQLite opens an empty file as an empty database.
+        Ok(m) if m.len() == 0 => {
+            return Err(ImportError::Empty {
+                file: path.to_path_buf(),
+                what: "a GeoPackage is an SQLite database".into(),
+            })
+        }
+        Ok(_) => {}
     }
     Connection::open_with_flags(
         path,
@@ -215,6 +226,7 @@ pub fn read(path: &Path, theme: &Theme) -> Result<Layer, ImportError> {
         });
     }
     report.imported = features.len();
+    report.group_refusals();
     if other_srs > 0 {
         report.notes.push(format!(
             "{other_srs} geometries carry an srs_id other than the table's {}; the table's CRS \
@@ -306,20 +318,34 @@ fn table_crs(
         }
         Err(e) => return Err(sql_err(path, "gpkg_spatial_ref_sys")(e)),
     };
-    let from_def = def.as_deref().and_then(Crs::from_wkt);
+    let crs_err = |source| ImportError::Crs {
+        file: path.to_path_buf(),
+        from: format!("gpkg_spatial_ref_sys (srs_id {srs_id})"),
+        source,
+    };
+    let from_def = || def.as_deref().map(Crs::from_wkt);
     let crs = match (org.as_deref(), code) {
-        (Some(o), Some(c)) if o.eq_ignore_ascii_case("EPSG") && c > 0 && c <= u32::MAX as i64 => {
-            match (Crs::from_epsg(c as u32), from_def) {
-                (Crs::Projected { epsg, .. }, Some(Crs::Projected { name, .. })) => {
-                    Crs::Projected { epsg, name }
-                }
-                (crs, _) => crs,
+        (Some(o), Some(c)) if o.eq_ignore_ascii_case("EPSG") && c > 0 => {
+            match u32::try_from(c).map_err(|_| crate::CrsError::UnknownEpsg { code: u32::MAX }) {
+                Ok(c) => match (Crs::from_epsg(c), from_def()) {
+                    (
+                        Ok(Crs::Projected { epsg, proj4, .. }),
+                        Some(Ok(Crs::Projected { name, .. })),
+                    ) => Crs::Projected { epsg, name, proj4 },
+                    (Ok(crs), _) => crs,
+                    // A code the registry lacks: the definition may still say what it is.
+                    (Err(_), Some(Ok(crs))) => crs,
+                    (Err(e), _) => return Err(crs_err(e)),
+                },
+                Err(e) => return Err(crs_err(e)),
             }
         }
-        _ => match (srs_id, from_def) {
-            (_, Some(crs)) => crs,
-            (0, None) => Crs::Geographic { epsg: None },
-            _ => Crs::Unknown,
+        _ => match (srs_id, from_def()) {
+            (_, Some(Ok(crs))) => crs,
+            (0, _) => Crs::Geographic { epsg: None },
+            (-1, _) => Crs::Unknown,
+            (_, Some(Err(e))) => return Err(crs_err(e)),
+            (_, None) => Crs::Unknown,
         },
     };
     report.notes.push(format!(

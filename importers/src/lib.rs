@@ -22,6 +22,9 @@
 
 #![forbid(unsafe_code)]
 #![warn(missing_docs)]
+// `ImportError` keeps the libraries' own errors as its sources (a few of them are large); it is
+// returned once per file, never in a loop, so its size costs nothing measurable.
+#![allow(clippy::result_large_err)]
 
 pub mod crs;
 pub mod geojson_reader;
@@ -38,8 +41,8 @@ mod wkb;
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
-pub use crs::{Crs, MetricTransform};
-pub use report::{ImportReport, Refusal};
+pub use crs::{CoordError, Crs, CrsError, MetricTransform};
+pub use report::{format_groups, group_reasons, ImportReport, ReasonGroup, Refusal};
 
 /// One attribute value of a feature.
 #[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
@@ -58,24 +61,44 @@ pub enum AttrValue {
 }
 
 impl AttrValue {
-    /// The value as a number, parsing text such as `"12.5"` or `"12.13 m"`; `None` for null,
-    /// booleans and text that holds no leading number.
+    /// The value as a number; `None` for null, booleans, non-finite numbers and text that holds
+    /// no leading number. Text is read as its longest leading number in Rust's float syntax
+    /// (`"12.5"`, `"12.13 m"`, `"1e9"` and `"-3"` are read whole; a decimal comma `"12,5"` is
+    /// read as 12.5), so that scientific notation is never cut to its mantissa.
     pub fn as_f64(&self) -> Option<f64> {
         match self {
             AttrValue::Int(i) => Some(*i as f64),
             AttrValue::Float(f) if f.is_finite() => Some(*f),
-            AttrValue::Text(s) => {
-                let t = s.trim();
-                let end = t
-                    .char_indices()
-                    .find(|(_, c)| !(c.is_ascii_digit() || *c == '.' || *c == '-' || *c == '+'))
-                    .map(|(i, _)| i)
-                    .unwrap_or(t.len());
-                t[..end].parse::<f64>().ok().filter(|v| v.is_finite())
-            }
+            AttrValue::Text(s) => leading_number(s),
             _ => None,
         }
     }
+}
+
+/// The longest leading prefix of `s` (trimmed) that parses as a finite `f64`.
+fn leading_number(s: &str) -> Option<f64> {
+    let t = s.trim();
+    // A decimal comma between digits ("12,5") is a decimal point; a list ("5;6", "5,6,7") is not.
+    let t: String = if t.matches(',').count() == 1
+        && !t.contains('.')
+        && t.split(',')
+            .all(|p| p.trim().chars().next().is_some_and(|c| c.is_ascii_digit()))
+    {
+        t.replacen(',', ".", 1)
+    } else {
+        t.to_string()
+    };
+    // Only number characters can be in the prefix; words such as "inf" or "nan" never count.
+    let end = t
+        .char_indices()
+        .find(|(_, c)| !(c.is_ascii_digit() || matches!(c, '.' | '-' | '+' | 'e' | 'E')))
+        .map(|(i, _)| i)
+        .unwrap_or(t.len());
+    (1..=end)
+        .rev()
+        .filter(|&k| t.is_char_boundary(k))
+        .find_map(|k| t[..k].parse::<f64>().ok())
+        .filter(|v| v.is_finite())
 }
 
 /// The attributes of one feature, by field name.
@@ -147,7 +170,8 @@ impl Layer {
     }
 }
 
-/// What went wrong reading a file. Every variant names the file.
+/// What went wrong reading a file. Every variant names the file; variants that come from a
+/// library keep its error as their source.
 #[derive(Debug, thiserror::Error)]
 pub enum ImportError {
     /// The file could not be opened or read.
@@ -159,7 +183,7 @@ pub enum ImportError {
         #[source]
         source: std::io::Error,
     },
-    /// A companion file a format needs is missing (`.shx`, `.dbf` for a Shapefile).
+    /// A companion file a format needs is missing (`.dbf` for a Shapefile).
     #[error("{file}: missing companion file {missing} ({why})")]
     MissingCompanion {
         /// The main file.
@@ -169,13 +193,94 @@ pub enum ImportError {
         /// Why it is needed.
         why: String,
     },
-    /// The file is not in the format its name says, or is truncated or corrupt.
+    /// The file is empty, or holds no data at all.
+    #[error("{file}: the file is empty ({what})")]
+    Empty {
+        /// The file.
+        file: PathBuf,
+        /// What was expected.
+        what: String,
+    },
+    /// The file ends before its own structure says it should.
+    #[error("{file}: truncated: {what}")]
+    Truncated {
+        /// The file.
+        file: PathBuf,
+        /// Where and how.
+        what: String,
+    },
+    /// The file is not in the format its name says, or is corrupt (found by this crate's own
+    /// checks).
     #[error("{file}: {message}")]
     Format {
         /// The file.
         file: PathBuf,
         /// What is wrong.
         message: String,
+    },
+    /// The `shapefile` crate could not read the `.shp` / `.shx`.
+    #[error("{file}: {what}: {source}")]
+    Shapefile {
+        /// The file.
+        file: PathBuf,
+        /// What was being read.
+        what: String,
+        /// The reader's error.
+        #[source]
+        source: shapefile::Error,
+    },
+    /// The `dbase` crate could not read the `.dbf` table.
+    #[error("{file}: {what}: {source}")]
+    Dbase {
+        /// The file.
+        file: PathBuf,
+        /// What was being read.
+        what: String,
+        /// The reader's error.
+        #[source]
+        source: shapefile::dbase::Error,
+    },
+    /// The file is not valid JSON.
+    #[error("{file}: not valid JSON: {source}")]
+    Json {
+        /// The file.
+        file: PathBuf,
+        /// The parser's error.
+        #[source]
+        source: serde_json::Error,
+    },
+    /// SQLite could not read the GeoPackage.
+    #[cfg(feature = "gpkg")]
+    #[error("{file}: {what}: {source}")]
+    Sqlite {
+        /// The file.
+        file: PathBuf,
+        /// What was being read.
+        what: String,
+        /// SQLite's error.
+        #[source]
+        source: rusqlite::Error,
+    },
+    /// The `osmpbf` crate could not read the file.
+    #[cfg(feature = "osm")]
+    #[error("{file}: not a readable OSM PBF file: {source}")]
+    Pbf {
+        /// The file.
+        file: PathBuf,
+        /// The reader's error.
+        #[source]
+        source: osmpbf::Error,
+    },
+    /// The file's CRS (`.prj`, `crs` member, `gpkg_spatial_ref_sys`) is unknown or unusable.
+    #[error("{file}: CRS from {from}: {source}")]
+    Crs {
+        /// The file.
+        file: PathBuf,
+        /// Where the CRS was read.
+        from: String,
+        /// Why it is unusable.
+        #[source]
+        source: CrsError,
     },
     /// The format is not supported (unknown extension, or a Cargo feature left out).
     #[error("{file}: unsupported input: {message}")]

@@ -63,8 +63,9 @@ fn collect_tags<'a>(it: impl Iterator<Item = (&'a str, &'a str)>) -> Tags {
 /// Reads one theme of an OSM PBF file.
 ///
 /// # Errors
-/// [`ImportError::Io`] when the file cannot be opened, [`ImportError::Format`] when it is not a
-/// readable PBF, [`ImportError::Unsupported`] for the themes an OSM file has no answer for
+/// [`ImportError::Io`] when the file cannot be opened, [`ImportError::Empty`] /
+/// [`ImportError::Truncated`] / [`ImportError::Format`] when its blob framing is empty, cut short
+/// or not PBF, [`ImportError::Pbf`] when `osmpbf` cannot decode it, [`ImportError::Unsupported`] for the themes an OSM file has no answer for
 /// (`Parcels`, `Table`).
 pub fn read(path: &Path, theme: &Theme) -> Result<Layer, ImportError> {
     let buildings = match theme {
@@ -77,15 +78,15 @@ pub fn read(path: &Path, theme: &Theme) -> Result<Layer, ImportError> {
             })
         }
     };
-    if let Err(source) = std::fs::metadata(path) {
-        return Err(ImportError::Io {
-            file: path.to_path_buf(),
-            source,
-        });
-    }
-    let format = |e: osmpbf::Error| ImportError::Format {
+    let bytes = std::fs::read(path).map_err(|source| ImportError::Io {
         file: path.to_path_buf(),
-        message: format!("not a readable OSM PBF file: {e}"),
+        source,
+    })?;
+    check_framing(path, &bytes)?;
+    drop(bytes);
+    let format = |source: osmpbf::Error| ImportError::Pbf {
+        file: path.to_path_buf(),
+        source,
     };
     let open = || ElementReader::from_path(path).map_err(format);
 
@@ -200,6 +201,7 @@ pub fn read(path: &Path, theme: &Theme) -> Result<Layer, ImportError> {
         }
     }
     report.imported = features.len();
+    report.group_refusals();
     if skipped_outer > 0 {
         report.notes.push(format!(
             "{skipped_outer} building ways are outer rings of building relations and were read \
@@ -228,6 +230,130 @@ pub fn read(path: &Path, theme: &Theme) -> Result<Layer, ImportError> {
         features,
         report,
     })
+}
+
+/// The largest BlobHeader the format allows (OSM PBF specification: 64 KiB).
+const MAX_BLOB_HEADER: usize = 64 * 1024;
+/// The largest Blob the format allows (32 MiB).
+const MAX_BLOB: usize = 32 * 1024 * 1024;
+
+/// Reads a protobuf varint at `*pos`.
+fn varint(b: &[u8], pos: &mut usize) -> Option<u64> {
+    let mut v = 0u64;
+    for shift in (0..64).step_by(7) {
+        let byte = *b.get(*pos)?;
+        *pos += 1;
+        v |= u64::from(byte & 0x7f) << shift;
+        if byte & 0x80 == 0 {
+            return Some(v);
+        }
+    }
+    None
+}
+
+/// The `type` (field 1) and `datasize` (field 3) of a BlobHeader message.
+fn blob_header(b: &[u8]) -> Option<(String, usize)> {
+    let (mut pos, mut ty, mut size) = (0, None, None);
+    while pos < b.len() {
+        let key = varint(b, &mut pos)?;
+        match (key >> 3, key & 7) {
+            (3, 0) => size = Some(usize::try_from(varint(b, &mut pos)?).ok()?),
+            (_, 0) => {
+                varint(b, &mut pos)?;
+            }
+            (field, 2) => {
+                let len = usize::try_from(varint(b, &mut pos)?).ok()?;
+                let end = pos.checked_add(len).filter(|&e| e <= b.len())?;
+                if field == 1 {
+                    ty = Some(String::from_utf8_lossy(&b[pos..end]).into_owned());
+                }
+                pos = end;
+            }
+            _ => return None,
+        }
+    }
+    Some((ty?, size?))
+}
+
+/// Checks the file's blob framing (OSM PBF: a 4-byte big-endian header length, a BlobHeader, a
+/// Blob of the declared size, repeated to the end of the file) before `osmpbf` reads it: an
+/// empty file, a file cut inside a blob, or one without an `OSMHeader` first and an `OSMData`
+/// blob is an error, not an empty layer.
+fn check_framing(path: &Path, bytes: &[u8]) -> Result<(), ImportError> {
+    let file = || path.to_path_buf();
+    if bytes.is_empty() {
+        return Err(ImportError::Empty {
+            file: file(),
+            what: "an OSM PBF file starts with an OSMHeader blob".into(),
+        });
+    }
+    let (mut pos, mut k, mut data_blobs) = (0usize, 0usize, 0usize);
+    while pos < bytes.len() {
+        let Some(len) = bytes.get(pos..pos + 4) else {
+            return Err(ImportError::Truncated {
+                file: file(),
+                what: format!(
+                    "blob {k} at byte {pos}: {} byte(s) left, a header length needs 4",
+                    bytes.len() - pos
+                ),
+            });
+        };
+        let hlen = u32::from_be_bytes([len[0], len[1], len[2], len[3]]) as usize;
+        pos += 4;
+        if hlen == 0 || hlen > MAX_BLOB_HEADER {
+            return Err(ImportError::Format {
+                file: file(),
+                message: format!(
+                    "blob {k} at byte {}: header length {hlen} is not a PBF blob header",
+                    pos - 4
+                ),
+            });
+        }
+        let Some(h) = bytes.get(pos..pos + hlen) else {
+            return Err(ImportError::Truncated {
+                file: file(),
+                what: format!(
+                    "blob {k} at byte {}: header of {hlen} bytes, {} left",
+                    pos - 4,
+                    bytes.len() - pos
+                ),
+            });
+        };
+        let Some((ty, size)) = blob_header(h).filter(|(_, s)| *s <= MAX_BLOB) else {
+            return Err(ImportError::Format {
+                file: file(),
+                message: format!("blob {k} at byte {}: unreadable blob header", pos - 4),
+            });
+        };
+        pos += hlen;
+        if bytes.len() - pos < size {
+            return Err(ImportError::Truncated {
+                file: file(),
+                what: format!(
+                    "blob {k} ({ty}) declares {size} bytes, only {} are left",
+                    bytes.len() - pos
+                ),
+            });
+        }
+        if k == 0 && ty != "OSMHeader" {
+            return Err(ImportError::Format {
+                file: file(),
+                message: format!("the first blob is {ty:?}, not OSMHeader"),
+            });
+        }
+        if ty == "OSMData" {
+            data_blobs += 1;
+        }
+        pos += size;
+        k += 1;
+    }
+    if data_blobs == 0 {
+        return Err(ImportError::Empty {
+            file: file(),
+            what: "an OSMHeader but no OSMData blob".into(),
+        });
+    }
+    Ok(())
 }
 
 fn attributes(tags: &Tags, id: i64, kind: &str) -> Attributes {

@@ -13,12 +13,17 @@
 //! - DBF values: `Character` → text, `Numeric` → integer when the field has no decimals and the
 //!   value is integral, else float; `*****` and blanks → null; `Logical` → bool; `Date` → ISO text.
 //! - A missing `.dbf` is an error ([`ImportError::MissingCompanion`]): the attributes are part of
-//!   the data. A missing `.shx` is not: the records are read in sequence and a note says so.
-//! - A truncated or corrupt `.shp`/`.dbf` is an [`ImportError::Format`] naming the file and, when
-//!   known, the record. A null shape, an empty shape, a MultiPatch or a record with NaN/infinite
-//!   coordinates is refused in the report with its record number.
+//!   the data. A missing or damaged `.shx` is not: the records are read in sequence and a note
+//!   says so.
+//! - A truncated or corrupt `.shp` is an [`ImportError::Shapefile`] naming the file and the
+//!   record; an empty one is [`ImportError::Empty`]. A `.dbf` record that cannot be read (a bad
+//!   number, say) costs that feature only: it is refused with the reason. A null shape, an empty
+//!   shape, a MultiPatch or a record with NaN/infinite coordinates is refused in the report with
+//!   its record number.
+//! - A `.prj` that cannot be understood, or names an unknown EPSG code, is an
+//!   [`ImportError::Crs`]; only a missing `.prj` leaves the CRS unknown (with a note).
 
-use crate::crs::{wkt_linear_unit, Crs};
+use crate::crs::Crs;
 use crate::rings;
 use crate::{AttrValue, Attributes, Feature, ImportError, ImportReport, Layer};
 use geo_types::{Coord, Geometry, LineString, MultiLineString, MultiPoint, MultiPolygon, Point};
@@ -32,19 +37,23 @@ use std::path::{Path, PathBuf};
 /// (`.shx`, `.dbf`, `.prj`, with lower- or upper-case extensions).
 ///
 /// # Errors
-/// [`ImportError::Io`] when the `.shp` cannot be read, [`ImportError::MissingCompanion`] when
-/// the `.dbf` is missing, [`ImportError::Format`] for a file that is not a Shapefile or is
-/// truncated, or when the `.shp` and `.dbf` disagree on the number of records.
+/// [`ImportError::Io`] when the `.shp` cannot be read, [`ImportError::Empty`] for an empty one,
+/// [`ImportError::MissingCompanion`] when the `.dbf` is missing, [`ImportError::Shapefile`] /
+/// [`ImportError::Dbase`] for a file that is not a Shapefile / dBase table or is truncated,
+/// [`ImportError::Format`] when the `.shp` and `.dbf` disagree on the number of records,
+/// [`ImportError::Crs`] for a `.prj` that cannot be used.
 pub fn read(path: &Path) -> Result<Layer, ImportError> {
     let io = |file: &Path| {
         let file = file.to_path_buf();
         move |source| ImportError::Io { file, source }
     };
-    let format = |file: &Path, message: String| ImportError::Format {
-        file: file.to_path_buf(),
-        message,
-    };
     let shp_bytes = std::fs::read(path).map_err(io(path))?;
+    if shp_bytes.is_empty() {
+        return Err(ImportError::Empty {
+            file: path.to_path_buf(),
+            what: "a Shapefile starts with a 100-byte header".into(),
+        });
+    }
     let dbf_path = companion(path, "dbf").ok_or_else(|| ImportError::MissingCompanion {
         file: path.to_path_buf(),
         missing: path.with_extension("dbf"),
@@ -52,70 +61,102 @@ pub fn read(path: &Path) -> Result<Layer, ImportError> {
     })?;
     let mut report = ImportReport::default();
 
-    // Geometry.
+    // Geometry: through the index when there is one and it is sound, else in sequence.
     let shx_path = companion(path, "shx");
-    let mut reader = match &shx_path {
+    let indexed = match &shx_path {
         Some(shx) => {
             let shx_bytes = std::fs::read(shx).map_err(io(shx))?;
-            ShapeReader::with_shx(Cursor::new(shp_bytes), Cursor::new(shx_bytes)).map_err(|e| {
-                format(
-                    path,
-                    format!(
-                        "not a readable Shapefile (header of .shp or {}): {e}",
+            match read_shapes_indexed(&shp_bytes, shx_bytes) {
+                Ok(shapes) => Some(shapes),
+                Err(e) => {
+                    report.notes.push(format!(
+                        "{} is damaged ({e}): it was ignored and the records were read in \
+                         sequence from the .shp",
                         shx.display()
-                    ),
-                )
-            })?
+                    ));
+                    None
+                }
+            }
         }
         None => {
             report.notes.push(format!(
                 "no {} index: records were read in sequence from the .shp",
                 path.with_extension("shx").display()
             ));
-            ShapeReader::new(Cursor::new(shp_bytes))
-                .map_err(|e| format(path, format!("not a readable Shapefile header: {e}")))?
+            None
         }
     };
-    let mut shapes = Vec::new();
-    for (i, s) in reader.iter_shapes().enumerate() {
-        let shape = s.map_err(|e| {
-            format(
-                path,
-                format!("record {i} cannot be read (truncated or corrupt file): {e}"),
-            )
-        })?;
-        shapes.push(shape);
-    }
+    let shapes = match indexed {
+        Some(s) => s,
+        None => read_shapes_in_sequence(path, shp_bytes)?,
+    };
 
-    // Attributes.
+    // Attributes: a record that cannot be read costs its feature, not the layer.
     let dbf_bytes = std::fs::read(&dbf_path).map_err(io(&dbf_path))?;
     let decimals = dbf_decimals(&dbf_bytes);
-    let mut dbf = dbase::Reader::new(Cursor::new(dbf_bytes))
-        .map_err(|e| format(&dbf_path, format!("not a readable dBase table: {e}")))?;
-    let mut records = Vec::new();
-    for (i, r) in dbf.iter_records().enumerate() {
-        let r = r.map_err(|e| format(&dbf_path, format!("record {i} cannot be read: {e}")))?;
+    let mut dbf =
+        dbase::Reader::new(Cursor::new(dbf_bytes)).map_err(|source| ImportError::Dbase {
+            file: dbf_path.clone(),
+            what: "not a readable dBase table".into(),
+            source,
+        })?;
+    let declared = dbf.header().num_records as usize;
+    if declared != shapes.len() {
+        return Err(ImportError::Format {
+            file: path.to_path_buf(),
+            message: format!(
+                "{} shapes in the .shp but {declared} records in {}",
+                shapes.len(),
+                dbf_path.display()
+            ),
+        });
+    }
+    // The reader yields the same I/O error forever once the file ends: stop at the first one.
+    let mut records: Vec<Result<dbase::Record, dbase::Error>> = Vec::with_capacity(declared);
+    for (i, r) in dbf.iter_records().take(declared).enumerate() {
+        if let Err(e) = &r {
+            if matches!(e.kind(), dbase::ErrorKind::IoError(_)) {
+                return Err(ImportError::Dbase {
+                    file: dbf_path.clone(),
+                    what: format!("record {i} of {declared} cannot be read (truncated file)"),
+                    source: r.expect_err("an error"),
+                });
+            }
+        }
         records.push(r);
     }
     if records.len() != shapes.len() {
-        return Err(format(
-            path,
-            format!(
+        return Err(ImportError::Format {
+            file: path.to_path_buf(),
+            message: format!(
                 "{} shapes in the .shp but {} records in {}",
                 shapes.len(),
                 records.len(),
                 dbf_path.display()
             ),
-        ));
+        });
     }
 
     // CRS.
-    let crs = read_prj(path, &mut report);
+    let crs = read_prj(path, &mut report)?;
 
     let mut features = Vec::with_capacity(shapes.len());
     report.read = shapes.len();
     for (i, (shape, record)) in shapes.into_iter().zip(records).enumerate() {
         let fid = i as u64;
+        let record = match record {
+            Ok(r) => r,
+            Err(e) => {
+                report.refuse(
+                    fid,
+                    format!(
+                        "attribute record cannot be read from {}: {e}",
+                        dbf_path.display()
+                    ),
+                );
+                continue;
+            }
+        };
         match convert_shape(shape, fid, &mut report) {
             Ok(geometry) => features.push(Feature {
                 fid,
@@ -126,6 +167,7 @@ pub fn read(path: &Path) -> Result<Layer, ImportError> {
         }
     }
     report.imported = features.len();
+    report.group_refusals();
     Ok(Layer {
         name: path
             .file_stem()
@@ -138,6 +180,32 @@ pub fn read(path: &Path) -> Result<Layer, ImportError> {
     })
 }
 
+/// Every shape, through the `.shx` index; any error (a bad header, an offset beyond the file,
+/// a record that does not parse) says the index cannot be trusted.
+fn read_shapes_indexed(shp: &[u8], shx: Vec<u8>) -> Result<Vec<Shape>, shapefile::Error> {
+    let mut reader = ShapeReader::with_shx(Cursor::new(shp), Cursor::new(shx))?;
+    reader.iter_shapes().collect()
+}
+
+/// Every shape, read in sequence from the `.shp`.
+fn read_shapes_in_sequence(path: &Path, shp: Vec<u8>) -> Result<Vec<Shape>, ImportError> {
+    let mut reader =
+        ShapeReader::new(Cursor::new(shp)).map_err(|source| ImportError::Shapefile {
+            file: path.to_path_buf(),
+            what: "not a readable Shapefile header".into(),
+            source,
+        })?;
+    let mut shapes = Vec::new();
+    for (i, s) in reader.iter_shapes().enumerate() {
+        shapes.push(s.map_err(|source| ImportError::Shapefile {
+            file: path.to_path_buf(),
+            what: format!("record {i} cannot be read (truncated or corrupt file)"),
+            source,
+        })?);
+    }
+    Ok(shapes)
+}
+
 /// The companion file with extension `ext` (lower or upper case), if it exists.
 fn companion(path: &Path, ext: &str) -> Option<PathBuf> {
     [ext.to_ascii_lowercase(), ext.to_ascii_uppercase()]
@@ -146,50 +214,31 @@ fn companion(path: &Path, ext: &str) -> Option<PathBuf> {
         .find(|p| p.is_file())
 }
 
-fn read_prj(path: &Path, report: &mut ImportReport) -> Crs {
+/// The CRS of the `.prj` beside `path`: [`Crs::Unknown`] with a note when there is none; an
+/// error when there is one that cannot be read or understood (coordinates are never taken as
+/// metres because a CRS was not understood).
+fn read_prj(path: &Path, report: &mut ImportReport) -> Result<Crs, ImportError> {
     let Some(prj) = companion(path, "prj") else {
         report.notes.push(format!(
             "no {}: CRS unknown, coordinates taken as metres",
             path.with_extension("prj").display()
         ));
-        return Crs::Unknown;
+        return Ok(Crs::Unknown);
     };
-    let text = match std::fs::read(&prj) {
-        Ok(b) => String::from_utf8_lossy(&b).into_owned(),
-        Err(e) => {
-            report.notes.push(format!(
-                "{} cannot be read ({e}): CRS unknown, coordinates taken as metres",
-                prj.display()
-            ));
-            return Crs::Unknown;
-        }
-    };
-    match Crs::from_wkt(&text) {
-        Some(crs) => {
-            if let Crs::Projected { .. } = crs {
-                if let Some((unit, factor)) = wkt_linear_unit(&text) {
-                    if (factor - 1.0).abs() > 1e-9 {
-                        report.notes.push(format!(
-                            "{}: linear unit is {unit} ({factor} m), not metres; coordinates \
-                             are used as they are",
-                            prj.display()
-                        ));
-                    }
-                }
-            }
-            report
-                .notes
-                .push(format!("CRS from {}: {}", prj.display(), crs.describe()));
-            crs
-        }
-        None => {
-            report.notes.push(format!(
-                "{} is not a recognisable WKT: CRS unknown, coordinates taken as metres",
-                prj.display()
-            ));
-            Crs::Unknown
-        }
-    }
+    let bytes = std::fs::read(&prj).map_err(|source| ImportError::Io {
+        file: prj.clone(),
+        source,
+    })?;
+    let text = String::from_utf8_lossy(&bytes);
+    let crs = Crs::from_wkt(&text).map_err(|source| ImportError::Crs {
+        file: path.to_path_buf(),
+        from: prj.display().to_string(),
+        source,
+    })?;
+    report
+        .notes
+        .push(format!("CRS from {}: {}", prj.display(), crs.describe()));
+    Ok(crs)
 }
 
 /// Decimal counts of the DBF fields, by name, read from the field descriptors of the header

@@ -284,7 +284,7 @@ fn geojson_variants() {
 
     std::fs::write(&p, "this is not json").unwrap();
     let e = geojson_reader::read(&p).unwrap_err();
-    assert!(matches!(e, ImportError::Format { .. }));
+    assert!(matches!(e, ImportError::Json { .. }), "{e:?}");
     assert!(e.to_string().contains("a.geojson"), "{e}");
 }
 
@@ -336,12 +336,12 @@ fn truncated_and_garbage_files() {
     std::fs::write(&shp_path, &bytes[..bytes.len() / 2]).unwrap();
     let e = shp::read(&shp_path).unwrap_err();
     let msg = e.to_string();
-    assert!(matches!(e, ImportError::Format { .. }), "{e:?}");
+    assert!(matches!(e, ImportError::Shapefile { .. }), "{e:?}");
     assert!(msg.contains("l.shp") && msg.contains("record"), "{msg}");
 
     std::fs::write(&shp_path, b"garbage, not a shapefile at all, really not").unwrap();
     let e = shp::read(&shp_path).unwrap_err();
-    assert!(matches!(e, ImportError::Format { .. }), "{e:?}");
+    assert!(matches!(e, ImportError::Shapefile { .. }), "{e:?}");
     assert!(e.to_string().contains("l.shp"));
 
     // Header intact, no .shx: cut in the middle of a record.

@@ -158,8 +158,20 @@ pub struct CityReport {
     pub buildings_refused: Vec<RefusalNote>,
     /// Buildings per height source.
     pub height_sources: std::collections::BTreeMap<String, usize>,
+    /// The refused footprints grouped by reason, with counts.
+    pub refused_by_reason: Vec<blockwalk_importers::ReasonGroup>,
+    /// Height attributes that cannot be a building's height (negative, zero, not a number, above
+    /// 1000 m), per building; the next height source was used for them.
+    pub implausible_heights: Vec<crate::city::build::HeightNote>,
     /// The CRS found and what was done with it.
     pub crs: String,
+    /// Why the street layer that was given yields no street (every feature refused or excluded),
+    /// so that blocks cannot come from it; `None` when it is usable or none was given.
+    pub street_layer_unusable: Option<String>,
+    /// The same for the parcel layer.
+    pub parcel_layer_unusable: Option<String>,
+    /// Where the local origin is and how far the model reaches from it (f32 precision).
+    pub frame: crate::city::build::FrameReport,
     /// Other notes (per layer).
     pub notes: Vec<String>,
 }
@@ -210,7 +222,8 @@ pub struct City {
     pub name: String,
     /// Maps the input's own coordinates to the metric world coordinates used here, and back.
     pub transform: MetricTransform,
-    /// The local frame for f32 geometry (origin at the centre of the footprints' bounding box).
+    /// The local frame for f32 geometry (origin at the median of the footprints' centres, see
+    /// [`crate::city::build::robust_origin`]).
     pub frame: LocalFrame,
     /// Buildings; `buildings[i].id == BuildingId(i)`.
     pub buildings: Vec<Building>,

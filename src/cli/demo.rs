@@ -6,9 +6,11 @@ use std::path::{Path, PathBuf};
 /// Arguments.
 #[derive(clap::Args, Debug)]
 pub struct Args {
-    /// Folder with the bundled data (`bubenec/`, `helsinki/`).
-    #[arg(long, default_value = concat!(env!("CARGO_MANIFEST_DIR"), "/data"))]
-    pub data: PathBuf,
+    /// Folder with the bundled data (`bubenec/`, `helsinki/`). Default: the first `data/` that
+    /// holds them in the working directory or one of its parents, else beside the executable or
+    /// one of its parents.
+    #[arg(long)]
+    pub data: Option<PathBuf>,
     /// Output folder.
     #[arg(long, default_value = "out/demo")]
     pub out: PathBuf,
@@ -43,13 +45,61 @@ fn p(path: &Path) -> &str {
     path.to_str().unwrap_or_default()
 }
 
+/// True when `d` holds the bundled data the demo reads.
+fn has_data(d: &Path) -> bool {
+    d.join("bubenec/buildings.shp").is_file() && d.join("helsinki/buildings.shp").is_file()
+}
+
+/// The candidate data folders, in order: `data/` in the working directory and each parent, then
+/// beside the executable and each of its parents.
+fn data_candidates() -> Vec<PathBuf> {
+    let mut out = Vec::new();
+    let roots = [
+        std::env::current_dir().ok(),
+        std::env::current_exe()
+            .ok()
+            .and_then(|e| e.parent().map(Path::to_path_buf)),
+    ];
+    for root in roots.into_iter().flatten() {
+        for dir in root.ancestors() {
+            let c = dir.join("data");
+            if !out.contains(&c) {
+                out.push(c);
+            }
+        }
+    }
+    out
+}
+
+/// The data folder: `--data` when given, else the first candidate that holds the data.
+fn find_data(given: Option<&Path>) -> anyhow::Result<PathBuf> {
+    if let Some(d) = given {
+        anyhow::ensure!(
+            has_data(d),
+            "{}: the bundled data is not there (expected bubenec/buildings.shp and \
+             helsinki/buildings.shp)",
+            d.display()
+        );
+        return Ok(d.to_path_buf());
+    }
+    let candidates = data_candidates();
+    candidates
+        .iter()
+        .find(|d| has_data(d))
+        .cloned()
+        .ok_or_else(|| {
+            let looked: Vec<String> = candidates.iter().map(|c| c.display().to_string()).collect();
+            anyhow::anyhow!(
+                "the bundled data (bubenec/buildings.shp, helsinki/buildings.shp) was not found; \
+             looked in: {}; run from the repository or pass --data DIR",
+                looked.join(", ")
+            )
+        })
+}
+
 pub fn run(args: Args) -> anyhow::Result<()> {
-    let d = &args.data;
-    anyhow::ensure!(
-        d.join("bubenec/buildings.shp").exists() && d.join("helsinki/buildings.shp").exists(),
-        "{}: the bundled data is not there (expected bubenec/ and helsinki/; see --data)",
-        d.display()
-    );
+    let data = find_data(args.data.as_deref())?;
+    let d = &data;
     std::fs::create_dir_all(&args.out)
         .map_err(|e| anyhow::anyhow!("{}: {e}", args.out.display()))?;
     let o = |name: &str| args.out.join(name);

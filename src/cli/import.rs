@@ -5,7 +5,7 @@ use std::path::PathBuf;
 use std::time::Instant;
 
 use anyhow::Context;
-use blockwalk::city::build::{BuildOptions, HeightFields};
+use blockwalk::city::build::{BuildError, BuildOptions, HeightFields};
 use blockwalk::city::export::{write_geojson, write_glb};
 use blockwalk::city::extrude::try_extrude_city;
 use blockwalk::geom::predicates::polygon_area;
@@ -57,7 +57,23 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     };
 
     let t0 = Instant::now();
-    let city = load_city_with(&args.city, &opts)?;
+    let city = match load_city_with(&args.city, &opts) {
+        Ok(c) => c,
+        Err(e) => {
+            // With --json, nothing usable left still gives one JSON object (with the reasons).
+            if args.json {
+                let reasons = match e.downcast_ref::<BuildError>() {
+                    Some(BuildError::NoBuildings { reasons, .. }) => json!(reasons),
+                    _ => json!([]),
+                };
+                println!(
+                    "{}",
+                    json!({"error": format!("{e:#}"), "refused_by_reason": reasons})
+                );
+            }
+            return Err(e);
+        }
+    };
     let import_ms = t0.elapsed().as_secs_f64() * 1e3;
 
     let t1 = Instant::now();
@@ -93,6 +109,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             "buildings_imported": r.buildings_imported,
             "buildings_repaired": r.buildings_repaired.len(),
             "buildings_refused": r.buildings_refused,
+            "refused_by_reason": r.refused_by_reason,
+            "implausible_heights": r.implausible_heights,
+            "street_layer_unusable": r.street_layer_unusable,
+            "parcel_layer_unusable": r.parcel_layer_unusable,
+            "frame": r.frame,
             "repaired": r.buildings_repaired,
             "buildings": city.buildings.len(),
             "streets": city.streets.len(),
@@ -125,8 +146,34 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         for n in r.buildings_repaired.iter().take(5) {
             println!("  repaired {}: {}", n.id, n.what);
         }
-        for n in r.buildings_refused.iter().take(5) {
-            println!("  refused {}: {}", n.id, n.reason);
+        for g in &r.refused_by_reason {
+            println!(
+                "  refused {} × {} (e.g. {})",
+                g.count,
+                g.reason,
+                g.examples.join(", ")
+            );
+        }
+        if !r.implausible_heights.is_empty() {
+            let ids: Vec<String> = r
+                .implausible_heights
+                .iter()
+                .take(5)
+                .map(|h| format!("{} {}={}", h.id, h.field, h.value))
+                .collect();
+            println!(
+                "implausible heights: {} ({}{})",
+                r.implausible_heights.len(),
+                ids.join(", "),
+                if r.implausible_heights.len() > 5 {
+                    ", …"
+                } else {
+                    ""
+                }
+            );
+        }
+        for n in r.notes.iter().filter(|n| n.starts_with("warning:")) {
+            println!("{n}");
         }
         let hs: Vec<String> = r
             .height_sources

@@ -1,0 +1,543 @@
+//! Malformed input, one case per test function section: each bad file is written to a temporary
+//! folder and the reader must answer with the specific error variant, or with the documented
+//! repair (a note, a refused feature), never with a panic or a silently wrong layer.
+
+use blockwalk_importers::{
+    geojson_reader, gpkg, osm, read_layer, shp, AttrValue, Crs, CrsError, ImportError, Theme,
+};
+use std::path::{Path, PathBuf};
+
+fn data(rel: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../data")
+        .join(rel)
+}
+
+/// Copies a Shapefile's parts to `dir/l.*` and returns the `.shp` path.
+fn copy_shp(stem: &str, dir: &Path) -> PathBuf {
+    for ext in ["shp", "shx", "dbf", "prj", "cpg"] {
+        std::fs::copy(data(&format!("{stem}.{ext}")), dir.join(format!("l.{ext}"))).unwrap();
+    }
+    dir.join("l.shp")
+}
+
+fn write(dir: &Path, name: &str, bytes: impl AsRef<[u8]>) -> PathBuf {
+    let p = dir.join(name);
+    std::fs::write(&p, bytes).unwrap();
+    p
+}
+
+const FC_START: &str = r#"{"type":"FeatureCollection","features":["#;
+
+fn square(x: f64, y: f64, d: f64) -> String {
+    format!(
+        r#"{{"type":"Feature","properties":{{}},"geometry":{{"type":"Polygon","coordinates":[[[{x},{y}],[{},{y}],[{},{}],[{x},{}],[{x},{y}]]]}}}}"#,
+        x + d,
+        x + d,
+        y + d,
+        y + d
+    )
+}
+
+// ---- Shapefile -------------------------------------------------------------------------------
+
+#[test]
+fn shp_empty_file_is_empty() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = copy_shp("bubenec/streets", dir.path());
+    std::fs::write(&p, b"").unwrap();
+    let e = shp::read(&p).unwrap_err();
+    assert!(matches!(e, ImportError::Empty { .. }), "{e:?}");
+    assert!(e.to_string().contains("l.shp"), "{e}");
+}
+
+#[test]
+fn shp_truncated_is_a_shapefile_error_naming_the_record() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = copy_shp("bubenec/streets", dir.path());
+    let b = std::fs::read(&p).unwrap();
+    std::fs::write(&p, &b[..b.len() - 37]).unwrap();
+    let e = shp::read(&p).unwrap_err();
+    assert!(matches!(e, ImportError::Shapefile { .. }), "{e:?}");
+    assert!(e.to_string().contains("record 34"), "{e}");
+    assert!(std::error::Error::source(&e).is_some(), "keeps its cause");
+}
+
+#[test]
+fn shp_missing_dbf_is_a_missing_companion() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = copy_shp("bubenec/streets", dir.path());
+    std::fs::remove_file(dir.path().join("l.dbf")).unwrap();
+    assert!(matches!(
+        shp::read(&p),
+        Err(ImportError::MissingCompanion { .. })
+    ));
+}
+
+#[test]
+fn shp_damaged_shx_is_handled_like_a_missing_one() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = copy_shp("bubenec/streets", dir.path());
+    let reference = shp::read(&p).unwrap();
+    // Garbage index.
+    write(
+        dir.path(),
+        "l.shx",
+        b"this is no index at all, just some bytes of text",
+    );
+    let l = shp::read(&p).unwrap();
+    assert_eq!(l.features.len(), reference.features.len());
+    assert!(
+        l.report.notes.iter().any(|n| n.contains("damaged")),
+        "{:?}",
+        l.report.notes
+    );
+    // An index whose offsets point past the file.
+    let mut shx = std::fs::read(data("bubenec/streets.shx")).unwrap();
+    for k in 0..4 {
+        shx[100 + 8 * 5 + k] = 0x7f;
+    }
+    std::fs::write(dir.path().join("l.shx"), &shx).unwrap();
+    let l = shp::read(&p).unwrap();
+    assert_eq!(l.features.len(), reference.features.len());
+    assert!(l.report.notes.iter().any(|n| n.contains("damaged")));
+    // A truncated index.
+    std::fs::write(dir.path().join("l.shx"), &shx[..150]).unwrap();
+    let l = shp::read(&p).unwrap();
+    assert_eq!(l.features.len(), reference.features.len());
+}
+
+/// Offset of record `i`'s first field in a DBF (after the deletion flag).
+fn dbf_record(bytes: &[u8], i: usize) -> usize {
+    let header = u16::from_le_bytes([bytes[8], bytes[9]]) as usize;
+    let record = u16::from_le_bytes([bytes[10], bytes[11]]) as usize;
+    header + i * record + 1
+}
+
+#[test]
+fn dbf_bad_value_costs_one_feature_not_the_layer() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = copy_shp("bubenec/streets", dir.path());
+    let mut dbf = std::fs::read(dir.path().join("l.dbf")).unwrap();
+    let at = dbf_record(&dbf, 3);
+    dbf[at..at + 11].copy_from_slice(b"   12x4#!  ");
+    std::fs::write(dir.path().join("l.dbf"), &dbf).unwrap();
+    let l = shp::read(&p).unwrap();
+    assert_eq!(l.features.len(), 34);
+    assert_eq!(l.report.refused.len(), 1);
+    assert_eq!(l.report.refused[0].fid, 3);
+    assert!(
+        l.report.refused[0].reason.contains("l.dbf"),
+        "{}",
+        l.report.refused[0].reason
+    );
+    assert_eq!(l.report.refused_by_reason[0].count, 1);
+}
+
+#[test]
+fn dbf_with_another_record_count_is_a_format_error() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = copy_shp("bubenec/streets", dir.path());
+    std::fs::copy(data("bubenec/buildings.dbf"), dir.path().join("l.dbf")).unwrap();
+    let e = shp::read(&p).unwrap_err();
+    assert!(matches!(e, ImportError::Format { .. }), "{e:?}");
+    assert!(e.to_string().contains("35 shapes"), "{e}");
+}
+
+#[test]
+fn dbf_garbage_is_a_dbase_error() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = copy_shp("bubenec/streets", dir.path());
+    write(dir.path(), "l.dbf", b"\x03");
+    let e = shp::read(&p).unwrap_err();
+    assert!(matches!(e, ImportError::Dbase { .. }), "{e:?}");
+}
+
+#[test]
+fn prj_garbage_is_a_crs_error_not_metres() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = copy_shp("bubenec/streets", dir.path());
+    write(dir.path(), "l.prj", "metres, probably");
+    let e = shp::read(&p).unwrap_err();
+    assert!(
+        matches!(
+            e,
+            ImportError::Crs {
+                source: CrsError::NotWkt { .. },
+                ..
+            }
+        ),
+        "{e:?}"
+    );
+    assert!(e.to_string().contains("l.prj"), "{e}");
+}
+
+#[test]
+fn prj_with_an_unknown_epsg_code_is_an_error() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = copy_shp("bubenec/streets", dir.path());
+    write(
+        dir.path(),
+        "l.prj",
+        r#"PROJCS["mystery",GEOGCS["WGS 84",DATUM["WGS_1984",SPHEROID["WGS 84",6378137,298.257223563]]],PROJECTION["Transverse_Mercator"],UNIT["metre",1],AUTHORITY["EPSG","99999"]]"#,
+    );
+    let e = shp::read(&p).unwrap_err();
+    assert!(
+        matches!(
+            e,
+            ImportError::Crs {
+                source: CrsError::UnknownEpsg { code: 99999 },
+                ..
+            }
+        ),
+        "{e:?}"
+    );
+}
+
+#[test]
+fn prj_in_feet_is_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = copy_shp("bubenec/streets", dir.path());
+    write(
+        dir.path(),
+        "l.prj",
+        r#"PROJCS["NAD_1983_StatePlane_New_York_Long_Island_FIPS_3104_Feet",GEOGCS["GCS_North_American_1983",DATUM["D_North_American_1983",SPHEROID["GRS_1980",6378137.0,298.257222101]],PRIMEM["Greenwich",0.0],UNIT["Degree",0.0174532925199433]],PROJECTION["Lambert_Conformal_Conic"],PARAMETER["False_Easting",984250.0],PARAMETER["False_Northing",0.0],PARAMETER["Central_Meridian",-74.0],PARAMETER["Standard_Parallel_1",40.66666666666666],PARAMETER["Standard_Parallel_2",41.03333333333333],PARAMETER["Latitude_Of_Origin",40.16666666666666],UNIT["Foot_US",0.3048006096012192]]"#,
+    );
+    let e = shp::read(&p).unwrap_err();
+    assert!(
+        matches!(
+            e,
+            ImportError::Crs {
+                source: CrsError::NotMetres { .. },
+                ..
+            }
+        ),
+        "{e:?}"
+    );
+}
+
+#[test]
+fn prj_missing_is_unknown_with_a_note() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = copy_shp("bubenec/streets", dir.path());
+    std::fs::remove_file(dir.path().join("l.prj")).unwrap();
+    let l = shp::read(&p).unwrap();
+    assert_eq!(l.crs, Crs::Unknown);
+    assert!(l.report.notes.iter().any(|n| n.contains("l.prj")));
+}
+
+#[test]
+fn prj_british_national_grid_without_epsg_is_read_with_its_datum() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = copy_shp("bubenec/streets", dir.path());
+    write(
+        dir.path(),
+        "l.prj",
+        r#"PROJCS["British_National_Grid",GEOGCS["GCS_OSGB_1936",DATUM["D_OSGB_1936",SPHEROID["Airy_1830",6377563.396,299.3249646]],PRIMEM["Greenwich",0.0],UNIT["Degree",0.0174532925199433]],PROJECTION["Transverse_Mercator"],PARAMETER["False_Easting",400000.0],PARAMETER["False_Northing",-100000.0],PARAMETER["Central_Meridian",-2.0],PARAMETER["Scale_Factor",0.9996012717],PARAMETER["Latitude_Of_Origin",49.0],UNIT["Meter",1.0]]"#,
+    );
+    let l = shp::read(&p).unwrap();
+    match &l.crs {
+        Crs::Projected {
+            epsg: None, proj4, ..
+        } => assert!(proj4.contains("+datum=OSGB36"), "{proj4}"),
+        other => panic!("{other:?}"),
+    }
+}
+
+// ---- GeoJSON ---------------------------------------------------------------------------------
+
+#[test]
+fn geojson_with_a_utf8_bom_is_accepted() {
+    let dir = tempfile::tempdir().unwrap();
+    let text = std::fs::read(data("bubenec/streets.geojson")).unwrap();
+    let mut bom = b"\xEF\xBB\xBF".to_vec();
+    bom.extend_from_slice(&text);
+    let p = write(dir.path(), "s.geojson", &bom);
+    let l = geojson_reader::read(&p).unwrap();
+    assert_eq!(l.features.len(), 35);
+    assert_eq!(l.crs, Crs::WebMercator);
+}
+
+#[test]
+fn geojson_empty_file_is_empty() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = write(dir.path(), "e.geojson", "  \n");
+    assert!(matches!(
+        geojson_reader::read(&p),
+        Err(ImportError::Empty { .. })
+    ));
+}
+
+#[test]
+fn geojson_truncated_is_a_json_error() {
+    let dir = tempfile::tempdir().unwrap();
+    let text = std::fs::read(data("bubenec/streets.geojson")).unwrap();
+    let p = write(dir.path(), "t.geojson", &text[..text.len() / 2]);
+    let e = geojson_reader::read(&p).unwrap_err();
+    assert!(matches!(e, ImportError::Json { .. }), "{e:?}");
+    assert!(std::error::Error::source(&e).is_some());
+}
+
+#[test]
+fn geojson_top_level_array_is_a_format_error() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = write(dir.path(), "a.geojson", "[1, 2, 3]");
+    assert!(matches!(
+        geojson_reader::read(&p),
+        Err(ImportError::Format { .. })
+    ));
+}
+
+#[test]
+fn geojson_collection_without_features_is_a_format_error() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = write(dir.path(), "a.geojson", r#"{"type":"FeatureCollection"}"#);
+    let e = geojson_reader::read(&p).unwrap_err();
+    assert!(matches!(e, ImportError::Format { .. }), "{e:?}");
+    assert!(e.to_string().contains("features"), "{e}");
+}
+
+#[test]
+fn geojson_unknown_type_is_a_format_error() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = write(dir.path(), "a.geojson", r#"{"type":"Circle","radius":3}"#);
+    assert!(matches!(
+        geojson_reader::read(&p),
+        Err(ImportError::Format { .. })
+    ));
+}
+
+#[test]
+fn geojson_crs_member_with_unknown_epsg_is_an_error() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = write(
+        dir.path(),
+        "a.geojson",
+        format!(
+            r#"{{"type":"FeatureCollection","crs":{{"type":"name","properties":{{"name":"urn:ogc:def:crs:EPSG::99999"}}}},"features":[{}]}}"#,
+            square(385_000.0, 6_672_000.0, 10.0)
+        ),
+    );
+    let e = geojson_reader::read(&p).unwrap_err();
+    assert!(
+        matches!(
+            e,
+            ImportError::Crs {
+                source: CrsError::UnknownEpsg { code: 99999 },
+                ..
+            }
+        ),
+        "{e:?}"
+    );
+}
+
+#[test]
+fn geojson_crs_member_without_a_name_is_an_error() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = write(
+        dir.path(),
+        "a.geojson",
+        format!(
+            r#"{{"type":"FeatureCollection","crs":{{"type":"name"}},"features":[{}]}}"#,
+            square(1.0, 1.0, 0.1)
+        ),
+    );
+    assert!(matches!(
+        geojson_reader::read(&p),
+        Err(ImportError::Crs {
+            source: CrsError::NotWkt { .. },
+            ..
+        })
+    ));
+}
+
+#[test]
+fn geojson_bad_features_are_refused_one_by_one_and_grouped() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = write(
+        dir.path(),
+        "a.geojson",
+        format!(
+            "{FC_START}{},{},{},{},{},{},{}]}}",
+            square(24.9, 60.1, 0.001),
+            r#"{"type":"Feature","properties":{},"geometry":null}"#,
+            r#"{"type":"Feature","properties":{},"geometry":null}"#,
+            r#"{"type":"Feature","properties":{},"geometry":{"type":"Polygon","coordinates":[[[1]]]}}"#,
+            r#"{"type":"Feature","properties":{},"geometry":{"type":"MultiPolygon","coordinates":[]}}"#,
+            r#"{"type":"Feature","properties":{},"geometry":{"type":"Blob","coordinates":[]}}"#,
+            r#"{"type":"Feature","properties":{},"geometry":{"type":"Polygon","coordinates":[]}}"#,
+        ),
+    );
+    let l = geojson_reader::read(&p).unwrap();
+    assert_eq!((l.report.read, l.features.len()), (7, 1));
+    let fids: Vec<u64> = l.report.refused.iter().map(|r| r.fid).collect();
+    assert_eq!(fids, [1, 2, 3, 4, 5, 6]);
+    let g = &l.report.refused_by_reason;
+    assert_eq!(g[0].count, 2);
+    assert_eq!(g[0].reason, "null geometry");
+    assert_eq!(g.iter().map(|g| g.count).sum::<usize>(), 6);
+    assert!(l.report.refused[2].reason.contains("fewer than 2"));
+    assert!(l.report.refused[3].reason.contains("empty MultiPolygon"));
+}
+
+#[test]
+fn geojson_in_metres_without_crs_is_unknown_with_a_note() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = write(
+        dir.path(),
+        "a.geojson",
+        format!("{FC_START}{}]}}", square(385_000.0, 6_672_000.0, 10.0)),
+    );
+    let l = geojson_reader::read(&p).unwrap();
+    assert_eq!(l.crs, Crs::Unknown);
+    assert!(l.report.notes.iter().any(|n| n.contains("not degrees")));
+}
+
+// ---- OSM PBF ---------------------------------------------------------------------------------
+
+#[test]
+fn pbf_empty_file_is_empty_not_an_empty_layer() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = write(dir.path(), "e.osm.pbf", b"");
+    let e = osm::read(&p, &Theme::Buildings).unwrap_err();
+    assert!(matches!(e, ImportError::Empty { .. }), "{e:?}");
+}
+
+#[test]
+fn pbf_truncated_is_truncated_not_an_empty_layer() {
+    let dir = tempfile::tempdir().unwrap();
+    let b = std::fs::read(data("originals/Helsinki.osm.pbf")).unwrap();
+    for cut in [b.len() / 2, b.len() - 1, 20] {
+        let p = write(dir.path(), "t.osm.pbf", &b[..cut]);
+        let e = osm::read(&p, &Theme::Buildings).unwrap_err();
+        assert!(
+            matches!(e, ImportError::Truncated { .. }),
+            "cut {cut}: {e:?}"
+        );
+        assert!(e.to_string().contains("t.osm.pbf"));
+    }
+}
+
+#[test]
+fn pbf_header_only_has_no_data() {
+    let dir = tempfile::tempdir().unwrap();
+    let b = std::fs::read(data("originals/Helsinki.osm.pbf")).unwrap();
+    let hlen = u32::from_be_bytes([b[0], b[1], b[2], b[3]]) as usize;
+    // BlobHeader: field 1 "OSMHeader", field 3 datasize (varint).
+    let h = &b[4..4 + hlen];
+    let mut pos = 2 + h[1] as usize + 1;
+    let (mut size, mut shift) = (0usize, 0);
+    loop {
+        let byte = h[pos];
+        pos += 1;
+        size |= ((byte & 0x7f) as usize) << shift;
+        shift += 7;
+        if byte & 0x80 == 0 {
+            break;
+        }
+    }
+    let p = write(dir.path(), "h.osm.pbf", &b[..4 + hlen + size]);
+    let e = osm::read(&p, &Theme::Streets).unwrap_err();
+    assert!(matches!(e, ImportError::Empty { .. }), "{e:?}");
+    assert!(e.to_string().contains("no OSMData"), "{e}");
+}
+
+#[test]
+fn pbf_that_does_not_start_with_a_header_is_a_format_error() {
+    let dir = tempfile::tempdir().unwrap();
+    // A BlobHeader of type "OSMData" with datasize 0.
+    let header = [b"\x0a\x07OSMData".as_slice(), b"\x18\x00"].concat();
+    let mut b = (header.len() as u32).to_be_bytes().to_vec();
+    b.extend_from_slice(&header);
+    let p = write(dir.path(), "d.osm.pbf", &b);
+    let e = osm::read(&p, &Theme::Buildings).unwrap_err();
+    assert!(matches!(e, ImportError::Format { .. }), "{e:?}");
+    assert!(e.to_string().contains("OSMHeader"), "{e}");
+}
+
+#[test]
+fn pbf_with_an_absurd_header_length_is_a_format_error() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = write(dir.path(), "g.osm.pbf", b"\xff\xff\xff\xffgarbage");
+    assert!(matches!(
+        osm::read(&p, &Theme::Buildings),
+        Err(ImportError::Format { .. })
+    ));
+}
+
+// ---- GeoPackage ------------------------------------------------------------------------------
+
+#[test]
+fn gpkg_empty_file_is_empty() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = write(dir.path(), "e.gpkg", b"");
+    assert!(matches!(
+        gpkg::read(&p, &Theme::Any),
+        Err(ImportError::Empty { .. })
+    ));
+}
+
+#[test]
+fn gpkg_not_sqlite_is_an_sqlite_error_with_its_cause() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = write(dir.path(), "x.gpkg", b"SQLite format 2, not really");
+    let e = gpkg::read(&p, &Theme::Any).unwrap_err();
+    assert!(matches!(e, ImportError::Sqlite { .. }), "{e:?}");
+    assert!(std::error::Error::source(&e).is_some());
+}
+
+#[test]
+fn gpkg_truncated_is_an_error() {
+    let dir = tempfile::tempdir().unwrap();
+    let b = std::fs::read(data("originals/bubenec.gpkg")).unwrap();
+    let p = write(dir.path(), "t.gpkg", &b[..b.len() / 3]);
+    let e = gpkg::read(&p, &Theme::Buildings).unwrap_err();
+    assert!(matches!(e, ImportError::Sqlite { .. }), "{e:?}");
+}
+
+#[test]
+fn gpkg_unknown_table_lists_the_tables() {
+    let e = gpkg::read(
+        &data("originals/bubenec.gpkg"),
+        &Theme::Table("nope".into()),
+    )
+    .unwrap_err();
+    assert!(matches!(e, ImportError::Format { .. }), "{e:?}");
+    assert!(e.to_string().contains("buildings"), "{e}");
+}
+
+// ---- Any reader ------------------------------------------------------------------------------
+
+#[test]
+fn unknown_extension_is_unsupported() {
+    assert!(matches!(
+        read_layer(Path::new("city.dwg"), &Theme::Any),
+        Err(ImportError::Unsupported { .. })
+    ));
+}
+
+#[test]
+fn missing_file_is_io() {
+    let dir = tempfile::tempdir().unwrap();
+    for name in ["a.shp", "a.geojson", "a.gpkg", "a.osm.pbf"] {
+        let e = read_layer(&dir.path().join(name), &Theme::Any).unwrap_err();
+        assert!(matches!(e, ImportError::Io { .. }), "{name}: {e:?}");
+    }
+}
+
+#[test]
+fn numbers_in_text_are_read_whole() {
+    let t = |s: &str| AttrValue::Text(s.into()).as_f64();
+    assert_eq!(t("1e9"), Some(1e9));
+    assert_eq!(t("2.5E+1 m"), Some(25.0));
+    assert_eq!(t("12.13 m"), Some(12.13));
+    assert_eq!(t("12,5"), Some(12.5));
+    assert_eq!(t("5;6"), Some(5.0));
+    assert_eq!(t("-3"), Some(-3.0));
+    assert_eq!(t("1e999"), None);
+    assert_eq!(t("inf"), None);
+    assert_eq!(t("NaN"), None);
+    assert_eq!(t("tall"), None);
+    assert_eq!(t(""), None);
+    assert_eq!(AttrValue::Float(f64::NAN).as_f64(), None);
+}

@@ -1,0 +1,172 @@
+//! Footprint features → buildings: transform (checked against the CRS), repair, heights, and
+//! the account of every feature (imported, repaired with what was done, or refused with why).
+
+use blockwalk_importers::{Layer, MetricTransform};
+use rayon::prelude::*;
+
+use super::geometry::{geometry_kind, polygons_of, to_metric_polygon};
+use super::heights::{heights_from_attributes, source_name, HeightFields};
+use super::HeightNote;
+use crate::city::model::{Building, BuildingId, CityReport, RefusalNote, RepairNote};
+use crate::geom::repair::{repair_polygon, Repaired};
+
+fn repair_outcome(r: &Repaired) -> String {
+    r.actions
+        .iter()
+        .filter(|a| !a.is_normalization())
+        .map(|a| a.to_string())
+        .collect::<Vec<_>>()
+        .join("; ")
+}
+
+/// Accounts for the importer's own refusals and returns the buildings of the footprint layer,
+/// recording every feature in `report` (see the module documentation of [`super`]).
+pub(crate) fn build_footprints(
+    footprints: &Layer,
+    transform: &MetricTransform,
+    hf: &HeightFields,
+    report: &mut CityReport,
+) -> Vec<Building> {
+    let lname = &footprints.name;
+    report.buildings_read = footprints
+        .report
+        .read
+        .max(footprints.features.len() + footprints.report.refused.len());
+    for n in &footprints.report.notes {
+        report.notes.push(format!("{lname}: {n}"));
+    }
+    for r in &footprints.report.refused {
+        report.buildings_refused.push(RefusalNote {
+            id: format!("{lname}:{}", r.fid),
+            reason: format!("importer: {}", r.reason),
+        });
+    }
+    // Records the importer neither handed on nor refused (should not happen) are accounted for.
+    let unaccounted = report
+        .buildings_read
+        .saturating_sub(footprints.features.len() + footprints.report.refused.len());
+    if unaccounted > 0 {
+        report.buildings_refused.push(RefusalNote {
+            id: format!("{lname}:?"),
+            reason: format!("{unaccounted} record(s) neither imported nor refused by the importer"),
+        });
+    }
+
+    // Transform and repair in parallel (the expensive part), account sequentially in order.
+    let outcomes: Vec<Option<Vec<Result<Repaired, String>>>> = footprints
+        .features
+        .par_iter()
+        .map(|f| {
+            polygons_of(&f.geometry).map(|ps| {
+                ps.iter()
+                    .map(|p| {
+                        let m = to_metric_polygon(p, transform)?;
+                        repair_polygon(&m).map_err(|e| e.to_string())
+                    })
+                    .collect()
+            })
+        })
+        .collect();
+
+    let mut buildings: Vec<Building> = Vec::with_capacity(footprints.features.len());
+    for (f, outcome) in footprints.features.iter().zip(outcomes) {
+        let base = format!("{lname}:{}", f.fid);
+        let Some(parts) = outcome else {
+            report.buildings_refused.push(RefusalNote {
+                id: base,
+                reason: format!("{} is not a polygon", geometry_kind(&f.geometry)),
+            });
+            continue;
+        };
+        if parts.is_empty() {
+            report.buildings_refused.push(RefusalNote {
+                id: base,
+                reason: "empty geometry".into(),
+            });
+            continue;
+        }
+        let heights = heights_from_attributes(&f.attributes, hf);
+        let n_out: usize = parts
+            .iter()
+            .map(|r| r.as_ref().map(|r| r.polygons.len()).unwrap_or(0))
+            .sum();
+        let single = n_out == 1 && parts.len() == 1;
+        let mut what = Vec::new();
+        let mut k = 0usize;
+        for (pi, part) in parts.iter().enumerate() {
+            match part {
+                Err(reason) => {
+                    if parts.len() > 1 {
+                        what.push(format!("part {pi} refused: {reason}"));
+                    } else {
+                        what.push(reason.clone());
+                    }
+                }
+                Ok(rep) => {
+                    if rep.was_repaired() {
+                        let s = repair_outcome(rep);
+                        what.push(if parts.len() > 1 {
+                            format!("part {pi}: {s}")
+                        } else {
+                            s
+                        });
+                    }
+                    for poly in &rep.polygons {
+                        let source_id = if single {
+                            base.clone()
+                        } else {
+                            format!("{base}.{k}")
+                        };
+                        k += 1;
+                        buildings.push(Building {
+                            id: BuildingId(buildings.len() as u32),
+                            source_id,
+                            footprint: poly.clone(),
+                            height_m: heights.height_m,
+                            min_height_m: heights.min_height_m,
+                            height_source: heights.source,
+                            attributes: f.attributes.clone(),
+                        });
+                        *report
+                            .height_sources
+                            .entry(source_name(heights.source).to_string())
+                            .or_insert(0) += 1;
+                    }
+                }
+            }
+        }
+        if k == 0 {
+            report.buildings_refused.push(RefusalNote {
+                id: base.clone(),
+                reason: what.join("; "),
+            });
+        } else if what.is_empty() {
+            report.buildings_imported += 1;
+        } else {
+            report.buildings_repaired.push(RepairNote {
+                id: base.clone(),
+                what: what.join("; "),
+            });
+        }
+        if k > 0 {
+            for n in &heights.notes {
+                report.notes.push(format!("{base}: {n}"));
+            }
+            for h in heights.implausible {
+                report.implausible_heights.push(HeightNote {
+                    id: base.clone(),
+                    field: h.field,
+                    value: h.value,
+                    why: h.why,
+                });
+            }
+        }
+    }
+    report.refused_by_reason = blockwalk_importers::group_reasons(
+        report
+            .buildings_refused
+            .iter()
+            .map(|r| (r.id.clone(), r.reason.as_str())),
+    );
+    buildings
+}
