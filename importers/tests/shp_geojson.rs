@@ -349,7 +349,7 @@ fn truncated_and_garbage_files() {
     std::fs::write(&shp_path, &bytes[..200]).unwrap();
     let e = shp::read(&shp_path).unwrap_err();
     assert!(
-        matches!(&e, ImportError::Format { file, .. } if file == &shp_path),
+        matches!(&e, ImportError::Shapefile { file, what, .. } if file == &shp_path && what.contains("record 0")),
         "{e:?}"
     );
     assert!(e.to_string().contains("record 0"), "{e}");
@@ -494,7 +494,15 @@ mod fuzz {
                 Ok(l) => prop_assert_eq!(l.report.read, l.report.imported + l.report.refused.len()),
                 Err(e) => {
                     prop_assert!(
-                        matches!(e, ImportError::Format { .. } | ImportError::Io { .. }),
+                        matches!(
+                            e,
+                            ImportError::Format { .. }
+                                | ImportError::Io { .. }
+                                | ImportError::Empty { .. }
+                                | ImportError::Truncated { .. }
+                                | ImportError::Shapefile { .. }
+                                | ImportError::Dbase { .. }
+                        ),
                         "{:?}",
                         e
                     );

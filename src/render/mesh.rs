@@ -381,14 +381,7 @@ impl MeshRenderer {
             while i < order.len() && blocks[order[i]].0 == id {
                 let mesh = blocks[order[i]].1;
                 let offset = (vertices.len() - base_vertex) as u32;
-                push_mesh(
-                    &mut vertices,
-                    &mut indices,
-                    &mut styles,
-                    offset,
-                    mesh,
-                    id,
-                )?;
+                push_mesh(&mut vertices, &mut indices, &mut styles, offset, mesh, id)?;
                 i += 1;
             }
             ranges[id.0 as usize] = Some(BlockRange {

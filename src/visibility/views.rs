@@ -151,4 +151,3 @@ pub fn random_views(city: &City, layout: &BlockLayout, opts: &ViewOptions) -> Ve
     }
     views
 }
-
