@@ -10,7 +10,7 @@
 use crate::blocks::BlockId;
 use crate::city::Mesh;
 use crate::geom::Camera;
-use glam::{DVec3, DVec4};
+use glam::{DMat4, DVec3, DVec4};
 use rayon::prelude::*;
 use std::collections::BTreeSet;
 
@@ -81,13 +81,8 @@ fn facade_color(n: DVec3, id: u32) -> [u8; 3] {
     base.map(|c| (c * lambert * 255.0).clamp(0.0, 255.0) as u8)
 }
 
-fn project(
-    blocks: &[(BlockId, &Mesh)],
-    camera: &Camera,
-    width: u32,
-    height: u32,
-) -> Vec<ScreenTri> {
-    let m = camera.clip_from_world();
+fn project(blocks: &[(BlockId, &Mesh)], m: &DMat4, width: u32, height: u32) -> Vec<ScreenTri> {
+    let m = *m;
     let (w, h) = (width as f64, height as f64);
     let mut out = Vec::new();
     let mut poly = Vec::with_capacity(8);
@@ -235,7 +230,17 @@ fn render(
     height: u32,
     with_color: bool,
 ) -> (IdBuffer, Vec<[u8; 3]>) {
-    let tris = project(blocks, camera, width, height);
+    render_clip(blocks, &camera.clip_from_world(), width, height, with_color)
+}
+
+fn render_clip(
+    blocks: &[(BlockId, &Mesh)],
+    clip_from_world: &DMat4,
+    width: u32,
+    height: u32,
+    with_color: bool,
+) -> (IdBuffer, Vec<[u8; 3]>) {
+    let tris = project(blocks, clip_from_world, width, height);
     let n = width as usize * height as usize;
     let mut ids = vec![SKY; n];
     let mut depth = vec![1.0f32; n];
@@ -274,6 +279,18 @@ pub fn render_ids(
     height: u32,
 ) -> IdBuffer {
     render(blocks, camera, width, height, false).0
+}
+
+/// Draws the blocks' meshes (local frame) through any `clip_from_world` (perspective or
+/// orthographic, depth `z/w` in `[0, 1]`, nearer is smaller) into an id and depth buffer. Pixel
+/// row 0 is clip `y = +1`.
+pub fn render_ids_clip(
+    blocks: &[(BlockId, &Mesh)],
+    clip_from_world: &DMat4,
+    width: u32,
+    height: u32,
+) -> IdBuffer {
+    render_clip(blocks, clip_from_world, width, height, false).0
 }
 
 /// The blocks with at least one pixel in a `width × height` image from `camera`: the visibility
