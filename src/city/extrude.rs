@@ -15,7 +15,8 @@ use geo_types::{Coord, LineString, Polygon};
 use glam::{DVec3, Vec3};
 use spade::{ConstrainedDelaunayTriangulation, Point2, Triangulation};
 
-use super::mesh::Mesh;
+use super::appearance::{building_style, ring_u};
+use super::mesh::{Mesh, VertexAppearance};
 use super::model::{Building, City, LocalFrame};
 use crate::geom::predicates::{open_ring, point_in_polygon, Location};
 
@@ -132,7 +133,11 @@ pub fn try_extrude_building(b: &Building, frame: &LocalFrame) -> Result<Mesh, Ex
         positions: Vec::with_capacity(2 * n_in + 4 * n_walls),
         normals: Vec::with_capacity(2 * n_in + 4 * n_walls),
         indices: Vec::with_capacity(6 * cap.len() + 6 * n_walls),
+        appearance: Vec::with_capacity(2 * n_in + 4 * n_walls),
+        styles: vec![building_style(b)],
     };
+    // Appearance: one style (index 0); u = 0 on roof and floor, the unfolded ring on walls.
+    let va = |u_m: f32| VertexAppearance { u_m, style: 0 };
     // Roof (z1, normal +z) and floor (z0, normal −z, reversed).
     for (z, nz, flip) in [(z1, 1.0f32, false), (z0, -1.0, true)] {
         let base = m.positions.len() as u32;
@@ -140,6 +145,7 @@ pub fn try_extrude_building(b: &Building, frame: &LocalFrame) -> Result<Mesh, Ex
             let p = v.position();
             m.positions.push(p32(p.x, p.y, z));
             m.normals.push(Vec3::new(0.0, 0.0, nz));
+            m.appearance.push(va(0.0));
         }
         for t in &cap {
             if flip {
@@ -153,8 +159,10 @@ pub fn try_extrude_building(b: &Building, frame: &LocalFrame) -> Result<Mesh, Ex
     // edge and the outward normal points right.
     for ring in std::iter::once(lp.exterior()).chain(lp.interiors()) {
         let r = open_ring(&ring.0);
+        let us = ring_u(r);
         for i in 0..r.len() {
             let (a, b2) = (r[i], r[(i + 1) % r.len()]);
+            let (ua, ub) = (us[i], us[i + 1]);
             let (dx, dy) = (b2.x - a.x, b2.y - a.y);
             let len = (dx * dx + dy * dy).sqrt();
             let n = DVec3::new(dy / len, -dx / len, 0.0).as_vec3();
@@ -166,6 +174,7 @@ pub fn try_extrude_building(b: &Building, frame: &LocalFrame) -> Result<Mesh, Ex
                 p32(a.x, a.y, z1),
             ]);
             m.normals.extend([n; 4]);
+            m.appearance.extend([va(ua), va(ub), va(ub), va(ua)]);
             m.indices
                 .extend([base, base + 1, base + 2, base, base + 2, base + 3]);
         }

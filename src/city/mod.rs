@@ -4,10 +4,13 @@
 //!
 //! - [`model`]: [`City`], [`Building`], [`Street`], [`Parcel`], [`LocalFrame`].
 //! - [`build`]: layers → city (CRS to metric, heights, repair; the [`CityReport`]).
+//! - [`appearance`]: the procedural look of buildings, streets and ground (one definition,
+//!   mirrored in `render/mesh.wgsl`).
 //! - [`extrude`]: footprint + heights → closed, outward-oriented [`Mesh`] (seed 003 §3).
 //! - [`export`]: glTF binary and GeoJSON.
 //! - [`generate`]: deterministic procedural cities, written as Shapefiles.
 
+pub mod appearance;
 pub mod build;
 pub mod export;
 pub mod extrude;
@@ -15,5 +18,5 @@ pub mod generate;
 pub mod mesh;
 pub mod model;
 
-pub use mesh::Mesh;
+pub use mesh::{Mesh, VertexAppearance};
 pub use model::{Building, BuildingId, City, CityReport, HeightSource, LocalFrame, Parcel, Street};
