@@ -26,6 +26,7 @@ use super::colors;
 use super::layout::{encode_unit, BlockMap};
 use super::BlockMapError;
 use crate::blocks::{BlockId, BlockLayout};
+use crate::city::appearance::{building_style, ring_u, BuildingStyle};
 use crate::city::{BuildingId, City, Mesh};
 use crate::visibility::oracle::{render_ids_clip, SKY};
 use glam::{DMat4, DVec2, DVec3, DVec4};
@@ -52,6 +53,11 @@ pub struct SourceBuilding {
     pub max: DVec2,
     /// True when the source marks it a bridge (`bridge` / `man_made=bridge` attributes).
     pub bridge: bool,
+    /// Its appearance.
+    pub style: BuildingStyle,
+    /// Per ring, `u` (metres along the unfolded ring) at each vertex and the perimeter
+    /// ([`crate::city::appearance::ring_u`]).
+    pub ring_u: Vec<Vec<f32>>,
 }
 
 /// Everything maps are built from: the buildings (local frame) and their meshes.
@@ -118,7 +124,19 @@ impl<'a> Source<'a> {
                     (k == "bridge" && v != "no" && v != "0" && !v.is_empty())
                         || (k == "man_made" && v.contains("bridge"))
                 });
+                let us = rings
+                    .iter()
+                    .map(|r| {
+                        let c: Vec<geo_types::Coord<f64>> = r
+                            .iter()
+                            .map(|p| geo_types::Coord { x: p.x, y: p.y })
+                            .collect();
+                        ring_u(&c)
+                    })
+                    .collect();
                 buildings[bid.0 as usize] = Some(SourceBuilding {
+                    style: building_style(b),
+                    ring_u: us,
                     id: b.id,
                     source_id: b.source_id.clone(),
                     block: block.id,
@@ -270,8 +288,7 @@ pub fn build_map(
             let code = ((b.z1 / zmax * 255.0).round().clamp(1.0, 255.0)) as u8;
             let t = map.texel_mut(i as u32, j as u32);
             t[0] = code;
-            let bld = &source.city.buildings[id as usize];
-            let c = colors::to_bytes(colors::roof_rgb(bld, b.block));
+            let c = colors::to_bytes(colors::roof_rgb(&b.style));
             *map.texel_mut((k + i) as u32, j as u32) = [c[0], c[1], c[2], 255];
         }
     }
@@ -327,7 +344,7 @@ pub fn build_map(
     map.meta.slices = slices;
     stats.slices = slices;
     let rows = opts.k / slices;
-    let sun_free_rows = rows - 1;
+    let colour_rows = rows - 1;
     for (s, order) in orders.iter().enumerate() {
         let n = order.len();
         if n > 255 {
@@ -344,7 +361,7 @@ pub fn build_map(
         // Accumulate per column: normal sum, colour sums per row, count.
         let ncol = n.min(255);
         let mut nsum = vec![DVec3::ZERO; ncol];
-        let mut csum = vec![[0f64; 3]; ncol * sun_free_rows as usize];
+        let mut csum = vec![[0f64; 3]; ncol * colour_rows as usize];
         let mut cnt = vec![0u32; ncol];
         for (idx, &t) in order.iter().enumerate() {
             let (i, j) = (t % k, t / k);
@@ -352,7 +369,6 @@ pub fn build_map(
             map.texel_mut(i as u32, j as u32)[1] = c;
             let id = owner[t];
             let Some(b) = index_of(id) else { continue };
-            let bld = &source.city.buildings[id as usize];
             let slot = c as usize - 1;
             let s_m = map.texel_m();
             let centre = min + DVec2::new((i as f64 + 0.5) * s_m, (j as f64 + 0.5) * s_m);
@@ -362,18 +378,24 @@ pub fn build_map(
                 }
                 let dir = DVec2::new(*di as f64, *dj as f64);
                 let mid = centre + dir * (0.5 * s_m);
-                let n = nearest_facade_normal(b, mid).unwrap_or(dir);
+                let (n, u) = nearest_facade(b, mid).unwrap_or((dir, 0.0));
                 nsum[slot] += n.extend(0.0);
-            }
-            for r in 0..sun_free_rows as usize {
-                let z = (r as f64 + 0.5) / sun_free_rows as f64 * zmax;
-                let fc = colors::facade_rgb(bld, b.block, z.min(b.z1));
-                let acc = &mut csum[slot * sun_free_rows as usize + r];
-                for ch in 0..3 {
-                    acc[ch] += fc[ch] as f64;
+                // The side's colour: the facade around the nearest point, averaged over the
+                // texel's width (two u samples) and each row's height (two z samples).
+                for r in 0..colour_rows as usize {
+                    let acc = &mut csum[slot * colour_rows as usize + r];
+                    for du in [-0.25f32, 0.25] {
+                        for dz in [0.25f64, 0.75] {
+                            let z = ((r as f64 + dz) / colour_rows as f64 * zmax).min(b.z1);
+                            let fc = colors::facade_rgb(&b.style, u + du * s_m as f32, z as f32);
+                            for ch in 0..3 {
+                                acc[ch] += fc[ch] as f64;
+                            }
+                        }
+                    }
                 }
+                cnt[slot] += 4;
             }
-            cnt[slot] += 1;
         }
         let row0 = s as u32 * rows;
         for slot in 0..ncol {
@@ -381,12 +403,13 @@ pub fn build_map(
             if cnt[slot] == 0 {
                 continue;
             }
-            for r in 0..sun_free_rows {
-                let a = csum[slot * sun_free_rows as usize + r as usize];
+            for r in 0..colour_rows {
+                let a = csum[slot * colour_rows as usize + r as usize];
                 let c = colors::to_bytes(a.map(|v| (v / cnt[slot] as f64) as f32));
                 *map.texel_mut(u, row0 + r) = [c[0], c[1], c[2], 255];
             }
             let n = nsum[slot].normalize_or(DVec3::X).as_vec3();
+            // Colours were summed over 4 samples per side, normals once per side.
             *map.texel_mut(u, row0 + rows - 1) =
                 [encode_unit(n.x), encode_unit(n.y), encode_unit(n.z), 255];
         }
@@ -441,11 +464,12 @@ fn unfold(exposed: &[u8], k: usize, r0: usize, r1: usize) -> Vec<usize> {
     out
 }
 
-/// Outward unit normal of the footprint edge of `b` nearest to `p` (`None` for a footprint
-/// without edges).
-pub fn nearest_facade_normal(b: &SourceBuilding, p: DVec2) -> Option<DVec2> {
-    let mut best: Option<(f64, DVec2)> = None;
-    for ring in &b.rings {
+/// The footprint edge of `b` nearest to `p`: its outward unit normal and the `u` coordinate
+/// (metres along the unfolded ring) of the point of the edge nearest to `p`. `None` for a
+/// footprint without edges.
+pub fn nearest_facade(b: &SourceBuilding, p: DVec2) -> Option<(DVec2, f32)> {
+    let mut best: Option<(f64, DVec2, f32)> = None;
+    for (ri, ring) in b.rings.iter().enumerate() {
         let n = ring.len();
         for e in 0..n {
             let (a, c) = (ring[e], ring[(e + 1) % n]);
@@ -458,10 +482,12 @@ pub fn nearest_facade_normal(b: &SourceBuilding, p: DVec2) -> Option<DVec2> {
             let dist = (a + d * t - p).length_squared();
             // Exterior CCW and holes CW: the solid is on the left, outward is the right normal.
             let out = DVec2::new(d.y, -d.x) / l2.sqrt();
-            if best.is_none_or(|(bd, _)| dist < bd) {
-                best = Some((dist, out));
+            if best.is_none_or(|(bd, _, _)| dist < bd) {
+                let us = &b.ring_u[ri];
+                let u = us[e] + (us[e + 1] - us[e]) * t as f32;
+                best = Some((dist, out, u));
             }
         }
     }
-    best.map(|(_, n)| n)
+    best.map(|(_, n, u)| (n, u))
 }

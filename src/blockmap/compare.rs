@@ -148,15 +148,16 @@ pub fn compare_view(
                 let q = inv * DVec4::new(nx, ny, ids.depth[k] as f64, 1.0);
                 let p = q.truncate() / q.w;
                 if let Some(sb) = source.buildings[b].as_ref() {
-                    let bld = &source.city.buildings[b];
-                    let roof = (p.z - sb.z1).abs() < 0.02 * (1.0 + sb.z1);
-                    let (base, n) = if roof {
-                        (colors::roof_rgb(bld, sb.block), glam::Vec3::Z)
+                    let tol = 0.02 * (1.0 + sb.z1);
+                    let (base, n) = if (p.z - sb.z1).abs() < tol {
+                        (colors::roof_rgb(&sb.style), glam::Vec3::Z)
+                    } else if sb.z0 > 0.0 && (p.z - sb.z0).abs() < tol {
+                        (colors::underside_rgb(), glam::Vec3::NEG_Z)
                     } else {
-                        let n = super::build::nearest_facade_normal(sb, p.truncate())
-                            .unwrap_or(DVec2::X);
+                        let (n, u) = super::build::nearest_facade(sb, p.truncate())
+                            .unwrap_or((DVec2::X, 0.0));
                         (
-                            colors::facade_rgb(bld, sb.block, p.z),
+                            colors::facade_rgb(&sb.style, u, p.z as f32),
                             n.extend(0.0).as_vec3(),
                         )
                     };
