@@ -55,7 +55,7 @@ fn agree(m: &BlockMap, r: &TexRay<f64>, leap: bool) -> Result<bool, TestCaseErro
     };
     let a = cast_f32(m, &r.to_f32(), &opts);
     let b = cast_f64(m, r, &opts);
-    if b.is_tie(1e-3) {
+    if b.is_tie(1e-4) {
         return Ok(false);
     }
     match (a.hit, b.hit) {
@@ -156,6 +156,39 @@ proptest! {
         let o = DVec3::new(ox, oy, oz);
         agree(&m, &ray(&m, o, target - o), false)?;
     }
+}
+
+#[test]
+fn ties_are_rare_and_every_non_tie_agrees() {
+    // The twin may only excuse a small share of rays: otherwise the comparison above says little.
+    use rand::{Rng, SeedableRng};
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(9);
+    let (mut ties, mut n, mut hits) = (0, 0, 0);
+    for seed in 0..20 {
+        let m = random_map(64, seed, 0.4, 1);
+        let b = m.aabb();
+        for _ in 0..2000 {
+            let o = DVec3::new(
+                rng.random_range(-300.0..500.0),
+                rng.random_range(-300.0..500.0),
+                rng.random_range(1.0..300.0),
+            );
+            let t = b.min + (b.max - b.min) * DVec3::new(rng.random(), rng.random(), rng.random());
+            let r = ray(&m, o, t - o);
+            n += 1;
+            let c = cast_f64(&m, &r, &CastOptions::default());
+            hits += usize::from(c.hit != Hit::Miss);
+            if c.is_tie(1e-4) {
+                ties += 1;
+                continue;
+            }
+            let a = cast_f32(&m, &r.to_f32(), &CastOptions::default());
+            assert_eq!(a.hit.texel(), c.hit.texel(), "{r:?}");
+        }
+    }
+    eprintln!("{ties} ties, {hits} hits in {n} rays");
+    assert!(hits > n / 4, "{hits} hits of {n}");
+    assert!((ties as f64) < 0.02 * n as f64, "{ties} ties of {n}");
 }
 
 #[test]

@@ -317,7 +317,13 @@ fn cast_generic<T: Real>(map: &BlockMap, ray: &TexRay<T>, opts: &CastOptions) ->
         },
     ];
     let mut w = start_cell(ray, t0, k, step);
-    margin = margin.min(cell_margin(ray, t0));
+    // The entry point lies on the entry face's plane by construction; only the other axes can
+    // put it near a cell edge.
+    margin = margin.min(cell_margin(
+        ray,
+        t0,
+        if eye_inside { 3 } else { entry_axis },
+    ));
     // The wall face met when entering the first cell from outside the box.
     let mut face = match (eye_inside, entry_axis) {
         (true, _) => Face::Inside,
@@ -358,7 +364,7 @@ fn cast_generic<T: Real>(map: &BlockMap, ray: &TexRay<T>, opts: &CastOptions) ->
                 }
                 t_in = t_new;
                 w = start_cell(ray, t_in, k, step);
-                margin = margin.min(cell_margin(ray, t_in));
+                margin = margin.min(cell_margin(ray, t_in, 3));
                 leaped_at = w.j * k + w.i;
                 face = Face::Inside; // not used: the landing cell is empty
                 continue;
@@ -370,7 +376,12 @@ fn cast_generic<T: Real>(map: &BlockMap, ray: &TexRay<T>, opts: &CastOptions) ->
         let code = map.height_code(w.i as u32, w.j as u32);
         let h = T::of(code as f64) / k255;
         if code > 0 {
-            margin = margin.min((za - h).abs().to64()).min((zb - h).abs().to64());
+            // Entering through the top face over a texel of the top level is a roof hit either
+            // way (za ≈ 1 = h): not a tie.
+            if !(steps == 1 && entered_top) {
+                margin = margin.min((za - h).abs().to64());
+            }
+            margin = margin.min((zb - h).abs().to64());
             if za <= h {
                 let (i, j) = (w.i as u32, w.j as u32);
                 let t = t_in.to64();
@@ -422,10 +433,10 @@ fn cast_generic<T: Real>(map: &BlockMap, ray: &TexRay<T>, opts: &CastOptions) ->
     miss(steps, margin)
 }
 
-/// How far `o + t·d` lies from the nearest grid line in x or y, texels.
-fn cell_margin<T: Real>(ray: &TexRay<T>, t: T) -> f64 {
+/// How far `o + t·d` lies from the nearest grid line in x or y (except axis `skip`), texels.
+fn cell_margin<T: Real>(ray: &TexRay<T>, t: T, skip: usize) -> f64 {
     let mut m = f64::INFINITY;
-    for a in 0..2 {
+    for a in (0..2).filter(|&a| a != skip) {
         let p = (ray.o[a] + t * ray.d[a]).to64();
         m = m.min((p - p.round()).abs());
     }

@@ -39,8 +39,11 @@ pub struct ViewCompare {
     pub map_pixels: usize,
     /// Pixels whose coverage differs.
     pub mismatched: usize,
-    /// `mismatched / (width·height)`.
+    /// `mismatched / (width·height)` (seed 001's coverage error).
     pub coverage_error: f64,
+    /// `mismatched / |mesh ∪ map pixels|`: the same count against the pixels either image
+    /// covers, a stricter figure when the map is small on screen.
+    pub coverage_error_of_union: f64,
     /// Mismatched pixels farther than `1 + e_px/cos²θ` from a mesh silhouette.
     pub beyond_bound: usize,
     /// Hit points farther than ε from the original surface (f64 twin).
@@ -241,5 +244,11 @@ pub fn compare_view(
         }
     }
     out.coverage_error = out.mismatched as f64 / (w * h) as f64;
+    let union = mesh_cov
+        .iter()
+        .zip(&map_cov)
+        .filter(|(a, b)| **a || **b)
+        .count();
+    out.coverage_error_of_union = out.mismatched as f64 / union.max(1) as f64;
     out
 }
