@@ -46,6 +46,9 @@ pub struct ViewCompare {
     pub coverage_error_of_union: f64,
     /// Mismatched pixels farther than `1 + e_px/cos²θ` from a mesh silhouette.
     pub beyond_bound: usize,
+    /// Largest distance of a mismatched pixel to the nearest mesh silhouette pixel, in units of
+    /// its allowed distance `1 + e_px/cos²θ` (≤ 1 when the bound holds).
+    pub worst_mismatch_ratio: f64,
     /// Hit points farther than ε from the original surface (f64 twin).
     pub point_violations: usize,
     /// Largest hit-point distance to the original surface, metres.
@@ -234,11 +237,15 @@ pub fn compare_view(
             let cos2 = 1.0 / (1.0 + nx * nx + ny * ny);
             let r = 1.0 + eps_px / cos2;
             let r2 = r * r;
-            let ok = sil.iter().any(|&(sx, sy)| {
-                let (dx, dy) = ((sx - x as i64) as f64, (sy - y as i64) as f64);
-                dx * dx + dy * dy <= r2
-            });
-            if !ok {
+            let nearest2 = sil
+                .iter()
+                .map(|&(sx, sy)| {
+                    let (dx, dy) = ((sx - x as i64) as f64, (sy - y as i64) as f64);
+                    dx * dx + dy * dy
+                })
+                .fold(f64::INFINITY, f64::min);
+            out.worst_mismatch_ratio = out.worst_mismatch_ratio.max(nearest2.sqrt() / r);
+            if nearest2 > r2 {
                 out.beyond_bound += 1;
             }
         }

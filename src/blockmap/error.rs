@@ -9,8 +9,9 @@
 //!   every 2 texels in between (a wall covered by a neighbour prism is not a surface and is
 //!   skipped); for raised parts (`min_height` > 0) the underside and the ground below it, which a
 //!   2.5D map cannot represent (seed 002 §4.2.1: height fields are 2.5D).
-//! - map → original: every texel's top at its centre, and every exposed side at its midpoint,
-//!   at the bottom, the top and every 2 texels of its wall.
+//! - map → original: every texel's top at its centre and corners, and every exposed side at its
+//!   midpoint (at the bottom, the top and every 2 texels of its wall) and its two ends (bottom
+//!   and top).
 //!
 //! A sample farther than the ½ voxel diagonal is a feature the 2.5D grid cannot hold: a building
 //! narrower than a texel that vanished or swelled, a courtyard or street narrower than a texel
@@ -528,11 +529,27 @@ pub fn measure(map: &BlockMap, source: &Source, buildings: &[u32]) -> ErrorRepor
                     if hn >= h {
                         continue;
                     }
-                    let mid = c + DVec2::new(di as f64, dj as f64) * (0.5 * s);
+                    let dir = DVec2::new(di as f64, dj as f64);
+                    let mid = c + dir * (0.5 * s);
                     for z in heights(hn, h, 2.0 * s) {
                         samples += 1;
                         local = local.max(grid.surface_distance(mid.extend(z), &mut scratch));
                     }
+                    // The side's two ends (the staircase's corners, the points of a texel
+                    // farthest from a footprint edge) at its bottom and top.
+                    let along = DVec2::new(dir.y, dir.x) * (0.5 * s);
+                    for end in [mid - along, mid + along] {
+                        for z in [hn, h] {
+                            samples += 1;
+                            local = local.max(grid.surface_distance(end.extend(z), &mut scratch));
+                        }
+                    }
+                }
+                // The top's corners.
+                for (cx, cy) in [(-0.5, -0.5), (0.5, -0.5), (-0.5, 0.5), (0.5, 0.5)] {
+                    samples += 1;
+                    let q = c + DVec2::new(cx, cy) * s;
+                    local = local.max(grid.surface_distance(q.extend(h), &mut scratch));
                 }
             }
             m2o = m2o.max(local);
