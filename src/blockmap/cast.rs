@@ -296,9 +296,9 @@ fn cast_generic<T: Real>(map: &BlockMap, ray: &TexRay<T>, opts: &CastOptions) ->
     let eye_inside = t_near <= T::ZERO;
     if !eye_inside {
         // Tie: two slabs entered at (nearly) the same t: the entry face is ambiguous.
-        for a in 0..3 {
+        for (a, tn) in near_list.iter().enumerate() {
             if a != entry_axis {
-                let dn = (near_list[a] - t_near.to64()).abs() * dir_scale(ray);
+                let dn = (tn - t_near.to64()).abs() * dir_scale(ray);
                 margin = margin.min(dn);
             }
         }
