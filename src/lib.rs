@@ -10,6 +10,7 @@
 //! | street graph, urban blocks, building assignment | [`blocks`] | 003 §3 |
 //! | spatial structures (BqR-tree, VAMSplit R-tree, flat, none, rstar) | [`index`] | 003 §4 |
 //! | occlusion culling (occluder shadows, cull map) and the visibility oracle | [`visibility`] | 004 §3.2 |
+//! | far field: BlockMaps, their construction, reference ray caster, error bound | [`blockmap`] | 000 §3–5, 002 ch. 4 |
 //! | one scene: city, blocks, meshes, bounds, structures, culler | [`scene`] | |
 //! | camera routes | [`route`] | 003 §5 |
 //! | playing a route: cull → draw → check, per frame | [`walk`] | 003 §5.1 |
@@ -21,6 +22,7 @@
 
 pub use blockwalk_importers as importers;
 
+pub mod blockmap;
 pub mod blocks;
 pub mod city;
 pub mod geom;

@@ -2,6 +2,7 @@
 
 use clap::{Parser, Subcommand};
 
+mod blockmaps;
 mod blocks;
 mod common;
 mod cull_bench;
@@ -28,6 +29,8 @@ enum Command {
     Generate(generate::Args),
     /// Detect streets and urban blocks; assign buildings.
     Blocks(blocks::Args),
+    /// BlockMaps for the block quadtree's nodes, with their measured error.
+    Blockmaps(blockmaps::Args),
     /// Compare spatial structures on frustum culling.
     CullBench(cull_bench::Args),
     /// Occlusion culling with the cull map, checked against the visibility oracle.
@@ -62,6 +65,7 @@ fn dispatch(command: Command) -> anyhow::Result<()> {
         Command::Import(a) => import::run(a),
         Command::Generate(a) => generate::run(a),
         Command::Blocks(a) => blocks::run(a),
+        Command::Blockmaps(a) => blockmaps::run(a),
         Command::CullBench(a) => cull_bench::run(a),
         Command::OcclusionBench(a) => occlusion_bench::run(a),
         Command::Walk(a) => walk::run(a),

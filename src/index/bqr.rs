@@ -87,6 +87,25 @@ struct Node {
     box_only: bool,
 }
 
+/// What a node holds, as [`BqrTree::node`] shows it.
+#[derive(Clone, Debug, PartialEq)]
+pub struct BqrNodeView {
+    /// Linear quadtree key (root 1; child `4k + q`).
+    pub key: u64,
+    /// Depth (root 0).
+    pub depth: u32,
+    /// Inner node or leaf.
+    pub kind: BqrNodeKind,
+    /// Box of every block of the subtree (local frame).
+    pub aabb: Aabb3,
+    /// Bounding sphere of the subtree.
+    pub sphere: BoundingSphere,
+    /// The subtree's blocks: a range of [`BqrTree::blocks`] (whole blocks, never cut).
+    pub blocks: std::ops::Range<usize>,
+    /// Children's node indices per quadrant (south-west, south-east, north-west, north-east).
+    pub children: [Option<usize>; 4],
+}
+
 #[derive(Clone, Debug)]
 struct ObjectSlot {
     aabb: Aabb3,
@@ -295,6 +314,25 @@ impl BqrTree {
     /// `(key, depth, kind)` of every node in preorder.
     pub fn node_keys(&self) -> impl Iterator<Item = (u64, u32, BqrNodeKind)> + '_ {
         self.nodes.iter().map(|n| (n.key, n.depth, n.kind))
+    }
+
+    /// Number of nodes.
+    pub fn nodes_len(&self) -> usize {
+        self.nodes.len()
+    }
+
+    /// A read-only view of node `i` (preorder index, the root is 0), or `None` past the end.
+    pub fn node(&self, i: usize) -> Option<BqrNodeView> {
+        let n = self.nodes.get(i)?;
+        Some(BqrNodeView {
+            key: n.key,
+            depth: n.depth,
+            kind: n.kind,
+            aabb: n.aabb,
+            sphere: n.sphere,
+            blocks: n.block_start as usize..n.block_end as usize,
+            children: n.children.map(|c| (c != NONE).then_some(c as usize)),
+        })
     }
 
     /// Number of mobile objects.

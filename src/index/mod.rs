@@ -21,7 +21,7 @@ pub mod synthetic;
 mod vamsplit;
 
 pub use bounds::{block_bounds, extruded_triangles};
-pub use bqr::{BqrNodeKind, BqrParams, BqrTree, ObjectId};
+pub use bqr::{BqrNodeKind, BqrNodeView, BqrParams, BqrTree, ObjectId};
 pub use flat::{FlatList, NoStructure};
 pub use rstar_index::RstarIndex;
 pub use vamsplit::{VamSplitParams, VamSplitTree};

@@ -12,7 +12,7 @@ use crate::city::appearance::{self, BuildingStyle};
 use crate::city::Mesh;
 use crate::geom::clip::clip_polygon;
 use crate::geom::Camera;
-use glam::{DVec2, DVec3, DVec4, Vec3};
+use glam::{DMat4, DVec2, DVec3, DVec4, Vec3};
 use rayon::prelude::*;
 use std::collections::BTreeSet;
 
@@ -112,12 +112,12 @@ type Layer<'a> = (u32, bool, &'a Mesh);
 
 fn project(
     layers: &[Layer<'_>],
-    camera: &Camera,
+    clip_from_world: &DMat4,
     width: u32,
     height: u32,
     with_shading: bool,
 ) -> (Vec<ScreenTri>, Vec<TriShading>) {
-    let m = camera.clip_from_world();
+    let m = *clip_from_world;
     let (w, h) = (width as f64, height as f64);
     let mut out = Vec::new();
     // Parallel to `out` when shading (kept apart so that the id pass stays lean).
@@ -314,7 +314,17 @@ fn render(
     height: u32,
     with_color: bool,
 ) -> (IdBuffer, Vec<[u8; 3]>) {
-    let (tris, shadings) = project(layers, camera, width, height, with_color);
+    render_clip(layers, &camera.clip_from_world(), width, height, with_color)
+}
+
+fn render_clip(
+    layers: &[Layer<'_>],
+    clip_from_world: &DMat4,
+    width: u32,
+    height: u32,
+    with_color: bool,
+) -> (IdBuffer, Vec<[u8; 3]>) {
+    let (tris, shadings) = project(layers, clip_from_world, width, height, with_color);
     let n = width as usize * height as usize;
     let mut ids = vec![SKY; n];
     let mut depth = vec![1.0f32; n];
@@ -359,6 +369,18 @@ pub fn render_ids(
     height: u32,
 ) -> IdBuffer {
     render(&block_layers(blocks), camera, width, height, false).0
+}
+
+/// Draws the blocks' meshes (local frame) through any `clip_from_world` (perspective or
+/// orthographic, depth `z/w` in `[0, 1]`, nearer is smaller) into an id and depth buffer. Pixel
+/// row 0 is clip `y = +1`.
+pub fn render_ids_clip(
+    blocks: &[(BlockId, &Mesh)],
+    clip_from_world: &DMat4,
+    width: u32,
+    height: u32,
+) -> IdBuffer {
+    render_clip(&block_layers(blocks), clip_from_world, width, height, false).0
 }
 
 /// The blocks with at least one pixel in a `width × height` image from `camera`: the visibility

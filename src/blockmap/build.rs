@@ -1,0 +1,493 @@
+//! Construction of one BlockMap from the source prisms (seed 000 §3.3, seed 002 §4.3.2), on the
+//! CPU, deterministic.
+//!
+//! 1. **Height map and roof attributes** (seed 002 §4.3.2 "HeightMap and Roof/Ground Surface
+//!    Attributes"): the buildings' meshes are drawn top-down through an orthographic
+//!    `clip_from_world` by the visibility oracle's rasteriser ([`crate::visibility::oracle::render_ids_clip`]),
+//!    one sample per texel centre. The winning building gives the texel its height (its exact
+//!    `height_m`, quantised to the nearest of 256 levels; a building lower than half a level gets
+//!    level 1, so that it never vanishes as "empty") and its roof colour.
+//! 2. **Exposed texels** (seed 000 §3.1): a texel with at least one 4-neighbour lower than
+//!    itself (outside the map counts as empty).
+//! 3. **Wall parametrisation** (seed 002 §4.3.2 "Walls Parametrization"): per slice, exposed
+//!    texels get offsets 1, 2, … in the order of an unfolding of the boundaries (seed 000 §3.3:
+//!    a walk that goes on to an exposed 8-neighbour when it can, so adjacent boundary texels get
+//!    adjacent columns). When a slice needs more than 255 columns the slice count doubles, down
+//!    to slices of 2 rows; past that, neighbouring texels along the unfolding share columns
+//!    (seed 000 §3.3 scales the wall region along u), and the shared ones are counted.
+//! 4. **Wall attributes** (seed 000 §3.3, Fig. 4b): per exposed side, the facade of the texel's
+//!    building nearest to the side's midpoint gives the outward normal; the sides' normals and
+//!    colours are averaged into the column. Deviation: seed 002 samples walls from many views on
+//!    the GPU; for LoD1 prisms with one facade colour per height the nearest facade edge gives
+//!    the same attributes without rendering.
+//! 5. **AO**: not computed yet (A = 255, open sky), see the module docs.
+
+use super::colors;
+use super::layout::{encode_unit, BlockMap};
+use super::BlockMapError;
+use crate::blocks::{BlockId, BlockLayout};
+use crate::city::appearance::{building_style, ring_u, BuildingStyle};
+use crate::city::{BuildingId, City, Mesh};
+use crate::visibility::oracle::{render_ids_clip, SKY};
+use glam::{DMat4, DVec2, DVec3, DVec4};
+use serde::Serialize;
+
+/// A building as the construction and the error measure see it: local frame, f64.
+#[derive(Clone, Debug)]
+pub struct SourceBuilding {
+    /// The building.
+    pub id: BuildingId,
+    /// Its source id (for reports).
+    pub source_id: String,
+    /// Its block.
+    pub block: BlockId,
+    /// Rings in the local frame (exterior CCW first, then holes CW), closing point dropped.
+    pub rings: Vec<Vec<DVec2>>,
+    /// Bottom of the prism, metres.
+    pub z0: f64,
+    /// Top of the prism, metres.
+    pub z1: f64,
+    /// Footprint box (local).
+    pub min: DVec2,
+    /// Footprint box (local).
+    pub max: DVec2,
+    /// True when the source marks it a bridge (`bridge` / `man_made=bridge` attributes).
+    pub bridge: bool,
+    /// Its appearance.
+    pub style: BuildingStyle,
+    /// Per ring, `u` (metres along the unfolded ring) at each vertex and the perimeter
+    /// ([`crate::city::appearance::ring_u`]).
+    pub ring_u: Vec<Vec<f32>>,
+}
+
+/// Everything maps are built from: the buildings (local frame) and their meshes.
+#[derive(Clone, Debug)]
+pub struct Source<'a> {
+    /// Buildings, indexed like `City::buildings`; `None` for a building in no block.
+    pub buildings: Vec<Option<SourceBuilding>>,
+    /// One mesh per building (local frame), as `city::extrude::extrude_city` returns.
+    pub meshes: &'a [Mesh],
+    /// The city (for the appearance).
+    pub city: &'a City,
+}
+
+impl<'a> Source<'a> {
+    /// Prepares the buildings of `city` that `layout` assigns to a block.
+    ///
+    /// # Errors
+    /// [`BlockMapError::BadParameter`] when `meshes` does not hold one mesh per building.
+    pub fn new(
+        city: &'a City,
+        layout: &BlockLayout,
+        meshes: &'a [Mesh],
+    ) -> Result<Self, BlockMapError> {
+        if meshes.len() != city.buildings.len() {
+            return Err(BlockMapError::BadParameter(format!(
+                "{} meshes for {} buildings",
+                meshes.len(),
+                city.buildings.len()
+            )));
+        }
+        let o = city.frame.origin;
+        let mut buildings: Vec<Option<SourceBuilding>> = vec![None; city.buildings.len()];
+        for block in &layout.blocks {
+            for bid in &block.buildings {
+                let Some(b) = city.buildings.get(bid.0 as usize) else {
+                    continue;
+                };
+                let ring = |r: &geo_types::LineString<f64>| -> Vec<DVec2> {
+                    let mut v: Vec<DVec2> =
+                        r.0.iter()
+                            .map(|c| DVec2::new(c.x - o.x, c.y - o.y))
+                            .collect();
+                    if v.len() >= 2 && v[0] == v[v.len() - 1] {
+                        v.pop();
+                    }
+                    v
+                };
+                let mut rings = vec![ring(b.footprint.exterior())];
+                rings.extend(b.footprint.interiors().iter().map(ring));
+                let (mut min, mut max) =
+                    (DVec2::splat(f64::INFINITY), DVec2::splat(f64::NEG_INFINITY));
+                for p in &rings[0] {
+                    min = min.min(*p);
+                    max = max.max(*p);
+                }
+                let bridge = b.attributes.iter().any(|(k, v)| {
+                    use blockwalk_importers::AttrValue;
+                    let v = match v {
+                        AttrValue::Text(s) => s.to_ascii_lowercase(),
+                        AttrValue::Bool(true) => "yes".into(),
+                        AttrValue::Int(i) if *i != 0 => "yes".into(),
+                        _ => String::new(),
+                    };
+                    (k == "bridge" && v != "no" && v != "0" && !v.is_empty())
+                        || (k == "man_made" && v.contains("bridge"))
+                });
+                let us = rings
+                    .iter()
+                    .map(|r| {
+                        let c: Vec<geo_types::Coord<f64>> = r
+                            .iter()
+                            .map(|p| geo_types::Coord { x: p.x, y: p.y })
+                            .collect();
+                        ring_u(&c)
+                    })
+                    .collect();
+                buildings[bid.0 as usize] = Some(SourceBuilding {
+                    style: building_style(b),
+                    ring_u: us,
+                    id: b.id,
+                    source_id: b.source_id.clone(),
+                    block: block.id,
+                    rings,
+                    z0: b.min_height_m.min(b.height_m),
+                    z1: b.height_m.max(b.min_height_m),
+                    min,
+                    max,
+                    bridge,
+                });
+            }
+        }
+        Ok(Self {
+            buildings,
+            meshes,
+            city,
+        })
+    }
+
+    /// The buildings of `blocks` (by id order within each block), skipping empty footprints.
+    pub fn buildings_of(&self, layout: &BlockLayout, blocks: &[BlockId]) -> Vec<u32> {
+        let mut out = Vec::new();
+        for id in blocks {
+            if let Some(b) = layout.blocks.get(id.0 as usize) {
+                for bid in &b.buildings {
+                    if self
+                        .buildings
+                        .get(bid.0 as usize)
+                        .and_then(|b| b.as_ref())
+                        .is_some_and(|b| b.rings[0].len() >= 3)
+                    {
+                        out.push(bid.0);
+                    }
+                }
+            }
+        }
+        out
+    }
+}
+
+/// Construction options.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct BuildOptions {
+    /// Height-map side K (32, 64, 128).
+    pub k: u32,
+    /// Smallest slice height in rows (≥ 2, seed 002 §4.3.2).
+    pub min_slice_rows: u32,
+}
+
+impl Default for BuildOptions {
+    fn default() -> Self {
+        Self {
+            k: 64,
+            min_slice_rows: 2,
+        }
+    }
+}
+
+/// What one construction counted.
+#[derive(Clone, Debug, Default, PartialEq, Serialize)]
+pub struct BuildStats {
+    /// Buildings given.
+    pub buildings: usize,
+    /// Texels with a building.
+    pub filled_texels: usize,
+    /// Exposed texels (a 4-neighbour lower).
+    pub exposed_texels: usize,
+    /// Exposed texels that share a column with a neighbour along the unfolding (overflow past
+    /// the smallest slice).
+    pub shared_columns: usize,
+    /// Slices.
+    pub slices: u32,
+    /// Buildings no texel centre falls in (they vanish from the map).
+    pub dropped_buildings: Vec<BuildingId>,
+}
+
+/// Builds the BlockMap of `buildings` (indices into `source.buildings`) over the square that
+/// holds their footprints (side = the longer side of their box).
+///
+/// # Errors
+/// [`BlockMapError::BadParameter`] for a K outside 32/64/128, a bad slice minimum, or no building.
+pub fn build_map(
+    source: &Source,
+    buildings: &[u32],
+    opts: &BuildOptions,
+) -> Result<(BlockMap, Vec<u32>, BuildStats), BlockMapError> {
+    if opts.min_slice_rows < 2 || opts.min_slice_rows > opts.k {
+        return Err(BlockMapError::BadParameter(format!(
+            "min_slice_rows = {}: need 2..=K",
+            opts.min_slice_rows
+        )));
+    }
+    let bs: Vec<&SourceBuilding> = buildings
+        .iter()
+        .filter_map(|&i| source.buildings.get(i as usize).and_then(|b| b.as_ref()))
+        .collect();
+    if bs.is_empty() {
+        return Err(BlockMapError::BadParameter("no building to map".into()));
+    }
+    let (mut lo, mut hi) = (DVec2::splat(f64::INFINITY), DVec2::splat(f64::NEG_INFINITY));
+    let mut zmax: f64 = 0.0;
+    for b in &bs {
+        lo = lo.min(b.min);
+        hi = hi.max(b.max);
+        zmax = zmax.max(b.z1);
+    }
+    let ext = hi - lo;
+    // A square base (seed 002 §4.2.1) centred on the footprints' box.
+    let side = ext.x.max(ext.y).max(1e-3) * (1.0 + 1e-9);
+    let min = (lo + hi) * 0.5 - DVec2::splat(side * 0.5);
+    let zmax = if zmax > 0.0 { zmax } else { 1.0 };
+    let mut map = BlockMap::empty(opts.k, min.extend(0.0), side, zmax)?;
+    let k = opts.k as usize;
+
+    // 1. Top-down orthographic render: x → [−1, 1]; y → clip y so that pixel row 0 is the
+    //    south row (the oracle puts clip y = +1 on row 0); depth 0 at the top.
+    let (ztop, zbot) = (zmax + 1.0, -1.0);
+    let m = DMat4::from_cols(
+        DVec4::new(2.0 / side, 0.0, 0.0, 0.0),
+        DVec4::new(0.0, -2.0 / side, 0.0, 0.0),
+        DVec4::new(0.0, 0.0, -1.0 / (ztop - zbot), 0.0),
+        DVec4::new(
+            -2.0 * min.x / side - 1.0,
+            2.0 * min.y / side + 1.0,
+            ztop / (ztop - zbot),
+            1.0,
+        ),
+    );
+    let pairs: Vec<(BlockId, &Mesh)> = bs
+        .iter()
+        .map(|b| (BlockId(b.id.0), &source.meshes[b.id.0 as usize]))
+        .collect();
+    let ids = render_ids_clip(&pairs, &m, opts.k, opts.k).ids;
+    let mut owner = vec![SKY; k * k];
+    let mut stats = BuildStats {
+        buildings: bs.len(),
+        ..BuildStats::default()
+    };
+    let index_of = |id: u32| source.buildings[id as usize].as_ref();
+    for j in 0..k {
+        for i in 0..k {
+            let id = ids[j * k + i];
+            if id == SKY {
+                continue;
+            }
+            let Some(b) = index_of(id) else { continue };
+            owner[j * k + i] = id;
+            stats.filled_texels += 1;
+            let code = ((b.z1 / zmax * 255.0).round().clamp(1.0, 255.0)) as u8;
+            let t = map.texel_mut(i as u32, j as u32);
+            t[0] = code;
+            let c = colors::to_bytes(colors::roof_rgb(&b.style));
+            *map.texel_mut((k + i) as u32, j as u32) = [c[0], c[1], c[2], 255];
+        }
+    }
+    let mut seen: Vec<u32> = owner.iter().copied().filter(|&o| o != SKY).collect();
+    seen.sort_unstable();
+    seen.dedup();
+    for b in &bs {
+        if seen.binary_search(&b.id.0).is_err() {
+            stats.dropped_buildings.push(b.id);
+        }
+    }
+
+    // 2. Exposed texels and their lower sides.
+    let h = |i: i64, j: i64| -> u8 {
+        if i < 0 || j < 0 || i >= k as i64 || j >= k as i64 {
+            0
+        } else {
+            map.height_code(i as u32, j as u32)
+        }
+    };
+    const SIDES: [(i64, i64); 4] = [(-1, 0), (1, 0), (0, -1), (0, 1)];
+    let mut exposed = vec![0u8; k * k]; // bit s: side SIDES[s] is lower
+    for j in 0..k as i64 {
+        for i in 0..k as i64 {
+            let c = h(i, j);
+            if c == 0 {
+                continue;
+            }
+            let mut bits = 0u8;
+            for (s, (di, dj)) in SIDES.iter().enumerate() {
+                if h(i + di, j + dj) < c {
+                    bits |= 1 << s;
+                }
+            }
+            exposed[(j as usize) * k + i as usize] = bits;
+        }
+    }
+    stats.exposed_texels = exposed.iter().filter(|&&b| b != 0).count();
+
+    // 3. Slices and offsets.
+    let mut slices = 1u32;
+    let orders = loop {
+        let rows = opts.k / slices;
+        let orders: Vec<Vec<usize>> = (0..slices)
+            .map(|s| unfold(&exposed, k, (s * rows) as usize, ((s + 1) * rows) as usize))
+            .collect();
+        let worst = orders.iter().map(Vec::len).max().unwrap_or(0);
+        if worst <= 255 || rows / 2 < opts.min_slice_rows {
+            break orders;
+        }
+        slices *= 2;
+    };
+    map.meta.slices = slices;
+    stats.slices = slices;
+    let rows = opts.k / slices;
+    let colour_rows = rows - 1;
+    for (s, order) in orders.iter().enumerate() {
+        let n = order.len();
+        if n > 255 {
+            stats.shared_columns += n - 255;
+        }
+        // Column of each texel; on overflow neighbours along the unfolding share (seed 000 §3.3).
+        let col_of = |idx: usize| -> u8 {
+            if n <= 255 {
+                (idx + 1) as u8
+            } else {
+                (idx * 255 / n + 1) as u8
+            }
+        };
+        // Accumulate per column: normal sum, colour sums per row, count.
+        let ncol = n.min(255);
+        let mut nsum = vec![DVec3::ZERO; ncol];
+        let mut csum = vec![[0f64; 3]; ncol * colour_rows as usize];
+        let mut cnt = vec![0u32; ncol];
+        for (idx, &t) in order.iter().enumerate() {
+            let (i, j) = (t % k, t / k);
+            let c = col_of(idx);
+            map.texel_mut(i as u32, j as u32)[1] = c;
+            let id = owner[t];
+            let Some(b) = index_of(id) else { continue };
+            let slot = c as usize - 1;
+            let s_m = map.texel_m();
+            let centre = min + DVec2::new((i as f64 + 0.5) * s_m, (j as f64 + 0.5) * s_m);
+            for (sidx, (di, dj)) in SIDES.iter().enumerate() {
+                if exposed[t] & (1 << sidx) == 0 {
+                    continue;
+                }
+                let dir = DVec2::new(*di as f64, *dj as f64);
+                let mid = centre + dir * (0.5 * s_m);
+                let (n, u) = nearest_facade(b, mid).unwrap_or((dir, 0.0));
+                nsum[slot] += n.extend(0.0);
+                // The side's colour: the facade around the nearest point, averaged over the
+                // texel's width (two u samples) and each row's height (two z samples).
+                for r in 0..colour_rows as usize {
+                    let acc = &mut csum[slot * colour_rows as usize + r];
+                    for du in [-0.25f32, 0.25] {
+                        for dz in [0.25f64, 0.75] {
+                            let z = ((r as f64 + dz) / colour_rows as f64 * zmax).min(b.z1);
+                            let fc = colors::facade_rgb(&b.style, u + du * s_m as f32, z as f32);
+                            for ch in 0..3 {
+                                acc[ch] += fc[ch] as f64;
+                            }
+                        }
+                    }
+                }
+                cnt[slot] += 4;
+            }
+        }
+        let row0 = s as u32 * rows;
+        for slot in 0..ncol {
+            let u = 2 * opts.k + slot as u32;
+            if cnt[slot] == 0 {
+                continue;
+            }
+            for r in 0..colour_rows {
+                let a = csum[slot * colour_rows as usize + r as usize];
+                let c = colors::to_bytes(a.map(|v| (v / cnt[slot] as f64) as f32));
+                *map.texel_mut(u, row0 + r) = [c[0], c[1], c[2], 255];
+            }
+            let n = nsum[slot].normalize_or(DVec3::X).as_vec3();
+            // Colours were summed over 4 samples per side, normals once per side.
+            *map.texel_mut(u, row0 + rows - 1) =
+                [encode_unit(n.x), encode_unit(n.y), encode_unit(n.z), 255];
+        }
+    }
+    let kept: Vec<u32> = bs.iter().map(|b| b.id.0).collect();
+    Ok((map, kept, stats))
+}
+
+/// Exposed texels of rows `[r0, r1)` in unfolding order: start at the first unvisited exposed
+/// texel in row-major order, then keep stepping to an unvisited exposed 4-neighbour, else
+/// 8-neighbour (fixed order), so a building's boundary is followed around.
+fn unfold(exposed: &[u8], k: usize, r0: usize, r1: usize) -> Vec<usize> {
+    let mut visited = vec![false; k * k];
+    let mut out = Vec::new();
+    const NB: [(i64, i64); 8] = [
+        (1, 0),
+        (0, 1),
+        (-1, 0),
+        (0, -1),
+        (1, 1),
+        (-1, 1),
+        (-1, -1),
+        (1, -1),
+    ];
+    for start in r0 * k..r1 * k {
+        if exposed[start] == 0 || visited[start] {
+            continue;
+        }
+        let mut cur = start;
+        visited[cur] = true;
+        out.push(cur);
+        loop {
+            let (i, j) = ((cur % k) as i64, (cur / k) as i64);
+            let next = NB.iter().find_map(|(di, dj)| {
+                let (ni, nj) = (i + di, j + dj);
+                if ni < 0 || ni >= k as i64 || nj < r0 as i64 || nj >= r1 as i64 {
+                    return None;
+                }
+                let t = nj as usize * k + ni as usize;
+                (exposed[t] != 0 && !visited[t]).then_some(t)
+            });
+            match next {
+                Some(t) => {
+                    visited[t] = true;
+                    out.push(t);
+                    cur = t;
+                }
+                None => break,
+            }
+        }
+    }
+    out
+}
+
+/// The footprint edge of `b` nearest to `p`: its outward unit normal and the `u` coordinate
+/// (metres along the unfolded ring) of the point of the edge nearest to `p`. `None` for a
+/// footprint without edges.
+pub fn nearest_facade(b: &SourceBuilding, p: DVec2) -> Option<(DVec2, f32)> {
+    let mut best: Option<(f64, DVec2, f32)> = None;
+    for (ri, ring) in b.rings.iter().enumerate() {
+        let n = ring.len();
+        for e in 0..n {
+            let (a, c) = (ring[e], ring[(e + 1) % n]);
+            let d = c - a;
+            let l2 = d.length_squared();
+            if l2 == 0.0 {
+                continue;
+            }
+            let t = ((p - a).dot(d) / l2).clamp(0.0, 1.0);
+            let dist = (a + d * t - p).length_squared();
+            // Exterior CCW and holes CW: the solid is on the left, outward is the right normal.
+            let out = DVec2::new(d.y, -d.x) / l2.sqrt();
+            if best.is_none_or(|(bd, _, _)| dist < bd) {
+                let us = &b.ring_u[ri];
+                let u = us[e] + (us[e + 1] - us[e]) * t as f32;
+                best = Some((dist, out, u));
+            }
+        }
+    }
+    best.map(|(_, n, u)| (n, u))
+}

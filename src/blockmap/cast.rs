@@ -1,0 +1,594 @@
+//! The reference ray caster: the exact 2D grid walk (Amanatides & Woo) over the height map that
+//! the GPU runs (seed 002 §4.2.2; BLOCKMAPS.md A.5), written once over a [`Real`] type and run in
+//! `f32` (operation for operation as the WGSL shader) and in `f64` (the twin, which also flags
+//! rays that pass within a tolerance of a cell corner, a height level or the box's exit, where the
+//! two may legitimately differ).
+//!
+//! Texture space: x, y ∈ [0, K] in texels, z ∈ [0, 1] over `[zmin, zmax]`. A ray `o + t·d` keeps
+//! its parameter `t` from the world: `t` is a world distance when the world direction is unit.
+
+use super::layout::BlockMap;
+use glam::{DVec3, Vec3};
+use std::ops::{Add, Div, Mul, Neg, Sub};
+
+/// The arithmetic the caster needs; implemented for `f32` (the GPU's precision) and `f64`.
+pub trait Real:
+    Copy
+    + PartialOrd
+    + Add<Output = Self>
+    + Sub<Output = Self>
+    + Mul<Output = Self>
+    + Div<Output = Self>
+    + Neg<Output = Self>
+{
+    /// 0.
+    const ZERO: Self;
+    /// 1.
+    const ONE: Self;
+    /// +∞.
+    const INF: Self;
+    /// Rounded conversion.
+    fn of(v: f64) -> Self;
+    /// Widening conversion.
+    fn to64(self) -> f64;
+    /// ⌊x⌋.
+    fn floor(self) -> Self;
+    /// |x|.
+    fn abs(self) -> Self;
+    /// min (IEEE `min` as WGSL's).
+    fn mn(self, o: Self) -> Self;
+    /// max.
+    fn mx(self, o: Self) -> Self;
+}
+
+macro_rules! real {
+    ($t:ty) => {
+        impl Real for $t {
+            const ZERO: Self = 0.0;
+            const ONE: Self = 1.0;
+            const INF: Self = <$t>::INFINITY;
+            #[inline]
+            fn of(v: f64) -> Self {
+                v as $t
+            }
+            #[inline]
+            fn to64(self) -> f64 {
+                self as f64
+            }
+            #[inline]
+            fn floor(self) -> Self {
+                <$t>::floor(self)
+            }
+            #[inline]
+            fn abs(self) -> Self {
+                <$t>::abs(self)
+            }
+            #[inline]
+            fn mn(self, o: Self) -> Self {
+                <$t>::min(self, o)
+            }
+            #[inline]
+            fn mx(self, o: Self) -> Self {
+                <$t>::max(self, o)
+            }
+        }
+    };
+}
+real!(f32);
+real!(f64);
+
+/// The side of a texel's prism a wall hit lies on (the face's outward normal).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Face {
+    /// Normal −x.
+    West,
+    /// Normal +x.
+    East,
+    /// Normal −y.
+    South,
+    /// Normal +y.
+    North,
+    /// The ray starts inside a prism (eye inside, or below the ground): hit at its start.
+    Inside,
+}
+
+impl Face {
+    /// Outward normal of the face (up for [`Face::Inside`]).
+    pub fn normal(self) -> Vec3 {
+        match self {
+            Face::West => Vec3::NEG_X,
+            Face::East => Vec3::X,
+            Face::South => Vec3::NEG_Y,
+            Face::North => Vec3::Y,
+            Face::Inside => Vec3::Z,
+        }
+    }
+}
+
+/// What a ray met.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Hit {
+    /// Left the box without meeting a prism.
+    Miss,
+    /// The top of texel `(i, j)` at parameter `t`.
+    Roof {
+        /// Column.
+        i: u32,
+        /// Row.
+        j: u32,
+        /// Ray parameter.
+        t: f64,
+    },
+    /// A side of texel `(i, j)` at parameter `t`.
+    Wall {
+        /// Column.
+        i: u32,
+        /// Row.
+        j: u32,
+        /// Which side.
+        face: Face,
+        /// Ray parameter.
+        t: f64,
+    },
+}
+
+impl Hit {
+    /// Ray parameter of a hit.
+    pub fn t(&self) -> Option<f64> {
+        match *self {
+            Hit::Miss => None,
+            Hit::Roof { t, .. } | Hit::Wall { t, .. } => Some(t),
+        }
+    }
+    /// Texel of a hit.
+    pub fn texel(&self) -> Option<(u32, u32)> {
+        match *self {
+            Hit::Miss => None,
+            Hit::Roof { i, j, .. } | Hit::Wall { i, j, .. } => Some((i, j)),
+        }
+    }
+}
+
+/// The result of one cast.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Cast {
+    /// What the ray met.
+    pub hit: Hit,
+    /// Grid cells visited (loop iterations).
+    pub steps: u32,
+    /// The smallest margin met on the way (texels or z ∈ [0, 1] units): how close the ray came
+    /// to a cell corner, a height level, or the box's exit. Small margins are ties.
+    pub margin: f64,
+}
+
+impl Cast {
+    /// True when the twin should not be compared exactly: a margin below `tol`.
+    pub fn is_tie(&self, tol: f64) -> bool {
+        self.margin < tol
+    }
+}
+
+/// Options of a cast.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct CastOptions<'a> {
+    /// The distance map ([`BlockMap::distance_map`]) for space leaping (seed 000 §3.2); `None`
+    /// runs the plain grid walk (seed 002 §4.2.2).
+    pub leap: Option<&'a [u8]>,
+}
+
+/// A ray in texture space (see the module doc).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct TexRay<T> {
+    /// Origin (x, y texels; z ∈ [0, 1]).
+    pub o: [T; 3],
+    /// Direction.
+    pub d: [T; 3],
+}
+
+impl BlockMap {
+    /// A world ray (local frame, f64) in this map's texture space, same parameter `t`.
+    pub fn tex_ray(&self, origin: DVec3, dir: DVec3) -> TexRay<f64> {
+        let s = self.texel_m();
+        let hz = self.meta.zmax - self.meta.zmin;
+        let m = self.meta.min;
+        TexRay {
+            o: [
+                (origin.x - m[0]) / s,
+                (origin.y - m[1]) / s,
+                (origin.z - self.meta.zmin) / hz,
+            ],
+            d: [dir.x / s, dir.y / s, dir.z / hz],
+        }
+    }
+}
+
+impl TexRay<f64> {
+    /// The same ray rounded to `f32`, as the vertex shader hands it to the fragment shader.
+    pub fn to_f32(self) -> TexRay<f32> {
+        TexRay {
+            o: self.o.map(|v| v as f32),
+            d: self.d.map(|v| v as f32),
+        }
+    }
+}
+
+/// The GPU's cast, in `f32`.
+pub fn cast_f32(map: &BlockMap, ray: &TexRay<f32>, opts: &CastOptions) -> Cast {
+    cast_generic(map, ray, opts)
+}
+
+/// The `f64` twin of [`cast_f32`]: same operations; its [`Cast::margin`] names the ties.
+pub fn cast_f64(map: &BlockMap, ray: &TexRay<f64>, opts: &CastOptions) -> Cast {
+    cast_generic(map, ray, opts)
+}
+
+/// Cell and next-boundary state of the walk.
+struct Walk<T> {
+    i: i64,
+    j: i64,
+    t_max_x: T,
+    t_max_y: T,
+}
+
+fn start_cell<T: Real>(ray: &TexRay<T>, t: T, k: i64, step: [i64; 2]) -> Walk<T> {
+    let [ox, oy, _] = ray.o;
+    let [dx, dy, _] = ray.d;
+    let px = ox + t * dx;
+    let py = oy + t * dy;
+    let i = (px.floor().to64() as i64).clamp(0, k - 1);
+    let j = (py.floor().to64() as i64).clamp(0, k - 1);
+    let next = |c: i64, s: i64, o: T, d: T| -> T {
+        if s > 0 {
+            (T::of((c + 1) as f64) - o) / d
+        } else if s < 0 {
+            (T::of(c as f64) - o) / d
+        } else {
+            T::INF
+        }
+    };
+    Walk {
+        i,
+        j,
+        t_max_x: next(i, step[0], ox, dx),
+        t_max_y: next(j, step[1], oy, dy),
+    }
+}
+
+fn cast_generic<T: Real>(map: &BlockMap, ray: &TexRay<T>, opts: &CastOptions) -> Cast {
+    let k = map.k() as i64;
+    let kt = T::of(k as f64);
+    let hi = [kt, kt, T::ONE];
+    let mut margin = f64::INFINITY;
+    let miss = |steps, margin| Cast {
+        hit: Hit::Miss,
+        steps,
+        margin,
+    };
+    // Slab test: [t_near, t_far] and the axis of entry (seed 002 §4.2.2 step (d): the longest
+    // the ray can travel in the box, so the loop needs no box test).
+    let mut t_near = -T::INF;
+    let mut t_far = T::INF;
+    let mut entry_axis = 3usize;
+    let mut near_list = [f64::NEG_INFINITY; 3];
+    for a in 0..3 {
+        let (o, d) = (ray.o[a], ray.d[a]);
+        if d == T::ZERO {
+            if o < T::ZERO || o > hi[a] {
+                return miss(0, margin);
+            }
+            continue;
+        }
+        let ta = (T::ZERO - o) / d;
+        let tb = (hi[a] - o) / d;
+        let (lo, up) = if ta < tb { (ta, tb) } else { (tb, ta) };
+        near_list[a] = lo.to64();
+        if lo > t_near {
+            t_near = lo;
+            entry_axis = a;
+        }
+        t_far = t_far.mn(up);
+    }
+    let t0 = t_near.mx(T::ZERO);
+    let t1 = t_far;
+    if t0 >= t1 {
+        return miss(0, margin);
+    }
+    let eye_inside = t_near <= T::ZERO;
+    if !eye_inside {
+        // Tie: two slabs entered at (nearly) the same t: the entry face is ambiguous.
+        for (a, tn) in near_list.iter().enumerate() {
+            if a != entry_axis {
+                let dn = (tn - t_near.to64()).abs() * dir_scale(ray);
+                margin = margin.min(dn);
+            }
+        }
+    }
+    let step = [sign(ray.d[0]), sign(ray.d[1])];
+    let t_delta = [
+        if step[0] != 0 {
+            T::ONE / ray.d[0].abs()
+        } else {
+            T::INF
+        },
+        if step[1] != 0 {
+            T::ONE / ray.d[1].abs()
+        } else {
+            T::INF
+        },
+    ];
+    let mut w = start_cell(ray, t0, k, step);
+    // The entry point lies on the entry face's plane by construction; only the other axes can
+    // put it near a cell edge.
+    margin = margin.min(cell_margin(
+        ray,
+        t0,
+        if eye_inside { 3 } else { entry_axis },
+    ));
+    // The wall face met when entering the first cell from outside the box.
+    let mut face = match (eye_inside, entry_axis) {
+        (true, _) => Face::Inside,
+        (false, 0) => {
+            if step[0] > 0 {
+                Face::West
+            } else {
+                Face::East
+            }
+        }
+        (false, 1) => {
+            if step[1] > 0 {
+                Face::South
+            } else {
+                Face::North
+            }
+        }
+        // Through the top (or bottom) of the box: a hit in the first cell is a roof (or inside).
+        _ => Face::Inside,
+    };
+    let entered_top = !eye_inside && entry_axis == 2 && ray.d[2] < T::ZERO;
+    let mut t_in = t0;
+    let xy_speed = ray.d[0].abs().mx(ray.d[1].abs()).to64();
+    let k255 = T::of(255.0);
+    let mut steps = 0u32;
+    let mut leaped_at = -1i64;
+    for _ in 0..(2 * k) {
+        steps += 1;
+        // Space leap (seed 000 §3.2): from an empty cell at Chebyshev distance D ≥ 2 from any
+        // prism, every cell within D − 1 is empty: advance by D − 1 texels in max-norm.
+        if let Some(dm) = opts.leap {
+            let cell = w.j * k + w.i;
+            let dist = dm[cell as usize] as i64;
+            if dist >= 2 && xy_speed > 0.0 && leaped_at != cell {
+                let t_new = t_in + T::of((dist - 1) as f64) / ray.d[0].abs().mx(ray.d[1].abs());
+                if t_new >= t1 {
+                    return miss(steps, margin);
+                }
+                t_in = t_new;
+                w = start_cell(ray, t_in, k, step);
+                margin = margin.min(cell_margin(ray, t_in, 3));
+                leaped_at = w.j * k + w.i;
+                face = Face::Inside; // not used: the landing cell is empty
+                continue;
+            }
+        }
+        let t_out = w.t_max_x.mn(w.t_max_y).mn(t1);
+        let za = ray.o[2] + t_in * ray.d[2];
+        let zb = ray.o[2] + t_out * ray.d[2];
+        let code = map.height_code(w.i as u32, w.j as u32);
+        let h = T::of(code as f64) / k255;
+        if code > 0 {
+            // Entering through the top face over a texel of the top level is a roof hit either
+            // way (za ≈ 1 = h): not a tie.
+            if !(steps == 1 && entered_top) {
+                margin = margin.min((za - h).abs().to64());
+            }
+            margin = margin.min((zb - h).abs().to64());
+            if za <= h {
+                let (i, j) = (w.i as u32, w.j as u32);
+                let t = t_in.to64();
+                let hit = if steps == 1 && entered_top {
+                    Hit::Roof { i, j, t }
+                } else {
+                    Hit::Wall { i, j, face, t }
+                };
+                return Cast { hit, steps, margin };
+            }
+            if zb <= h {
+                let t = t_in + (za - h) / (-ray.d[2]);
+                return Cast {
+                    hit: Hit::Roof {
+                        i: w.i as u32,
+                        j: w.j as u32,
+                        t: t.to64(),
+                    },
+                    steps,
+                    margin,
+                };
+            }
+        }
+        if t_out >= t1 {
+            return miss(steps, margin);
+        }
+        margin = margin.min((t1 - t_out).to64() * dir_scale(ray));
+        if w.t_max_x < w.t_max_y {
+            margin = margin.min((w.t_max_y - w.t_max_x).to64() * xy_speed);
+            w.i += step[0];
+            t_in = w.t_max_x;
+            w.t_max_x = w.t_max_x + t_delta[0];
+            face = if step[0] > 0 { Face::West } else { Face::East };
+        } else {
+            margin = margin.min((w.t_max_x - w.t_max_y).to64() * xy_speed);
+            w.j += step[1];
+            t_in = w.t_max_y;
+            w.t_max_y = w.t_max_y + t_delta[1];
+            face = if step[1] > 0 {
+                Face::South
+            } else {
+                Face::North
+            };
+        }
+        if w.i < 0 || w.i >= k || w.j < 0 || w.j >= k {
+            return miss(steps, margin);
+        }
+    }
+    miss(steps, margin)
+}
+
+/// How far `o + t·d` lies from the nearest grid line in x or y (except axis `skip`), texels.
+fn cell_margin<T: Real>(ray: &TexRay<T>, t: T, skip: usize) -> f64 {
+    let mut m = f64::INFINITY;
+    for a in (0..2).filter(|&a| a != skip) {
+        let p = (ray.o[a] + t * ray.d[a]).to64();
+        m = m.min((p - p.round()).abs());
+    }
+    m
+}
+
+fn dir_scale<T: Real>(ray: &TexRay<T>) -> f64 {
+    let [a, b, c] = ray.d.map(|v| v.abs().to64());
+    a.max(b).max(c)
+}
+
+fn sign<T: Real>(v: T) -> i64 {
+    if v > T::ZERO {
+        1
+    } else if v < T::ZERO {
+        -1
+    } else {
+        0
+    }
+}
+
+/// A hit's surface attributes as the shader reads them.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Surface {
+    /// Unlit base colour (RGB8).
+    pub color: [u8; 3],
+    /// Ambient occlusion byte (255 = open).
+    pub ao: u8,
+    /// Unit normal.
+    pub normal: Vec3,
+}
+
+/// The attributes of a hit (seed 002 §4.2.2, Fig. 4.6): a roof reads section 2 and the roof
+/// normal; a wall reads the column addressed by the offset map, at the row of the hit's height
+/// in the texel's slice, and the column's normal row. A wall texel without a column (only
+/// possible with an exposure threshold, BLOCKMAPS.md A.4-1) and an inside hit use the roof
+/// colour and the face's axis normal.
+pub fn surface(map: &BlockMap, ray: &TexRay<f64>, hit: &Hit) -> Option<Surface> {
+    let k = map.k();
+    match *hit {
+        Hit::Miss => None,
+        Hit::Roof { i, j, .. } => {
+            let c = map.texel(k + i, j);
+            Some(Surface {
+                color: [c[0], c[1], c[2]],
+                ao: c[3],
+                normal: map.roof_normal(i, j),
+            })
+        }
+        Hit::Wall { i, j, face, t } => {
+            let off = map.wall_offset(i, j);
+            if off == 0 || face == Face::Inside {
+                let c = map.texel(k + i, j);
+                return Some(Surface {
+                    color: [c[0], c[1], c[2]],
+                    ao: c[3],
+                    normal: face.normal(),
+                });
+            }
+            let u = map.wall_u(off);
+            let z = (ray.o[2] + t * ray.d[2]) as f32;
+            let c = map.texel(u, map.wall_color_row(j, z));
+            let n = map.texel(u, map.wall_normal_row(j));
+            let normal = Vec3::new(
+                super::layout::decode_unit(n[0]),
+                super::layout::decode_unit(n[1]),
+                super::layout::decode_unit(n[2]),
+            )
+            .normalize_or(face.normal());
+            Some(Surface {
+                color: [c[0], c[1], c[2]],
+                ao: c[3],
+                normal,
+            })
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn tower_map() -> BlockMap {
+        let mut m = BlockMap::empty(32, DVec3::ZERO, 32.0, 100.0).unwrap();
+        for j in 10..12 {
+            for i in 10..12 {
+                m.texel_mut(i, j)[0] = 255;
+            }
+        }
+        m
+    }
+
+    #[test]
+    fn axis_aligned_ray_hits_the_west_wall() {
+        let m = tower_map();
+        let r = m.tex_ray(DVec3::new(-5.0, 10.5, 30.0), DVec3::X);
+        let c = cast_f64(&m, &r, &CastOptions::default());
+        assert_eq!(
+            c.hit,
+            Hit::Wall {
+                i: 10,
+                j: 10,
+                face: Face::West,
+                t: 15.0
+            }
+        );
+        let c32 = cast_f32(&m, &r.to_f32(), &CastOptions::default());
+        assert_eq!(c32.hit, c.hit);
+    }
+
+    #[test]
+    fn vertical_ray_hits_the_roof_or_passes() {
+        let m = tower_map();
+        let r = m.tex_ray(DVec3::new(10.5, 11.5, 150.0), DVec3::NEG_Z);
+        let c = cast_f64(&m, &r, &CastOptions::default());
+        assert!(
+            matches!(c.hit, Hit::Roof { i: 10, j: 11, t } if (t - 50.0).abs() < 1e-9),
+            "{c:?}"
+        );
+        let r = m.tex_ray(DVec3::new(3.5, 11.5, 150.0), DVec3::NEG_Z);
+        assert_eq!(cast_f64(&m, &r, &CastOptions::default()).hit, Hit::Miss);
+    }
+
+    #[test]
+    fn eye_inside_a_prism_hits_at_once() {
+        let m = tower_map();
+        let r = m.tex_ray(DVec3::new(10.5, 10.5, 5.0), DVec3::X);
+        let c = cast_f64(&m, &r, &CastOptions::default());
+        assert_eq!(
+            c.hit,
+            Hit::Wall {
+                i: 10,
+                j: 10,
+                face: Face::Inside,
+                t: 0.0
+            }
+        );
+    }
+
+    #[test]
+    fn leap_gives_the_same_hit_in_fewer_steps() {
+        let m = tower_map();
+        let dm = m.distance_map();
+        let r = m.tex_ray(
+            DVec3::new(0.2, 0.3, 60.0),
+            DVec3::new(1.0, 1.0, -0.2).normalize(),
+        );
+        let a = cast_f64(&m, &r, &CastOptions::default());
+        let b = cast_f64(&m, &r, &CastOptions { leap: Some(&dm) });
+        assert_eq!(a.hit.texel(), b.hit.texel());
+        assert!((a.hit.t().unwrap() - b.hit.t().unwrap()).abs() < 1e-9);
+        assert!(matches!(a.hit, Hit::Wall { .. }), "{a:?}");
+        assert!(b.steps < a.steps, "{} vs {}", b.steps, a.steps);
+    }
+}

@@ -1,0 +1,261 @@
+//! A ray-cast image of one map against the oracle's image of the same buildings' meshes
+//! (BLOCKMAPS.md D.3), from views where the projected error is at most one pixel.
+//!
+//! - **Coverage error** (seed 001's measure): the share of pixels where one image shows a
+//!   building and the other does not.
+//! - **The screen-space bound**: every mismatched pixel must lie within `1 px + e_px/cos²θ` of a
+//!   silhouette pixel of the mesh image (`θ` the pixel's angle off the optical axis,
+//!   BLOCKMAPS.md A.4-12; `e_px` seed 000 §3.3 with the distance to the nearest point of the
+//!   map's bounding sphere).
+//! - **3D point error**: the f64 twin's hit point of every covered pixel lies within the map's
+//!   declared ε of the original surface.
+//! - **Colour PSNR** (RGB, dB) of the two lit images, both shaded by [`super::colors`].
+
+use super::build::Source;
+use super::cast::{cast_f32, cast_f64, surface, CastOptions, Hit};
+use super::colors;
+use super::error::BuildingGrid;
+use super::layout::BlockMap;
+use crate::blocks::BlockId;
+use crate::city::Mesh;
+use crate::geom::Camera;
+use crate::visibility::oracle::{render_ids, SKY};
+use glam::{DVec2, DVec3, DVec4};
+use rand::{Rng, SeedableRng};
+use serde::Serialize;
+
+/// The figures of one view.
+#[derive(Clone, Debug, Default, PartialEq, Serialize)]
+pub struct ViewCompare {
+    /// Image size.
+    pub width: u32,
+    /// Image size.
+    pub height: u32,
+    /// Projected ε at the image centre, pixels.
+    pub eps_px: f64,
+    /// Pixels covered by the mesh image.
+    pub mesh_pixels: usize,
+    /// Pixels covered by the ray-cast image.
+    pub map_pixels: usize,
+    /// Pixels whose coverage differs.
+    pub mismatched: usize,
+    /// `mismatched / (width·height)` (seed 001's coverage error).
+    pub coverage_error: f64,
+    /// `mismatched / |mesh ∪ map pixels|`: the same count against the pixels either image
+    /// covers, a stricter figure when the map is small on screen.
+    pub coverage_error_of_union: f64,
+    /// Mismatched pixels farther than `1 + e_px/cos²θ` from a mesh silhouette.
+    pub beyond_bound: usize,
+    /// Largest distance of a mismatched pixel to the nearest mesh silhouette pixel, in units of
+    /// its allowed distance `1 + e_px/cos²θ` (≤ 1 when the bound holds).
+    pub worst_mismatch_ratio: f64,
+    /// Hit points farther than ε from the original surface (f64 twin).
+    pub point_violations: usize,
+    /// Largest hit-point distance to the original surface, metres.
+    pub point_error_max_m: f64,
+    /// Colour PSNR, dB (infinite when identical).
+    pub psnr_db: f64,
+    /// Mean grid cells visited per ray (f32 cast).
+    pub mean_steps: f64,
+}
+
+/// A random view of `map` at a distance where its projected ε is `eps_px_target` pixels or
+/// less: looking at the box centre from azimuth `az` and elevation `el` (radians).
+pub fn view_at(map: &BlockMap, az: f64, el: f64, height_px: u32, eps_px_target: f64) -> Camera {
+    let b = map.aabb();
+    let c = b.center();
+    let r = b.extent().length() * 0.5;
+    let mut cam = Camera::new(DVec3::ZERO, 0.0, 0.0);
+    let eps = map.meta.eps_m;
+    // e_px = ε·H / (2·d·tan(fov/2)) with d the distance to the sphere's nearest point (seed 000
+    // §3.3): choose d for the target, then stand at d + r from the centre.
+    let d = eps * height_px as f64 / (2.0 * (0.5 * cam.fov_y).tan() * eps_px_target);
+    let dist = d + r;
+    let dir = DVec3::new(el.cos() * az.cos(), el.cos() * az.sin(), el.sin());
+    let eye = c + dir * dist;
+    cam = Camera::looking_at(eye, c);
+    cam.near = (d * 0.5).max(0.5);
+    cam.far = dist + 2.0 * r + 10.0;
+    cam
+}
+
+/// Seeded random views of `map` ([`view_at`]), elevations 10°–70°.
+pub fn random_views(map: &BlockMap, n: usize, seed: u64, height_px: u32) -> Vec<Camera> {
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
+    (0..n)
+        .map(|_| {
+            let az = rng.random_range(0.0..std::f64::consts::TAU);
+            let el = rng.random_range(10f64..70.0).to_radians();
+            view_at(map, az, el, height_px, 1.0)
+        })
+        .collect()
+}
+
+/// World ray through the centre of pixel `(x, y)` (row 0 at the top).
+pub fn pixel_ray(cam: &Camera, x: u32, y: u32, w: u32, h: u32) -> (DVec3, DVec3) {
+    let inv = cam.clip_from_world().inverse();
+    let nx = (x as f64 + 0.5) / w as f64 * 2.0 - 1.0;
+    let ny = 1.0 - (y as f64 + 0.5) / h as f64 * 2.0;
+    let p = |z: f64| {
+        let q = inv * DVec4::new(nx, ny, z, 1.0);
+        q.truncate() / q.w
+    };
+    let a = p(0.0);
+    let b = p(1.0);
+    (cam.position, (b - a).normalize())
+}
+
+/// Compares the ray-cast image of `map` with the oracle's image of its buildings' meshes from
+/// `cam` (see the module doc).
+pub fn compare_view(
+    map: &BlockMap,
+    source: &Source,
+    buildings: &[u32],
+    cam: &Camera,
+    width: u32,
+    height: u32,
+) -> ViewCompare {
+    let (w, h) = (width as usize, height as usize);
+    let pairs: Vec<(BlockId, &Mesh)> = buildings
+        .iter()
+        .map(|&b| (BlockId(b), &source.meshes[b as usize]))
+        .collect();
+    let ids = render_ids(&pairs, cam, width, height);
+    let inv = cam.clip_from_world().inverse();
+    let grid = BuildingGrid::new(map, source, buildings);
+    let mut scratch = Vec::new();
+    let eps = map.meta.eps_m;
+    let sphere_c = map.aabb().center();
+    let sphere_r = map.aabb().extent().length() * 0.5;
+    let d = ((cam.position - sphere_c).length() - sphere_r).max(cam.near);
+    let f = height as f64 / (2.0 * (0.5 * cam.fov_y).tan());
+    let eps_px = eps * f / d;
+    let mut out = ViewCompare {
+        width,
+        height,
+        eps_px,
+        ..ViewCompare::default()
+    };
+    let mut mesh_cov = vec![false; w * h];
+    let mut map_cov = vec![false; w * h];
+    let mut se = 0f64;
+    let mut steps = 0u64;
+    for y in 0..h {
+        for x in 0..w {
+            let k = y * w + x;
+            // Mesh pixel: lit colour from the building and the surface at the unprojected depth.
+            let mut mesh_rgb = [0u8; 3];
+            if ids.ids[k] != SKY {
+                mesh_cov[k] = true;
+                out.mesh_pixels += 1;
+                let b = ids.ids[k] as usize;
+                let nx = (x as f64 + 0.5) / w as f64 * 2.0 - 1.0;
+                let ny = 1.0 - (y as f64 + 0.5) / h as f64 * 2.0;
+                let q = inv * DVec4::new(nx, ny, ids.depth[k] as f64, 1.0);
+                let p = q.truncate() / q.w;
+                if let Some(sb) = source.buildings[b].as_ref() {
+                    let tol = 0.02 * (1.0 + sb.z1);
+                    let (base, n) = if (p.z - sb.z1).abs() < tol {
+                        (colors::roof_rgb(&sb.style), glam::Vec3::Z)
+                    } else if sb.z0 > 0.0 && (p.z - sb.z0).abs() < tol {
+                        (colors::underside_rgb(), glam::Vec3::NEG_Z)
+                    } else {
+                        let (n, u) = super::build::nearest_facade(sb, p.truncate())
+                            .unwrap_or((DVec2::X, 0.0));
+                        (
+                            colors::facade_rgb(&sb.style, u, p.z as f32),
+                            n.extend(0.0).as_vec3(),
+                        )
+                    };
+                    mesh_rgb = colors::lit(colors::to_bytes(base), n);
+                }
+            }
+            // Map pixel: the GPU's f32 cast for coverage and colour, the f64 twin for the point.
+            let (o, dir) = pixel_ray(cam, x as u32, y as u32, width, height);
+            let ray = map.tex_ray(o, dir);
+            let c32 = cast_f32(map, &ray.to_f32(), &CastOptions::default());
+            steps += c32.steps as u64;
+            let mut map_rgb = [0u8; 3];
+            if c32.hit != Hit::Miss {
+                map_cov[k] = true;
+                out.map_pixels += 1;
+                if let Some(s) = surface(map, &ray, &c32.hit) {
+                    map_rgb = colors::lit(s.color, s.normal);
+                }
+            }
+            let c64 = cast_f64(map, &ray, &CastOptions::default());
+            if let Some(t) = c64.hit.t() {
+                let p = o + dir * t;
+                let e = grid.surface_distance(p, &mut scratch);
+                out.point_error_max_m = out.point_error_max_m.max(e);
+                if e > eps * (1.0 + 1e-9) + 1e-6 {
+                    out.point_violations += 1;
+                }
+            }
+            for ch in 0..3 {
+                let dv = mesh_rgb[ch] as f64 - map_rgb[ch] as f64;
+                se += dv * dv;
+            }
+        }
+    }
+    out.mean_steps = steps as f64 / (w * h) as f64;
+    let mse = se / (3 * w * h) as f64;
+    out.psnr_db = if mse == 0.0 {
+        f64::INFINITY
+    } else {
+        10.0 * (255.0f64 * 255.0 / mse).log10()
+    };
+    // Silhouette pixels of the mesh image: covered with an uncovered 4-neighbour, or the reverse.
+    let sil: Vec<(i64, i64)> = (0..h)
+        .flat_map(|y| (0..w).map(move |x| (x, y)))
+        .filter(|&(x, y)| {
+            let c = mesh_cov[y * w + x];
+            [(-1i64, 0i64), (1, 0), (0, -1), (0, 1)]
+                .iter()
+                .any(|(dx, dy)| {
+                    let (nx, ny) = (x as i64 + dx, y as i64 + dy);
+                    nx >= 0
+                        && ny >= 0
+                        && (nx as usize) < w
+                        && (ny as usize) < h
+                        && mesh_cov[ny as usize * w + nx as usize] != c
+                })
+        })
+        .map(|(x, y)| (x as i64, y as i64))
+        .collect();
+    let fy = (0.5 * cam.fov_y).tan();
+    let fx = fy * cam.aspect;
+    for y in 0..h {
+        for x in 0..w {
+            let k = y * w + x;
+            if mesh_cov[k] == map_cov[k] {
+                continue;
+            }
+            out.mismatched += 1;
+            let nx = ((x as f64 + 0.5) / w as f64 * 2.0 - 1.0) * fx;
+            let ny = (1.0 - (y as f64 + 0.5) / h as f64 * 2.0) * fy;
+            let cos2 = 1.0 / (1.0 + nx * nx + ny * ny);
+            let r = 1.0 + eps_px / cos2;
+            let r2 = r * r;
+            let nearest2 = sil
+                .iter()
+                .map(|&(sx, sy)| {
+                    let (dx, dy) = ((sx - x as i64) as f64, (sy - y as i64) as f64);
+                    dx * dx + dy * dy
+                })
+                .fold(f64::INFINITY, f64::min);
+            out.worst_mismatch_ratio = out.worst_mismatch_ratio.max(nearest2.sqrt() / r);
+            if nearest2 > r2 {
+                out.beyond_bound += 1;
+            }
+        }
+    }
+    out.coverage_error = out.mismatched as f64 / (w * h) as f64;
+    let union = mesh_cov
+        .iter()
+        .zip(&map_cov)
+        .filter(|(a, b)| **a || **b)
+        .count();
+    out.coverage_error_of_union = out.mismatched as f64 / union.max(1) as f64;
+    out
+}

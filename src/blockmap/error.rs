@@ -1,0 +1,595 @@
+//! The geometric error of a BlockMap, measured (BLOCKMAPS.md §B.3): a sampled symmetric
+//! Hausdorff distance in f64 between the surface of the map's prisms and the surface of the
+//! original prisms, and the declared bound `ε = max(½ voxel diagonal (seed 000 §3.3), measured)`.
+//!
+//! Both surfaces are taken with the ground (`z = 0`) as part of them, as a viewer sees them.
+//! Distances are exact point-to-surface distances; only the point sets are sampled:
+//! - original → map: roof points on a lattice of one texel side and along the roof outline every
+//!   half texel, wall points along every ring edge every half texel at the bottom, the top and
+//!   every 2 texels in between (a wall covered by a neighbour prism is not a surface and is
+//!   skipped); for raised parts (`min_height` > 0) the underside and the ground below it, which a
+//!   2.5D map cannot represent (seed 002 §4.2.1: height fields are 2.5D).
+//! - map → original: every texel's top at its centre and corners, and every exposed side at its
+//!   midpoint (at the bottom, the top and every 2 texels of its wall) and its two ends (bottom
+//!   and top).
+//!
+//! A sample farther than the ½ voxel diagonal is a feature the 2.5D grid cannot hold: a building
+//! narrower than a texel that vanished or swelled, a courtyard or street narrower than a texel
+//! that was filled, or a raised part. These are reported with building ids, never hidden.
+
+use super::build::{Source, SourceBuilding};
+use super::layout::BlockMap;
+use glam::{DVec2, DVec3};
+use serde::Serialize;
+
+/// What kind of feature exceeded the ½ voxel diagonal.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum ThinKind {
+    /// A building (or part of one) narrower than a texel: its surface is far from the map's.
+    NarrowBuilding,
+    /// The map has a surface where the original has a gap narrower than a texel (a courtyard
+    /// or a street filled in).
+    FilledGap,
+    /// A raised part (`min_height` > 0) or a bridge: filled down to the ground by the map.
+    RaisedPart,
+}
+
+/// A feature whose error exceeds the ½ voxel diagonal.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct ThinFeature {
+    /// Kind.
+    pub kind: ThinKind,
+    /// The building (its index in `City::buildings`) and its source id.
+    pub building: u32,
+    /// Source id.
+    pub source_id: String,
+    /// Largest distance found for it, metres.
+    pub error_m: f64,
+    /// Where (local frame x, y), metres.
+    pub at: [f64; 2],
+}
+
+/// The measured error of one map.
+#[derive(Clone, Debug, Default, PartialEq, Serialize)]
+pub struct ErrorReport {
+    /// ½·√(2s² + Δz²), metres (seed 000 §3.3).
+    pub half_voxel_diagonal_m: f64,
+    /// Largest original → map distance, metres.
+    pub original_to_map_m: f64,
+    /// Largest map → original distance, metres.
+    pub map_to_original_m: f64,
+    /// `max` of the two, metres.
+    pub measured_m: f64,
+    /// `max(½ voxel diagonal, measured)`, metres.
+    pub declared_m: f64,
+    /// Samples taken.
+    pub samples: usize,
+    /// Buildings with `min_height` > 0.
+    pub raised_parts: usize,
+    /// Buildings marked as bridges.
+    pub bridges: usize,
+    /// Features past the ½ voxel diagonal, one entry per building and kind (largest error).
+    pub thin: Vec<ThinFeature>,
+}
+
+/// Buildings per texel of a map (by footprint box), to find the prisms near a point.
+pub struct BuildingGrid<'a> {
+    k: usize,
+    min: DVec2,
+    s: f64,
+    cells: Vec<Vec<u32>>,
+    all: Vec<&'a SourceBuilding>,
+}
+
+impl<'a> BuildingGrid<'a> {
+    /// Buckets `buildings` (indices into `source.buildings`) over the map's square.
+    pub fn new(map: &BlockMap, source: &'a Source, buildings: &[u32]) -> Self {
+        let k = map.k() as usize;
+        let min = DVec2::new(map.meta.min[0], map.meta.min[1]);
+        let s = map.texel_m();
+        let all: Vec<&SourceBuilding> = buildings
+            .iter()
+            .filter_map(|&i| source.buildings.get(i as usize).and_then(|b| b.as_ref()))
+            .collect();
+        let mut cells = vec![Vec::new(); k * k];
+        for (n, b) in all.iter().enumerate() {
+            let c0 = ((b.min - min) / s).floor();
+            let c1 = ((b.max - min) / s).floor();
+            let (i0, j0) = (c0.x.max(0.0) as usize, c0.y.max(0.0) as usize);
+            let (i1, j1) = (
+                (c1.x.max(0.0) as usize).min(k - 1),
+                (c1.y.max(0.0) as usize).min(k - 1),
+            );
+            for j in j0..=j1 {
+                for i in i0..=i1 {
+                    cells[j * k + i].push(n as u32);
+                }
+            }
+        }
+        Self {
+            k,
+            min,
+            s,
+            cells,
+            all,
+        }
+    }
+
+    /// Buildings whose box may lie within `r` of `p` (horizontally), each once.
+    fn near(&self, p: DVec2, r: f64, out: &mut Vec<u32>) {
+        out.clear();
+        let lo = ((p - DVec2::splat(r) - self.min) / self.s).floor();
+        let hi = ((p + DVec2::splat(r) - self.min) / self.s).floor();
+        let k = self.k as f64;
+        if hi.x < 0.0 || hi.y < 0.0 || lo.x >= k || lo.y >= k {
+            return;
+        }
+        let (i0, j0) = (lo.x.max(0.0) as usize, lo.y.max(0.0) as usize);
+        let (i1, j1) = (hi.x.min(k - 1.0) as usize, hi.y.min(k - 1.0) as usize);
+        for j in j0..=j1 {
+            for i in i0..=i1 {
+                out.extend_from_slice(&self.cells[j * self.k + i]);
+            }
+        }
+        out.sort_unstable();
+        out.dedup();
+    }
+
+    /// Exact distance from `p` to the surface of the original solid (ground ∪ prisms).
+    pub fn surface_distance(&self, p: DVec3, scratch: &mut Vec<u32>) -> f64 {
+        let xy = p.truncate();
+        // Upper bound: the ground, or the nearest way out of the prisms holding p.
+        let mut inside_any = p.z < 0.0;
+        let mut bound = p.z.abs();
+        self.near(xy, 0.0, scratch);
+        for &n in scratch.iter() {
+            let b = self.all[n as usize];
+            if p.z >= b.z0 && p.z <= b.z1 && in_polygon(b, xy) {
+                inside_any = true;
+            }
+        }
+        if !inside_any {
+            // Outside the solid: distance to the solid, the nearest of ground and prisms.
+            let r = bound;
+            self.near(xy, r, scratch);
+            for &n in scratch.iter() {
+                let b = self.all[n as usize];
+                let dh = horizontal_distance(b, xy);
+                let dv = (b.z0 - p.z).max(p.z - b.z1).max(0.0);
+                bound = bound.min((dh * dh + dv * dv).sqrt());
+            }
+            return bound;
+        }
+        // Inside: the nearest point of the complement. Levels where the complement can start:
+        // the point's own height (horizontally out), and every prism top above it or raised
+        // bottom below it (BLOCKMAPS.md B.3: exact per level; the horizontal way out of a union
+        // of footprints is searched along the edges not covered by another footprint, which
+        // can only overestimate).
+        let mut best = f64::INFINITY;
+        // First a cheap upper bound: straight up through every prism stacked at p.
+        let mut top = p.z.max(0.0);
+        loop {
+            let mut raised = false;
+            for &n in scratch.iter() {
+                let b = self.all[n as usize];
+                if top >= b.z0 && top < b.z1 && in_polygon(b, xy) {
+                    top = b.z1;
+                    raised = true;
+                }
+            }
+            if !raised {
+                break;
+            }
+        }
+        best = best.min(top - p.z);
+        self.near(xy, best, scratch);
+        let cands: Vec<&SourceBuilding> = scratch.iter().map(|&n| self.all[n as usize]).collect();
+        let mut levels: Vec<f64> = vec![p.z];
+        for b in &cands {
+            if b.z1 > p.z && b.z1 - p.z < best {
+                levels.push(b.z1);
+            }
+            if b.z0 > 0.0 && b.z0 < p.z && p.z - b.z0 < best {
+                levels.push(b.z0);
+            }
+        }
+        levels.sort_by(f64::total_cmp);
+        levels.dedup();
+        for &l in &levels {
+            let dz = (l - p.z).abs();
+            if dz >= best {
+                continue;
+            }
+            let covering: Vec<&SourceBuilding> = cands
+                .iter()
+                .copied()
+                .filter(|b| {
+                    if l == p.z {
+                        b.z0 <= l && l <= b.z1
+                    } else {
+                        b.z0 < l && l < b.z1
+                    }
+                })
+                .collect();
+            if l <= 0.0 && l != p.z {
+                continue; // below the ground: never a way out
+            }
+            let dh = if l == p.z && p.z < 0.0 {
+                f64::INFINITY // below the ground, only upwards
+            } else {
+                horizontal_exit(&covering, xy)
+            };
+            best = best.min((dh * dh + dz * dz).sqrt());
+        }
+        best
+    }
+}
+
+fn in_polygon(b: &SourceBuilding, p: DVec2) -> bool {
+    if p.x < b.min.x || p.x > b.max.x || p.y < b.min.y || p.y > b.max.y {
+        return false;
+    }
+    let mut inside = false;
+    for ring in &b.rings {
+        let n = ring.len();
+        let mut j = n - 1;
+        for i in 0..n {
+            let (a, c) = (ring[i], ring[j]);
+            if (a.y > p.y) != (c.y > p.y) && p.x < (c.x - a.x) * (p.y - a.y) / (c.y - a.y) + a.x {
+                inside = !inside;
+            }
+            j = i;
+        }
+    }
+    inside
+}
+
+fn seg_dist(a: DVec2, c: DVec2, p: DVec2) -> (f64, DVec2) {
+    let d = c - a;
+    let l2 = d.length_squared();
+    let t = if l2 > 0.0 {
+        ((p - a).dot(d) / l2).clamp(0.0, 1.0)
+    } else {
+        0.0
+    };
+    let q = a + d * t;
+    ((q - p).length(), q)
+}
+
+fn horizontal_distance(b: &SourceBuilding, p: DVec2) -> f64 {
+    if in_polygon(b, p) {
+        return 0.0;
+    }
+    let mut best = f64::INFINITY;
+    for ring in &b.rings {
+        let n = ring.len();
+        for e in 0..n {
+            best = best.min(seg_dist(ring[e], ring[(e + 1) % n], p).0);
+        }
+    }
+    best
+}
+
+/// Horizontal distance from `p` to the complement of the union of `polys`' footprints (0 when
+/// `p` is outside them all). An edge point counts as a way out when a point just outside it lies
+/// in no footprint; the nearest such point of each edge is tried.
+fn horizontal_exit(polys: &[&SourceBuilding], p: DVec2) -> f64 {
+    if !polys.iter().any(|b| in_polygon(b, p)) {
+        return 0.0;
+    }
+    let mut best = f64::INFINITY;
+    for b in polys {
+        for ring in &b.rings {
+            let n = ring.len();
+            for e in 0..n {
+                let (a, c) = (ring[e], ring[(e + 1) % n]);
+                let (d, q) = seg_dist(a, c, p);
+                if d >= best {
+                    continue;
+                }
+                let dir = c - a;
+                let out = DVec2::new(dir.y, -dir.x).normalize_or_zero();
+                let probe = q + out * (1e-6 * (1.0 + q.abs().max_element()));
+                if !polys.iter().any(|o| in_polygon(o, probe)) {
+                    best = d;
+                }
+            }
+        }
+    }
+    best
+}
+
+/// Exact distance from `p` to the surface of the map's prisms (ground included): the boundary
+/// of the union of texel columns `cell × (−∞, H]` (empty texels and the outside have H = 0).
+pub fn map_surface_distance(map: &BlockMap, p: DVec3) -> f64 {
+    let k = map.k() as i64;
+    let s = map.texel_m();
+    let m = map.meta.min;
+    let (fx, fy) = ((p.x - m[0]) / s, (p.y - m[1]) / s);
+    let hof = |i: i64, j: i64| -> f64 {
+        if i < 0 || j < 0 || i >= k || j >= k {
+            0.0
+        } else {
+            let c = map.height_code(i as u32, j as u32);
+            if c == 0 {
+                0.0
+            } else {
+                map.code_height_m(c)
+            }
+        }
+    };
+    let (ci, cj) = (fx.floor() as i64, fy.floor() as i64);
+    let inside = p.z <= hof(ci, cj);
+    let cell_dxy = |i: i64, j: i64| -> f64 {
+        let x0 = m[0] + i as f64 * s;
+        let y0 = m[1] + j as f64 * s;
+        let dx = (x0 - p.x).max(p.x - (x0 + s)).max(0.0);
+        let dy = (y0 - p.y).max(p.y - (y0 + s)).max(0.0);
+        (dx * dx + dy * dy).sqrt()
+    };
+    let mut best = f64::INFINITY;
+    let mut r = 0i64;
+    loop {
+        // Cells of ring r around (ci, cj); outside cells stand for the ground around the map.
+        let lower = (r as f64 - 1.0).max(0.0) * s;
+        if lower > best {
+            break;
+        }
+        for j in cj - r..=cj + r {
+            for i in ci - r..=ci + r {
+                if (i - ci).abs() != r && (j - cj).abs() != r {
+                    continue;
+                }
+                let h = hof(i, j);
+                let dz = if inside {
+                    (h - p.z).max(0.0)
+                } else {
+                    (p.z - h).max(0.0)
+                };
+                // Inside: complement column above h; outside: solid column below h.
+                let d = cell_dxy(i, j);
+                let v = (d * d + dz * dz).sqrt();
+                if inside && h >= p.z && d == 0.0 {
+                    // The own cell's way out is straight up.
+                    best = best.min(dz);
+                } else {
+                    best = best.min(v);
+                }
+            }
+        }
+        r += 1;
+        if r > 2 * k + 4 {
+            break;
+        }
+    }
+    best
+}
+
+/// Measures the error of `map` against `buildings` (indices into `source.buildings`).
+pub fn measure(map: &BlockMap, source: &Source, buildings: &[u32]) -> ErrorReport {
+    let grid = BuildingGrid::new(map, source, buildings);
+    let s = map.texel_m();
+    let half = map.half_voxel_diagonal();
+    let tol = half * (1.0 + 1e-9) + 1e-9;
+    let mut rep = ErrorReport {
+        half_voxel_diagonal_m: half,
+        ..ErrorReport::default()
+    };
+    let mut thin: std::collections::BTreeMap<(u32, u8), ThinFeature> = Default::default();
+    let mut note = |kind: ThinKind, b: &SourceBuilding, e: f64, at: DVec2| {
+        let key = (b.id.0, kind as u8);
+        let f = thin.entry(key).or_insert_with(|| ThinFeature {
+            kind,
+            building: b.id.0,
+            source_id: b.source_id.clone(),
+            error_m: 0.0,
+            at: at.to_array(),
+        });
+        if e > f.error_m {
+            f.error_m = e;
+            f.at = at.to_array();
+        }
+    };
+    let mut scratch = Vec::new();
+    let mut samples = 0usize;
+    // Original → map.
+    let mut o2m: f64 = 0.0;
+    for b in &grid.all {
+        if b.z0 > 0.0 {
+            rep.raised_parts += 1;
+        }
+        if b.bridge {
+            rep.bridges += 1;
+        }
+        let mut worst: f64 = 0.0;
+        let mut worst_at = b.min;
+        let mut raised_worst: f64 = 0.0;
+        let check =
+            |p: DVec3, raised: bool, worst: &mut f64, worst_at: &mut DVec2, rw: &mut f64| {
+                let d = map_surface_distance(map, p);
+                if raised {
+                    *rw = rw.max(d);
+                } else if d > *worst {
+                    *worst = d;
+                    *worst_at = p.truncate();
+                }
+                d
+            };
+        // Walls and roof outline.
+        let zs = heights(b.z0, b.z1, 2.0 * s);
+        for ring in &b.rings {
+            let n = ring.len();
+            for e in 0..n {
+                let (a, c) = (ring[e], ring[(e + 1) % n]);
+                let len = (c - a).length();
+                let steps = ((len / (0.5 * s)).ceil() as usize).max(1);
+                let dir = (c - a).normalize_or_zero();
+                let out = DVec2::new(dir.y, -dir.x);
+                for q in 0..steps {
+                    let xy = a + (c - a) * (q as f64 / steps as f64);
+                    let probe = xy + out * (1e-6 * (1.0 + xy.abs().max_element()));
+                    for &z in &zs {
+                        // A wall covered by a neighbour prism is no surface.
+                        grid.near(probe, 0.0, &mut scratch);
+                        let covered = scratch.iter().any(|&m| {
+                            let o = grid.all[m as usize];
+                            o.id != b.id && z >= o.z0 && z <= o.z1 && in_polygon(o, probe)
+                        });
+                        if covered {
+                            continue;
+                        }
+                        samples += 1;
+                        let d = check(
+                            xy.extend(z),
+                            false,
+                            &mut worst,
+                            &mut worst_at,
+                            &mut raised_worst,
+                        );
+                        o2m = o2m.max(d);
+                    }
+                }
+            }
+        }
+        // Roof lattice (and, for raised parts, the underside and the ground below).
+        let nx = ((b.max.x - b.min.x) / s).ceil().max(1.0) as usize;
+        let ny = ((b.max.y - b.min.y) / s).ceil().max(1.0) as usize;
+        for jy in 0..ny {
+            for ix in 0..nx {
+                let xy = DVec2::new(
+                    b.min.x + (ix as f64 + 0.5) * (b.max.x - b.min.x) / nx as f64,
+                    b.min.y + (jy as f64 + 0.5) * (b.max.y - b.min.y) / ny as f64,
+                );
+                if !in_polygon(b, xy) {
+                    continue;
+                }
+                samples += 1;
+                let d = check(
+                    xy.extend(b.z1),
+                    false,
+                    &mut worst,
+                    &mut worst_at,
+                    &mut raised_worst,
+                );
+                o2m = o2m.max(d);
+                if b.z0 > 0.0 {
+                    samples += 2;
+                    let d1 = check(
+                        xy.extend(b.z0),
+                        true,
+                        &mut worst,
+                        &mut worst_at,
+                        &mut raised_worst,
+                    );
+                    let d2 = check(
+                        xy.extend(0.0),
+                        true,
+                        &mut worst,
+                        &mut worst_at,
+                        &mut raised_worst,
+                    );
+                    o2m = o2m.max(d1).max(d2);
+                }
+            }
+        }
+        if worst > tol {
+            note(ThinKind::NarrowBuilding, b, worst, worst_at);
+        }
+        if raised_worst > tol {
+            note(ThinKind::RaisedPart, b, raised_worst, (b.min + b.max) * 0.5);
+        }
+    }
+    // Map → original.
+    let k = map.k() as i64;
+    let m = map.meta.min;
+    let hof = |i: i64, j: i64| -> f64 {
+        if i < 0 || j < 0 || i >= k || j >= k {
+            0.0
+        } else {
+            let c = map.height_code(i as u32, j as u32);
+            if c == 0 {
+                0.0
+            } else {
+                map.code_height_m(c)
+            }
+        }
+    };
+    let mut m2o: f64 = 0.0;
+    for j in 0..k {
+        for i in 0..k {
+            let h = hof(i, j);
+            let c = DVec2::new(m[0] + (i as f64 + 0.5) * s, m[1] + (j as f64 + 0.5) * s);
+            let mut local: f64;
+            samples += 1;
+            local = grid.surface_distance(c.extend(h), &mut scratch);
+            if h > 0.0 {
+                for (di, dj) in [(-1i64, 0i64), (1, 0), (0, -1), (0, 1)] {
+                    let hn = hof(i + di, j + dj);
+                    if hn >= h {
+                        continue;
+                    }
+                    let dir = DVec2::new(di as f64, dj as f64);
+                    let mid = c + dir * (0.5 * s);
+                    for z in heights(hn, h, 2.0 * s) {
+                        samples += 1;
+                        local = local.max(grid.surface_distance(mid.extend(z), &mut scratch));
+                    }
+                    // The side's two ends (the staircase's corners, the points of a texel
+                    // farthest from a footprint edge) at its bottom and top.
+                    let along = DVec2::new(dir.y, dir.x) * (0.5 * s);
+                    for end in [mid - along, mid + along] {
+                        for z in [hn, h] {
+                            samples += 1;
+                            local = local.max(grid.surface_distance(end.extend(z), &mut scratch));
+                        }
+                    }
+                }
+                // The top's corners.
+                for (cx, cy) in [(-0.5, -0.5), (0.5, -0.5), (-0.5, 0.5), (0.5, 0.5)] {
+                    samples += 1;
+                    let q = c + DVec2::new(cx, cy) * s;
+                    local = local.max(grid.surface_distance(q.extend(h), &mut scratch));
+                }
+            }
+            m2o = m2o.max(local);
+            if local > tol {
+                // Name the building nearest to the sample.
+                grid.near(c, s, &mut scratch);
+                let nearest = scratch
+                    .iter()
+                    .map(|&n| grid.all[n as usize])
+                    .min_by(|a, b| horizontal_distance(a, c).total_cmp(&horizontal_distance(b, c)));
+                if let Some(b) = nearest {
+                    note(ThinKind::FilledGap, b, local, c);
+                }
+            }
+        }
+    }
+    rep.samples = samples;
+    rep.original_to_map_m = o2m;
+    rep.map_to_original_m = m2o;
+    rep.measured_m = o2m.max(m2o);
+    rep.declared_m = half.max(rep.measured_m);
+    rep.thin = thin.into_values().collect();
+    rep
+}
+
+/// `a`, `b` and every `step` in between (at least the two ends).
+fn heights(a: f64, b: f64, step: f64) -> Vec<f64> {
+    let mut v = vec![a];
+    if b > a {
+        let n = ((b - a) / step).ceil() as usize;
+        for q in 1..n {
+            v.push(a + (b - a) * q as f64 / n as f64);
+        }
+        v.push(b);
+    }
+    v
+}
+
+/// Exact distance from a point (local frame) to the original surface of the map's buildings.
+pub fn original_surface_distance(grid: &BuildingGrid, p: DVec3) -> f64 {
+    let mut scratch = Vec::new();
+    grid.surface_distance(p, &mut scratch)
+}

@@ -1,0 +1,67 @@
+//! BlockMaps: the far-field representation of seed 000 (Cignoni et al. 2007, §3–5) in the revised
+//! layout of seed 002 (Di Benedetto 2011, ch. 4), built on the CPU from the extruded prisms, with
+//! a reference ray caster equal to the GPU's and a measured error bound.
+//!
+//! - [`layout`]: [`BlockMap`], the RGBA8 `(2K + 256) × K` texture (seed 002 §4.2.1), its box, PNG +
+//!   JSON storage, and the optional 2007 distance map (seed 000 §3.1–3.2).
+//! - [`build`]: construction from the prisms (seed 000 §3.3, seed 002 §4.3.2): top-down
+//!   orthographic sampling through the oracle's rasteriser, exposed texels, unfolded wall
+//!   columns, slices.
+//! - [`error`]: sampled symmetric Hausdorff distance (f64) and the declared
+//!   `ε = max(½ voxel diagonal, measured)`; thin features, raised parts and bridges.
+//! - [`cast`]: the reference caster (2D Amanatides–Woo walk, seed 002 §4.2.2) in f32 as the
+//!   shader runs it, with an f64 twin that names ties; optional distance-map leaps.
+//! - [`tree`]: maps for the BqR-tree's nodes (whole blocks per node).
+//! - [`compare`]: ray-cast image against the oracle's mesh image: coverage error, the projected
+//!   bound at silhouettes, 3D point error, colour PSNR.
+//! - [`colors`]: the one definition of colours and light used by all of the above.
+//!
+//! Not done yet: ambient occlusion (the A channels are 255, "open sky").
+
+pub mod build;
+pub mod cast;
+pub mod colors;
+pub mod compare;
+pub mod error;
+pub mod layout;
+pub mod tree;
+
+pub use build::{build_map, BuildOptions, BuildStats, Source};
+pub use cast::{cast_f32, cast_f64, Cast, CastOptions, Face, Hit, TexRay};
+pub use error::{measure, ErrorReport, ThinFeature, ThinKind};
+pub use layout::{BlockMap, BlockMapMeta};
+pub use tree::{build_tree, MapTree, NodeMap, Stop, TreeOptions};
+
+use std::path::PathBuf;
+
+/// What went wrong with a BlockMap.
+#[derive(Debug, thiserror::Error)]
+pub enum BlockMapError {
+    /// A parameter is out of range.
+    #[error("blockmap: {0}")]
+    BadParameter(String),
+    /// A file could not be read or written.
+    #[error("{path}: {what}")]
+    Io {
+        /// The file.
+        path: PathBuf,
+        /// What happened.
+        what: String,
+    },
+    /// A file holds something that is not a valid BlockMap.
+    #[error("{path}: not a valid BlockMap: {what}")]
+    BadFile {
+        /// The file.
+        path: PathBuf,
+        /// What is wrong.
+        what: String,
+    },
+    /// Building the map of a quadtree node failed.
+    #[error("blockmap of quadtree node {key}: {what}")]
+    Node {
+        /// The node's key.
+        key: u64,
+        /// What happened.
+        what: String,
+    },
+}
