@@ -254,7 +254,19 @@ proptest! {
         ring.extend((1..n - 1).rev().map(|i| g[i][0]));
         let enclosed = ring_signed_area(&ring);
         let total: f64 = areas.iter().sum();
-        prop_assert!((total - enclosed).abs() < 1e-6 * enclosed, "{} vs {}", total, enclosed);
+        // Snapping may move a boundary by up to the tolerance (a spur end within 5 cm of an edge
+        // bends the edge through it), so the faces tile the ring up to tolerance × perimeter.
+        let perimeter: f64 = ring
+            .iter()
+            .zip(ring.iter().cycle().skip(1))
+            .map(|(a, b)| ((b.x - a.x).powi(2) + (b.y - a.y).powi(2)).sqrt())
+            .sum();
+        prop_assert!(
+            (total - enclosed).abs() <= 0.05 * perimeter + 1e-6 * enclosed,
+            "{} vs {}",
+            total,
+            enclosed
+        );
         prop_assert!(once_each(&l, buildings.len()));
         for (b, c) in centres.iter().enumerate() {
             let block = l.blocks.iter().find(|x| x.buildings.iter().any(|id| id.0 as usize == b)).unwrap();

@@ -116,7 +116,6 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             max_occluders: args.max_occluders,
             ..Default::default()
         },
-        ..Default::default()
     };
     let bar = indicatif::ProgressBar::new(args.views);
     if args.json {

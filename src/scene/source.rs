@@ -28,6 +28,12 @@ pub mod folder {
     pub const PARCELS: &str = "parcels.shp";
 }
 
+/// Footprint, street and parcel files.
+pub type LayerFiles = (PathBuf, Option<PathBuf>, Option<PathBuf>);
+
+/// Footprint, street and parcel layers.
+pub type Layers = (Layer, Option<Layer>, Option<Layer>);
+
 /// A city's input.
 #[derive(Clone, Debug, PartialEq)]
 pub enum CitySource {
@@ -80,9 +86,9 @@ pub enum SourceError {
     Read {
         /// The file.
         file: PathBuf,
-        /// What the importer said.
+        /// What the importer said (boxed: import errors are large).
         #[source]
-        source: ImportError,
+        source: Box<ImportError>,
     },
     /// The layers did not make a city.
     #[error("building the city from {}", file.display())]
@@ -156,9 +162,7 @@ impl CitySource {
     ///
     /// # Errors
     /// [`SourceError::NoBuildingsInFolder`].
-    pub fn layer_files(
-        &self,
-    ) -> Result<Option<(PathBuf, Option<PathBuf>, Option<PathBuf>)>, SourceError> {
+    pub fn layer_files(&self) -> Result<Option<LayerFiles>, SourceError> {
         let CitySource::Files {
             footprints,
             streets,
@@ -198,7 +202,7 @@ impl CitySource {
     pub fn read_layers(
         &self,
         progress: &mut dyn FnMut(&str),
-    ) -> Result<Option<(Layer, Option<Layer>, Option<Layer>)>, SourceError> {
+    ) -> Result<Option<Layers>, SourceError> {
         let Some((fp, st, pa)) = self.layer_files()? else {
             return Ok(None);
         };
@@ -206,7 +210,7 @@ impl CitySource {
             progress(&format!("reading {}", path.display()));
             read_layer(path, theme).map_err(|source| SourceError::Read {
                 file: path.to_path_buf(),
-                source,
+                source: Box::new(source),
             })
         };
         let footprints = read(&fp, &Theme::Buildings)?;

@@ -139,8 +139,8 @@ impl OcclusionCuller {
             ("local_radius", opts.local_radius),
             ("skip_height_factor", opts.skip_height_factor),
         ] {
-            // `!(v > 0)` is true for NaN too.
-            if !(value > 0.0) {
+            // NaN fails this test too.
+            if value.is_nan() || value <= 0.0 {
                 return Err(VisibilityError::BadParameter {
                     name,
                     value,
