@@ -12,6 +12,8 @@
 //! The GPU test needs an adapter (lavapipe will do); without one it prints why and passes, unless
 //! `BLOCKWALK_REQUIRE_GPU` is set.
 
+mod common;
+
 use blockwalk::blocks::BlockId;
 use blockwalk::city::appearance::{
     self, building_style, street_color, unit_rgb, BuildingStyle, StreetClass,
@@ -304,23 +306,9 @@ fn the_ids_oracle_ignores_appearance_and_ground() {
 #[cfg(feature = "render")]
 mod gpu {
     use super::*;
-    use blockwalk::render::{Gpu, MeshRenderer, RenderError, RenderOptions, Shading};
+    use blockwalk::render::{MeshRenderer, RenderOptions, Shading};
 
-    fn gpu_or_skip(test: &str) -> Option<Gpu> {
-        match Gpu::new_headless() {
-            Ok(g) => {
-                eprintln!("{test}: adapter {}", g.adapter_name());
-                Some(g)
-            }
-            Err(RenderError::NoAdapter { source })
-                if std::env::var_os("BLOCKWALK_REQUIRE_GPU").is_none() =>
-            {
-                eprintln!("{test}: SKIPPED, no GPU adapter ({source}); set BLOCKWALK_REQUIRE_GPU=1 to fail instead");
-                None
-            }
-            Err(e) => panic!("{test}: no usable GPU: {e}"),
-        }
-    }
+    use super::common::gpu_or_skip;
 
     #[test]
     fn gpu_frames_match_the_rust_definition_and_the_cpu_fallback() {

@@ -5,27 +5,15 @@
 //! tests print why and pass, unless `BLOCKWALK_REQUIRE_GPU` is set, in which case they fail.
 #![cfg(feature = "render")]
 
+mod common;
+
 use blockwalk::blocks::BlockId;
 use blockwalk::city::Mesh;
 use blockwalk::geom::{Aabb3, Camera};
-use blockwalk::render::{Gpu, MeshRenderer, RenderError, RenderOptions, Shading};
+use blockwalk::render::{MeshRenderer, RenderError, RenderOptions, Shading};
 use glam::{DVec3, DVec4, Vec3};
 
-fn gpu_or_skip(test: &str) -> Option<Gpu> {
-    match Gpu::new_headless() {
-        Ok(g) => {
-            eprintln!("{test}: adapter {}", g.adapter_name());
-            Some(g)
-        }
-        Err(RenderError::NoAdapter { source })
-            if std::env::var_os("BLOCKWALK_REQUIRE_GPU").is_none() =>
-        {
-            eprintln!("{test}: SKIPPED, no GPU adapter ({source}); set BLOCKWALK_REQUIRE_GPU=1 to fail instead");
-            None
-        }
-        Err(e) => panic!("{test}: no usable GPU: {e}"),
-    }
-}
+use common::gpu_or_skip;
 
 /// A closed box mesh with outward normals (4 vertices per face, CCW from outside).
 fn box_mesh(b: &Aabb3) -> Mesh {
