@@ -3,7 +3,7 @@
 
 use super::cullmap::{CullMap, Resolution};
 use super::occluders::{extract, BlockOccluders, OccluderOptions};
-use super::shadow::{Occluder, OccluderShadow};
+use super::shadow::{Occluder, OccluderShadow, Slack};
 use super::VisibilityError;
 use crate::blocks::{BlockId, BlockLayout};
 use crate::city::City;
@@ -183,6 +183,13 @@ impl OcclusionCuller {
 
     /// The occluders chosen for `camera` (seed 004 §3.2.5): facade edges facing the viewer, of
     /// blocks within the local radius whose box meets the frustum, the `max_occluders` largest.
+    ///
+    /// Each edge is cut to its parts at least [`near_plane_reach`] (plus the f32 rounding of the
+    /// mesh, [`Slack::f32_mesh`]) from the eye in plan view: the renderer and the oracle clip
+    /// everything nearer than the near plane, so a wall there hides nothing, and a shadow that
+    /// assumed it did would hide what the frame shows through the clipped corner of a building
+    /// (seed 004 §3.2.2 assumes the whole wall is drawn). A sub-segment of a solid wall is still
+    /// a solid wall, so the cut edges' shadows stay conservative.
     pub fn select(&self, camera: &Camera, out: &mut Vec<Occluder>) -> (u64, Option<SkipReason>) {
         out.clear();
         let v = camera.position;
@@ -192,6 +199,7 @@ impl OcclusionCuller {
         let v2 = v.truncate();
         let frustum = camera.frustum();
         let r = self.opts.local_radius;
+        let reach = near_plane_reach(camera);
         let mut scored: Vec<(f64, Occluder)> = Vec::new();
         let mut tallest: f64 = 0.0;
         for b in &self.blocks {
@@ -208,8 +216,14 @@ impl OcclusionCuller {
                     continue;
                 }
                 tallest = tallest.max(o.height);
-                let score = o.length() * o.height / (dist * dist).max(1.0);
-                scored.push((score, *o));
+                // The drawn frame has no wall nearer than the near plane: keep only the parts of
+                // the edge at least its reach (plus the mesh's rounding) away.
+                let keep = reach + Slack::f32_mesh(o).plan;
+                for piece in outside_disk(o, v2, keep).into_iter().flatten() {
+                    let dist = piece.distance_to(v2);
+                    let score = piece.length() * piece.height / (dist * dist).max(1.0);
+                    scored.push((score, piece));
+                }
             }
         }
         let candidates = scored.len() as u64;
@@ -253,7 +267,7 @@ impl OcclusionCuller {
         };
         if skipped.is_none() {
             for o in &occ {
-                if let Ok(s) = OccluderShadow::new(camera.position, o) {
+                if let Ok(s) = OccluderShadow::with_slack(camera.position, o, Slack::f32_mesh(o)) {
                     st.occluders_used += 1;
                     let c = map.draw(&s);
                     st.cells_covered += c;
@@ -306,4 +320,59 @@ impl OcclusionCuller {
         st.test_ms = t1.elapsed().as_secs_f64() * 1e3;
         st
     }
+}
+
+/// The near plane's reach: the largest distance from the eye of a point of the view frustum
+/// that the near plane clips.
+///
+/// In view space a ray through the image at `(tx, ty)` (the tangents of its angles from the
+/// view axis, `|tx| ≤ tan(fov_x / 2) = aspect · tan(fov_y / 2)`, `|ty| ≤ tan(fov_y / 2)`) meets
+/// the depth `z` at distance `z · sqrt(1 + tx² + ty²)`. The near plane clips depths below `near`,
+/// so on every ray through the image the clipped points lie within `near · sqrt(1 + Tx² + Ty²)`
+/// of the eye, the distance to the near plane's corners (the brief's `near / (cos hx · cos hy)`
+/// is the same bound for small angles and larger than it otherwise). Conversely any point of
+/// the frustum at least this far from the eye has depth ≥ `near` and is drawn. Plan-view
+/// distance is at most the 3D distance, so a wall whose plan distance from the eye is at least
+/// the reach is drawn wherever it lies in the frustum.
+pub fn near_plane_reach(camera: &Camera) -> f64 {
+    let ty = (0.5 * camera.fov_y).tan().abs();
+    let tx = ty * camera.aspect.abs();
+    let r = camera.near * (1.0 + tx * tx + ty * ty).sqrt();
+    // One part in a million for the rounding of the projection; NaN (a broken camera) keeps
+    // nothing.
+    if r.is_finite() {
+        r * (1.0 + 1e-6)
+    } else {
+        f64::INFINITY
+    }
+}
+
+/// The parts of `o` at least `r` from `c` in plan view: none, one or two pieces (`o` itself
+/// when it stays clear of the disc).
+pub fn outside_disk(o: &Occluder, c: DVec2, r: f64) -> [Option<Occluder>; 2] {
+    let d = o.b - o.a;
+    let dd = d.dot(d);
+    if !(r > 0.0) || dd == 0.0 {
+        return [(r <= 0.0).then_some(*o), None];
+    }
+    if r.is_infinite() {
+        return [None, None];
+    }
+    // |a + t d − c|² = r²  ⇔  dd t² + 2 (f·d) t + (f·f − r²) = 0, f = a − c.
+    let f = o.a - c;
+    let (bq, cq) = (f.dot(d), f.dot(f) - r * r);
+    let disc = bq * bq - dd * cq;
+    if disc <= 0.0 {
+        return [Some(*o), None];
+    }
+    let sq = disc.sqrt();
+    let (t0, t1) = ((-bq - sq) / dd, (-bq + sq) / dd);
+    let piece = |s: f64, e: f64| {
+        (e > s).then(|| Occluder {
+            a: o.a + d * s,
+            b: o.a + d * e,
+            height: o.height,
+        })
+    };
+    [piece(0.0, t0.min(1.0)), piece(t1.max(0.0), 1.0)]
 }

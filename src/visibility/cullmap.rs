@@ -532,7 +532,7 @@ impl CullMap {
         let Some((i0, i1, j0, j1)) = self.touched(b) else {
             return false;
         };
-        let top = f32_up(b.max.z);
+        let top = f32_up(drawn_top(b));
         (j0..=j1).all(|j| (i0..=i1).all(|i| self.value(i, j) >= top))
     }
 
@@ -543,16 +543,33 @@ impl CullMap {
         let Some((i0, i1, j0, j1)) = self.touched(b) else {
             return false;
         };
-        self.pyramid.all_at_least(i0, i1, j0, j1, f32_up(b.max.z))
+        self.pyramid
+            .all_at_least(i0, i1, j0, j1, f32_up(drawn_top(b)))
     }
 
     fn touched(&self, b: &Aabb3) -> Option<(usize, usize, usize, usize)> {
         if b.is_empty() || !b.max.z.is_finite() {
             return None;
         }
+        // The drawn mesh of what the box bounds is rounded to f32 (see `drawn_top`).
+        let m = b
+            .min
+            .truncate()
+            .abs()
+            .max(b.max.truncate().abs())
+            .max_element();
+        let pad = self.margin + f32::EPSILON as f64 * m + 1e-6;
         self.grid
-            .cells_touched(b.min.truncate(), b.max.truncate(), self.margin)
+            .cells_touched(b.min.truncate(), b.max.truncate(), pad)
     }
+}
+
+/// The highest the drawn top of what `b` bounds can be: the meshes hold local-frame f32
+/// coordinates, each within half an ulp (at most `2^-24 |z|`, bounded here by
+/// `f32::EPSILON · |z|`) of the f64 value, plus a micrometre for the world → local subtraction.
+/// The plan-view extent is padded the same way in `touched`.
+fn drawn_top(b: &Aabb3) -> f64 {
+    b.max.z + f32::EPSILON as f64 * b.max.z.abs() + 1e-6
 }
 
 /// A min pyramid over the cull map: level 0 is the map, each level above holds the minimum of (up

@@ -107,6 +107,31 @@ pub struct OccluderShadow {
     pub plane: ShadowPlane,
 }
 
+/// How far the drawn wall may lie from its [`Occluder`]: see [`OccluderShadow::with_slack`].
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Slack {
+    /// Largest plan-view distance between an end of the drawn edge and the occluder's, metres.
+    pub plan: f64,
+    /// Largest amount by which the drawn top may lie below `height`, metres.
+    pub height: f64,
+}
+
+impl Slack {
+    /// The slack of a mesh whose vertices are the occluder's local-frame coordinates rounded to
+    /// f32 (as the extruded meshes are): each coordinate moves by at most half an ulp, at most
+    /// `2^-24 |x|`; over the two plan coordinates at most `√2 · 2^-24 · max(|x|, |y|)`, which
+    /// `f32::EPSILON · max(|x|, |y|)` (= `2^-23 · …`) bounds. A micrometre is added for the f64
+    /// rounding of the world → local subtraction (about `1e-16 ×` world coordinates of a few
+    /// thousand km).
+    pub fn f32_mesh(occ: &Occluder) -> Self {
+        let m = occ.a.abs().max_element().max(occ.b.abs().max_element());
+        Self {
+            plan: f32::EPSILON as f64 * m + 1e-6,
+            height: f32::EPSILON as f64 * occ.height.abs() + 1e-6,
+        }
+    }
+}
+
 /// Why an edge casts no shadow.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum NoShadow {
@@ -130,15 +155,44 @@ impl OccluderShadow {
     /// fourth half-plane cuts the region where it reaches the ground), on the edge's line or
     /// seeing it end-on within f64 rounding (no shadow).
     pub fn new(viewer: DVec3, occ: &Occluder) -> Result<Self, NoShadow> {
-        if !(viewer.is_finite() && occ.a.is_finite() && occ.b.is_finite() && occ.height.is_finite())
+        Self::with_slack(viewer, occ, Slack::default())
+    }
+
+    /// As [`OccluderShadow::new`] for a wall that is drawn only to within `slack` of `occ`: each
+    /// end of the drawn edge lies within `slack.plan` metres of `a` and `b` (plan view), its top
+    /// within `slack.height` of `height` (e.g. the f32 rounding of the drawn mesh, see
+    /// [`Slack::f32_mesh`]). The region is the part of the exact shadow that every such wall
+    /// casts:
+    ///
+    /// - the side rays are the tangents from the viewer to the discs of radius `slack.plan`
+    ///   around `a` and `b`, on the inner side (every admissible end lies outside the wedge);
+    /// - the edge line is moved `slack.plan` away from the viewer (every admissible edge, inside
+    ///   the wedge, lies in the slab of that width around the exact line, so a point beyond the
+    ///   slab and in the wedge is beyond the drawn edge);
+    /// - the plane passes through the viewer and the edge line moved `slack.plan` towards the
+    ///   viewer when the viewer is at or above the lowered top (a ray descending over the wall
+    ///   must pass under the top at the nearest admissible edge), away from it when below (an
+    ///   ascending ray at the farthest one), at the height `height - slack.height`.
+    ///
+    /// With zero slack this is exactly [`OccluderShadow::new`]. No shadow when the narrowed wedge
+    /// is empty or the lowered top is not above the ground.
+    pub fn with_slack(viewer: DVec3, occ: &Occluder, slack: Slack) -> Result<Self, NoShadow> {
+        if !(viewer.is_finite()
+            && occ.a.is_finite()
+            && occ.b.is_finite()
+            && occ.height.is_finite()
+            && slack.plan.is_finite()
+            && slack.height.is_finite())
         {
             return Err(NoShadow::NotFinite);
         }
         if viewer.z < 0.0 {
             return Err(NoShadow::ViewerBelowGround);
         }
+        let (d, dz) = (slack.plan.max(0.0), slack.height.max(0.0));
         let len = occ.length();
-        if len.is_nan() || len <= 0.0 || occ.height <= 0.0 {
+        let height = occ.height - dz;
+        if len.is_nan() || len <= 0.0 || occ.height <= 0.0 || height <= 0.0 {
             return Err(NoShadow::DegenerateEdge);
         }
         let v = viewer.truncate();
@@ -157,15 +211,47 @@ impl OccluderShadow {
         if away.dot(v - occ.a) > 0.0 {
             away = -away;
         }
+        let away_unit = away / len;
         let far_point = mid + away;
-        let beyond = HalfPlane::through(occ.a, occ.b, far_point).ok_or(NoShadow::DegenerateEdge)?;
-        let ray_a = HalfPlane::through(v, occ.a, occ.b).ok_or(NoShadow::ViewerOnLine)?;
-        let ray_b = HalfPlane::through(v, occ.b, occ.a).ok_or(NoShadow::ViewerOnLine)?;
-        // Plane through V, A_h, B_h: normal n = (A_h − V) × (B_h − V); n.z = cross ≠ 0.
-        let dz = occ.height - viewer.z;
-        let ea = DVec3::new(da.x, da.y, dz);
-        let eb = DVec3::new(db.x, db.y, dz);
+        let (ray_a, ray_b) = if d == 0.0 {
+            (
+                HalfPlane::through(v, occ.a, occ.b).ok_or(NoShadow::ViewerOnLine)?,
+                HalfPlane::through(v, occ.b, occ.a).ok_or(NoShadow::ViewerOnLine)?,
+            )
+        } else {
+            // Tangent rays: each side turned inwards by asin(d / distance to the end).
+            let (la, lb) = (da.length(), db.length());
+            if la <= d || lb <= d {
+                return Err(NoShadow::ViewerOnLine);
+            }
+            let (pa, pb) = ((d / la).asin(), (d / lb).asin());
+            let wedge = cross.abs().atan2(da.dot(db));
+            if wedge <= pa + pb {
+                return Err(NoShadow::ViewerOnLine);
+            }
+            let s = cross.signum();
+            let ua = DVec2::from_angle(s * pa).rotate(da / la);
+            let ub = DVec2::from_angle(-s * pb).rotate(db / lb);
+            let inside = v + (ua + ub);
+            (
+                HalfPlane::through(v, v + ua, inside).ok_or(NoShadow::ViewerOnLine)?,
+                HalfPlane::through(v, v + ub, inside).ok_or(NoShadow::ViewerOnLine)?,
+            )
+        };
+        let shift = away_unit * d;
+        let beyond = HalfPlane::through(occ.a + shift, occ.b + shift, far_point + shift)
+            .ok_or(NoShadow::DegenerateEdge)?;
+        // Plane through V, A_h, B_h (the edge moved by ±d, see above): normal
+        // n = (A_h − V) × (B_h − V); n.z is the plan cross product, ≠ 0 since V is off the line.
+        let to_line = if viewer.z >= height { -shift } else { shift };
+        let (pa, pb) = (occ.a + to_line - v, occ.b + to_line - v);
+        let dzv = height - viewer.z;
+        let ea = DVec3::new(pa.x, pa.y, dzv);
+        let eb = DVec3::new(pb.x, pb.y, dzv);
         let n = ea.cross(eb);
+        if n.z == 0.0 {
+            return Err(NoShadow::ViewerOnLine);
+        }
         let zx = -n.x / n.z;
         let zy = -n.y / n.z;
         let z0 = viewer.z - zx * v.x - zy * v.y;
