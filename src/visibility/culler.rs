@@ -158,6 +158,15 @@ impl OcclusionCuller {
         })
     }
 
+    /// How far the drawn walls may lie from occluder `o`: the f32 rounding of the meshes
+    /// ([`Slack::f32_mesh`]) plus the distance a merged run may keep from the walls it stands
+    /// for ([`super::occluders::merge_runs`]).
+    pub fn slack(&self, o: &Occluder) -> Slack {
+        let mut s = Slack::f32_mesh(o);
+        s.plan += self.opts.occluders.collinear_offset.max(0.0);
+        s
+    }
+
     /// The options.
     pub fn options(&self) -> &CullerOptions {
         &self.opts
@@ -218,7 +227,7 @@ impl OcclusionCuller {
                 tallest = tallest.max(o.height);
                 // The drawn frame has no wall nearer than the near plane: keep only the parts of
                 // the edge at least its reach (plus the mesh's rounding) away.
-                let keep = reach + Slack::f32_mesh(o).plan;
+                let keep = reach + self.slack(o).plan;
                 for piece in outside_disk(o, v2, keep).into_iter().flatten() {
                     let dist = piece.distance_to(v2);
                     let score = piece.length() * piece.height / (dist * dist).max(1.0);
@@ -267,7 +276,7 @@ impl OcclusionCuller {
         };
         if skipped.is_none() {
             for o in &occ {
-                if let Ok(s) = OccluderShadow::with_slack(camera.position, o, Slack::f32_mesh(o)) {
+                if let Ok(s) = OccluderShadow::with_slack(camera.position, o, self.slack(o)) {
                     st.occluders_used += 1;
                     let c = map.draw(&s);
                     st.cells_covered += c;
@@ -296,7 +305,29 @@ impl OcclusionCuller {
         out: &mut Vec<BlockId>,
     ) -> OcclusionStats {
         let mut map = self.map.lock().unwrap_or_else(|e| e.into_inner());
-        let mut st = self.build(camera, &mut map);
+        let st = self.build(camera, &mut map);
+        self.traverse(index, camera, &map, st, out)
+    }
+
+    /// A fresh cull map of this culler's grid, for callers that cull from several threads
+    /// ([`OcclusionCuller::build`] into it, then [`OcclusionCuller::traverse`] with it).
+    pub fn new_map(&self) -> CullMap {
+        let mut map = self.map.lock().unwrap_or_else(|e| e.into_inner()).clone();
+        map.clear();
+        map
+    }
+
+    /// The traversal half of [`OcclusionCuller::cull`]: frustum culling through `index` with
+    /// every surviving node and block tested against `map`, which [`OcclusionCuller::build`]
+    /// drew for `camera` and which gave `st`. One map serves any number of indexes.
+    pub fn traverse(
+        &self,
+        index: &dyn CityIndex,
+        camera: &Camera,
+        map: &CullMap,
+        mut st: OcclusionStats,
+        out: &mut Vec<BlockId>,
+    ) -> OcclusionStats {
         let t1 = Instant::now();
         let frustum = camera.frustum();
         let n0 = out.len();

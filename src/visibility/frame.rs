@@ -61,22 +61,42 @@ pub trait VisibilityOracle: Sync {
 #[derive(Clone, Copy, Debug)]
 pub struct MeshOracle<'a> {
     meshes: &'a [(BlockId, Mesh)],
+    samples: u32,
 }
 
 impl<'a> MeshOracle<'a> {
-    /// An oracle over the meshes (local frame).
+    /// An oracle over the meshes (local frame), one sample at each pixel centre.
     pub fn new(meshes: &'a [(BlockId, Mesh)]) -> Self {
-        Self { meshes }
+        Self { meshes, samples: 1 }
+    }
+
+    /// The stricter oracle of the tests: `samples × samples` samples per pixel (at least 1;
+    /// see [`oracle::visible_blocks_supersampled`]).
+    pub fn supersampled(meshes: &'a [(BlockId, Mesh)], samples: u32) -> Self {
+        Self {
+            meshes,
+            samples: samples.max(1),
+        }
+    }
+
+    /// Samples per pixel along each axis.
+    pub fn samples(&self) -> u32 {
+        self.samples
     }
 }
 
 impl VisibilityOracle for MeshOracle<'_> {
     fn describe(&self, width: u32, height: u32) -> String {
-        format!("CPU z-buffer oracle at {width}x{height}")
+        if self.samples > 1 {
+            let s = self.samples;
+            format!("CPU z-buffer oracle at {width}x{height}, {s}x{s} samples per pixel")
+        } else {
+            format!("CPU z-buffer oracle at {width}x{height}")
+        }
     }
     fn visible(&self, camera: &Camera, width: u32, height: u32) -> HashSet<BlockId> {
         let refs: Vec<(BlockId, &Mesh)> = self.meshes.iter().map(|(b, m)| (*b, m)).collect();
-        oracle::visible_blocks(&refs, camera, width, height)
+        oracle::visible_blocks_supersampled(&refs, camera, width, height, self.samples)
             .into_iter()
             .collect()
     }

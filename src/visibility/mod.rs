@@ -10,9 +10,12 @@
 //! - [`frame`]: the per-frame roles as traits ([`OcclusionCulling`], [`VisibilityOracle`],
 //!   [`FrameRenderer`]) with their CPU implementations.
 //! - [`views`]: seeded random street-level and flying views over a city.
+//! - [`adversarial`]: seeded adversarial views (eyes at the near plane's distance from corners
+//!   and walls, on wall planes, over roofs, straight up and down).
 //! - [`synthetic`]: a synthetic grid city with exact meshes, for tests and benches.
 //! - [`bench`]: the culler against the oracle over random views, per cull map resolution.
 
+pub mod adversarial;
 pub mod bench;
 pub mod culler;
 pub mod cullmap;

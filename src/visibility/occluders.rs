@@ -3,6 +3,7 @@
 
 use super::shadow::Occluder;
 use crate::blocks::{BlockId, BlockLayout};
+use crate::city::extrude::try_extrude_building;
 use crate::city::City;
 use crate::geom::predicates::ring_signed_area;
 use crate::geom::Aabb3;
@@ -54,7 +55,28 @@ pub struct BlockOccluders {
 /// lines coincide and that point the same way (a block front of touching buildings) are merged
 /// into one run at the smallest of their heights, which is still a solid wall; the original edges
 /// are kept too, at their own heights.
+///
+/// A building whose extrusion fails ([`try_extrude_building`]) is drawn as nothing, so it gives
+/// no occluder (it still counts in its block's box, which only makes the box larger). The
+/// extrusions are tried here, in parallel; [`extract_drawn`] takes the answer instead.
 pub fn extract(city: &City, layout: &BlockLayout, opts: &OccluderOptions) -> Vec<BlockOccluders> {
+    use rayon::prelude::*;
+    let drawn: Vec<bool> = city
+        .buildings
+        .par_iter()
+        .map(|b| try_extrude_building(b, &city.frame).is_ok())
+        .collect();
+    extract_drawn(city, layout, opts, &drawn)
+}
+
+/// As [`extract`], with `drawn[i]` saying whether building `i` has a mesh (a building past the
+/// end of `drawn` counts as not drawn).
+pub fn extract_drawn(
+    city: &City,
+    layout: &BlockLayout,
+    opts: &OccluderOptions,
+    drawn: &[bool],
+) -> Vec<BlockOccluders> {
     layout
         .blocks
         .iter()
@@ -74,7 +96,10 @@ pub fn extract(city: &City, layout: &BlockLayout, opts: &OccluderOptions) -> Vec
                         .including(DVec3::new(p.x, p.y, 0.0))
                         .including(DVec3::new(p.x, p.y, b.height_m.max(0.0)));
                 }
-                if b.min_height_m > 0.0 || b.height_m <= 0.0 {
+                if b.min_height_m > 0.0
+                    || b.height_m <= 0.0
+                    || !drawn.get(bid.0 as usize).copied().unwrap_or(false)
+                {
                     continue;
                 }
                 let ring: Vec<DVec2> = b
@@ -107,8 +132,19 @@ pub fn extract(city: &City, layout: &BlockLayout, opts: &OccluderOptions) -> Vec
 }
 
 /// Merged runs of collinear, same-direction edges (only runs of two or more edges).
+///
+/// What holds for a run: it lies on the line of one of its edges `e0`; every edge merged into
+/// it points the same way within `collinear_angle` and has both ends within `collinear_offset`
+/// of that line, measured at the ends themselves (not through the lines' distances from the
+/// local origin, which let two facades 0.1–0.5 m apart far from the origin pass as one line);
+/// consecutive edges along the run overlap or leave a gap of at most `merge_gap`; the run's
+/// height is the lowest of its edges'. So the walls below the run are solid up to its height
+/// within `collinear_offset` of it, apart from gaps of at most `merge_gap`; the culler adds
+/// `collinear_offset` to the plan slack of every shadow ([`super::Slack`]) and treats gaps of
+/// `merge_gap` (1 mm by default) as closed.
 pub fn merge_runs(edges: &[Occluder], opts: &OccluderOptions) -> Vec<Occluder> {
-    // Key each edge by its direction angle and its line's signed offset, then sweep.
+    // Key each edge by its direction angle and its line's signed offset, then sweep; the
+    // offset only orders the sweep, membership is decided at the walls.
     let mut keyed: Vec<(f64, f64, usize)> = edges
         .iter()
         .enumerate()
@@ -127,14 +163,20 @@ pub fn merge_runs(edges: &[Occluder], opts: &OccluderOptions) -> Vec<Occluder> {
             continue;
         }
         // Group: all edges parallel and on the same line as `s` (angle sweep stays local).
-        let (ang, off, ei) = keyed[s];
+        let (ang, _, ei) = keyed[s];
         let mut group = vec![ei];
         used[s] = true;
+        let (la, ld) = (edges[ei].a, (edges[ei].b - edges[ei].a).normalize());
+        let off_line = |p: DVec2| ld.perp_dot(p - la).abs();
         for t in s + 1..keyed.len() {
             if keyed[t].0 - ang > opts.collinear_angle {
                 break;
             }
-            if !used[t] && (keyed[t].1 - off).abs() <= opts.collinear_offset {
+            let e = edges[keyed[t].2];
+            if !used[t]
+                && off_line(e.a) <= opts.collinear_offset
+                && off_line(e.b) <= opts.collinear_offset
+            {
                 used[t] = true;
                 group.push(keyed[t].2);
             }
@@ -208,6 +250,114 @@ mod tests {
         );
         assert_eq!(runs.len(), 1);
         assert_eq!(runs[0].b, DVec2::new(40.0, 0.0));
+    }
+
+    #[test]
+    fn nearly_collinear_walls_far_from_the_origin_do_not_merge() {
+        // Two facades 5 km from the local origin, their lines 0.3 m apart at the walls but
+        // turned by 6e-5 rad so that their distances from the origin agree within 1 mm: the
+        // lines cross near the origin, not at the walls.
+        let ang = 6e-5f64;
+        let dir = DVec2::new(ang.cos(), ang.sin());
+        let n = DVec2::new(-dir.y, dir.x);
+        let e1 = Occluder {
+            a: DVec2::new(5000.0, 0.0),
+            b: DVec2::new(5010.0, 0.0),
+            height: 10.0,
+        };
+        let a2 = DVec2::new(5010.0, 0.3);
+        let e2 = Occluder {
+            a: a2,
+            b: a2 + dir * 10.0,
+            height: 10.0,
+        };
+        // The origin-offset key would call them one line (|0.3 − 5010·6e-5| = 0.0006 m).
+        let off2 = n.dot(e2.a);
+        assert!(off2.abs() <= 1e-3, "{off2}");
+        assert!(merge_runs(&[e1, e2], &OccluderOptions::default()).is_empty());
+        // The same facades in line at the walls merge.
+        let e3 = Occluder {
+            a: DVec2::new(5010.0, 0.0),
+            b: DVec2::new(5020.0, 0.0),
+            height: 8.0,
+        };
+        let runs = merge_runs(&[e1, e3], &OccluderOptions::default());
+        assert_eq!(runs.len(), 1);
+        assert_eq!(runs[0].height, 8.0);
+    }
+
+    #[test]
+    fn a_building_whose_extrusion_fails_casts_no_shadow() {
+        use crate::blocks::{Block, BlockKind, BlockSource};
+        use crate::city::{Building, BuildingId, CityReport, HeightSource, LocalFrame};
+        use geo_types::{coord, LineString, Polygon};
+        // A square and a bow tie (its ring crosses itself: the extrusion refuses it).
+        let ring = |pts: &[(f64, f64)]| {
+            Polygon::new(
+                LineString(pts.iter().map(|&(x, y)| coord! { x: x, y: y }).collect()),
+                vec![],
+            )
+        };
+        let square = ring(&[
+            (0.0, 0.0),
+            (10.0, 0.0),
+            (10.0, 10.0),
+            (0.0, 10.0),
+            (0.0, 0.0),
+        ]);
+        let bowtie = ring(&[
+            (20.0, 0.0),
+            (30.0, 10.0),
+            (30.0, 0.0),
+            (20.0, 10.0),
+            (20.0, 0.0),
+        ]);
+        let building = |i: u32, footprint| Building {
+            id: BuildingId(i),
+            source_id: format!("t:{i}"),
+            footprint,
+            height_m: 12.0,
+            min_height_m: 0.0,
+            height_source: HeightSource::Height,
+            attributes: Default::default(),
+        };
+        let city = City {
+            name: "t".into(),
+            transform: blockwalk_importers::Crs::Unknown.metric_transform([0.0, 0.0]),
+            frame: LocalFrame {
+                origin: DVec3::ZERO,
+            },
+            buildings: vec![building(0, square.clone()), building(1, bowtie.clone())],
+            streets: vec![],
+            parcels: vec![],
+            report: CityReport::default(),
+        };
+        assert!(try_extrude_building(&city.buildings[0], &city.frame).is_ok());
+        assert!(try_extrude_building(&city.buildings[1], &city.frame).is_err());
+        let layout = BlockLayout {
+            blocks: vec![
+                Block {
+                    id: BlockId(0),
+                    kind: BlockKind::Block,
+                    polygon: square,
+                    buildings: vec![BuildingId(0)],
+                },
+                Block {
+                    id: BlockId(1),
+                    kind: BlockKind::Block,
+                    polygon: bowtie,
+                    buildings: vec![BuildingId(1)],
+                },
+            ],
+            source: BlockSource::Streets,
+            street_edges: vec![],
+            dangles: 0,
+        };
+        let occ = extract(&city, &layout, &OccluderOptions::default());
+        assert_eq!(occ[0].occluders.len(), 4, "{:?}", occ[0].occluders);
+        assert!(occ[1].occluders.is_empty(), "{:?}", occ[1].occluders);
+        // Its box still counts (larger boxes are only hidden less often).
+        assert!(!occ[1].aabb.is_empty());
     }
 
     #[test]

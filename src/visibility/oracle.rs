@@ -394,6 +394,29 @@ pub fn visible_blocks(
     render_ids(blocks, camera, width, height).visible()
 }
 
+/// The blocks seen by at least one of `samples × samples` regularly spaced samples in some
+/// pixel of a `width × height` image from `camera`: the stricter ground truth, which also sees
+/// what is thinner than a pixel (a block seen through a gap narrower than the pixel spacing).
+/// Samples sit at `(x + (i + ½) / samples, y + (j + ½) / samples)` of pixel `(x, y)`, so
+/// `samples = 1` is [`visible_blocks`]; the image is the same view (same frustum) sampled
+/// `samples` times finer along each axis.
+pub fn visible_blocks_supersampled(
+    blocks: &[(BlockId, &Mesh)],
+    camera: &Camera,
+    width: u32,
+    height: u32,
+    samples: u32,
+) -> BTreeSet<BlockId> {
+    let s = samples.max(1);
+    render_ids(
+        blocks,
+        camera,
+        width.saturating_mul(s),
+        height.saturating_mul(s),
+    )
+    .visible()
+}
+
 /// A lit image of the blocks on the ground plane under the sky: the CPU fallback of the GPU
 /// mesh renderer's lit frames, with the same appearance ([`crate::city::appearance`]: facade
 /// windows, roofs, ground floors, the same sun and ambient term). See [`shade_with_ground`].
