@@ -343,3 +343,167 @@ fn regression_eye_beside_a_corner_sees_through_the_near_plane() {
     );
     check_view(&cam);
 }
+
+/// Adversarial views (eyes at 0.05–3× `near` from corners and walls, …) over the synthetic city
+/// shifted so that its buildings lie `shift` from the local frame's origin: its f32 meshes are
+/// rounded by up to 0.25 mm (5 km) and 1 mm (30 km). No block the 4×4-supersampled oracle sees
+/// is culled at any resolution; eyes inside a building are counted apart.
+fn check_shifted_city(shift: f64, views: usize) -> (usize, usize, usize) {
+    use blockwalk::visibility::adversarial::{
+        adversarial_views, AdversarialOptions, BuildingSolids,
+    };
+    use blockwalk::visibility::oracle::visible_blocks_supersampled;
+    let city = SyntheticCity::generate_shifted(
+        3,
+        3,
+        8,
+        DVec2::new(385_000.0, 6_672_000.0),
+        DVec2::new(shift, -0.6 * shift),
+    );
+    let index = FlatList::build(&block_bounds(&city.city, &city.layout)).unwrap();
+    let base = OcclusionCuller::new(&city.city, &city.layout, CullerOptions::default()).unwrap();
+    let solids = BuildingSolids::new(&city.city);
+    let refs = city.mesh_refs();
+    let (mut vacuous, mut culled, mut checked) = (0, 0, 0);
+    for r in [64, 256, 1024] {
+        let c = base.with_resolution(Resolution::Cells(r)).unwrap();
+        for v in adversarial_views(
+            &city.city,
+            &AdversarialOptions {
+                views,
+                seed: 3 + r as u64,
+                ..Default::default()
+            },
+        ) {
+            let cam = &v.camera;
+            if solids.contains(cam.position) {
+                vacuous += 1;
+            }
+            let visible = visible_blocks_supersampled(&refs, cam, 96, 54, 4);
+            let mut out = Vec::new();
+            c.cull(&index, cam, &mut out);
+            let mut frustum = Vec::new();
+            index.cull(&CullQuery::new(&cam.frustum()), None, &mut frustum);
+            culled += (out.len() < frustum.len()) as usize;
+            for b in &visible {
+                assert!(
+                    out.contains(b),
+                    "shift {shift} m, {r}²: {b:?} culled from {v:?}"
+                );
+            }
+            checked += 1;
+        }
+    }
+    (checked, vacuous, culled)
+}
+
+#[test]
+fn cities_5_km_and_30_km_from_their_origin_have_no_false_culls() {
+    for shift in [5_000.0, 30_000.0] {
+        let (checked, vacuous, culled) = check_shifted_city(shift, 150);
+        eprintln!("shift {shift} m: {checked} views, {vacuous} vacuous, {culled} culled something");
+        assert!(vacuous * 2 < checked, "{vacuous} of {checked} vacuous");
+        assert!(culled > 0, "nothing culled: the check would be vacuous");
+    }
+}
+
+/// A block seen through the f32 rounding of a wall's end, 30 km from the local origin: the
+/// wall's f64 end lies 0.49 ulp (0.96 mm) past its f32 end, the eye stands 0.2 m from that
+/// corner, and a low block 400 m behind sits in the 1.9 m sliver between the f64 shadow's side
+/// ray and the drawn wall's. A margin that ignores the meshes' rounding (5e-6 m) culls it.
+#[test]
+fn a_block_seen_past_a_rounded_wall_end_far_from_the_origin_is_kept() {
+    use blockwalk::blocks::{Block, BlockKind, BlockLayout, BlockSource};
+    use blockwalk::city::{Building, BuildingId, City, CityReport, HeightSource, LocalFrame};
+    use blockwalk::scene::block_meshes;
+    use blockwalk::visibility::oracle::visible_blocks_supersampled;
+    use geo_types::{coord, LineString, Polygon};
+    let x0 = 30_000.0;
+    let ulp = 2f64.powi(-9); // f32 spacing in [16384, 32768)
+    let y1 = 20_000.0 + 0.49 * ulp; // rounds down to 20 000 in f32
+    assert_eq!(y1 as f32 as f64, 20_000.0);
+    let y0 = y1 - 12.0;
+    let eye = DVec3::new(x0 - 0.2, y1 - 0.05, 1.7);
+    // The f64 side ray through (x0, y1) and the drawn one through (x0, 20 000), at x.
+    let ray = |yend: f64, x: f64| eye.y + (x - eye.x) * (yend - eye.y) / (x0 - eye.x);
+    let tx = x0 + 400.0;
+    let top = ray(y1, tx) - 0.9;
+    assert!(
+        top - ray(20_000.0, tx) > 0.8,
+        "the sliver is wide enough to see"
+    );
+    let rect = |a: DVec2, b: DVec2| {
+        Polygon::new(
+            LineString(vec![
+                coord! { x: a.x, y: a.y },
+                coord! { x: b.x, y: a.y },
+                coord! { x: b.x, y: b.y },
+                coord! { x: a.x, y: b.y },
+                coord! { x: a.x, y: a.y },
+            ]),
+            vec![],
+        )
+    };
+    let wall = rect(DVec2::new(x0, y0), DVec2::new(x0 + 10.0, y1));
+    let target = rect(DVec2::new(tx, top - 30.0), DVec2::new(tx + 10.0, top));
+    let building = |i: u32, footprint, h| Building {
+        id: BuildingId(i),
+        source_id: format!("t:{i}"),
+        footprint,
+        height_m: h,
+        min_height_m: 0.0,
+        height_source: HeightSource::Height,
+        attributes: Default::default(),
+    };
+    let city = City {
+        name: "rounded wall end".into(),
+        transform: blockwalk_importers::Crs::Unknown.metric_transform([0.0, 0.0]),
+        frame: LocalFrame {
+            origin: glam::DVec3::ZERO,
+        },
+        buildings: vec![
+            building(0, wall.clone(), 30.0),
+            building(1, target.clone(), 5.0),
+        ],
+        streets: vec![],
+        parcels: vec![],
+        report: CityReport::default(),
+    };
+    let block = |i: u32, polygon| Block {
+        id: BlockId(i),
+        kind: BlockKind::Block,
+        polygon,
+        buildings: vec![BuildingId(i)],
+    };
+    let layout = BlockLayout {
+        blocks: vec![block(0, wall), block(1, target)],
+        source: BlockSource::Streets,
+        street_edges: vec![],
+        dangles: 0,
+    };
+    let meshes = block_meshes(&city, &layout);
+    let refs: Vec<(BlockId, &blockwalk::city::Mesh)> =
+        meshes.iter().map(|(b, m)| (*b, m)).collect();
+    let index = FlatList::build(&block_bounds(&city, &layout)).unwrap();
+    let mut cam = Camera::looking_at(eye, DVec3::new(tx + 5.0, top - 1.0, 2.0));
+    cam.near = 0.1;
+    assert!(
+        visible_blocks_supersampled(&refs, &cam, 320, 180, 4).contains(&BlockId(1)),
+        "the frame shows the target through the sliver"
+    );
+    for r in [256, 1024] {
+        let c = OcclusionCuller::new(
+            &city,
+            &layout,
+            CullerOptions {
+                resolution: Resolution::Cells(r),
+                ..Default::default()
+            },
+        )
+        .unwrap();
+        let mut out = Vec::new();
+        let st = c.cull(&index, &cam, &mut out);
+        assert!(st.shadows_drawn > 0, "{st:?}");
+        assert!(out.contains(&BlockId(1)), "{r}²: target culled ({st:?})");
+    }
+}

@@ -430,6 +430,98 @@ mod tests {
         assert!(s.row_interval(0.0, 0.0, -f64::MAX, f64::MAX).is_some());
     }
 
+    /// Brute force for the slack: every point hidden by `with_slack` is hidden by every wall
+    /// whose ends lie within `plan` of the occluder's and whose top is within `height` below
+    /// it (here the corners of that set of walls and random ones in it).
+    #[test]
+    fn slack_shadows_are_hidden_by_every_admissible_wall() {
+        use rand::{Rng, SeedableRng};
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(17);
+        let mut hidden_points = 0;
+        for _ in 0..1500 {
+            let occ = Occluder {
+                a: DVec2::new(rng.random_range(-20.0..20.0), rng.random_range(-20.0..20.0)),
+                b: DVec2::new(rng.random_range(-20.0..20.0), rng.random_range(-20.0..20.0)),
+                height: rng.random_range(2.0..30.0),
+            };
+            let slack = Slack {
+                plan: rng.random_range(0.0..0.3),
+                height: rng.random_range(0.0..0.5),
+            };
+            let v = DVec3::new(
+                rng.random_range(-40.0..40.0),
+                rng.random_range(-40.0..40.0),
+                rng.random_range(0.0..45.0),
+            );
+            let Ok(s) = OccluderShadow::with_slack(v, &occ, slack) else {
+                continue;
+            };
+            for _ in 0..40 {
+                let p = DVec3::new(
+                    rng.random_range(-120.0..120.0),
+                    rng.random_range(-120.0..120.0),
+                    rng.random_range(0.0..60.0),
+                );
+                if !(s.contains(p.truncate()) && p.z <= s.plane.at(p.truncate())) {
+                    continue;
+                }
+                hidden_points += 1;
+                for k in 0..12 {
+                    let off = |rng: &mut rand_chacha::ChaCha8Rng| {
+                        let ang = if k < 4 {
+                            (k as f64) * std::f64::consts::FRAC_PI_2
+                        } else {
+                            rng.random_range(0.0..std::f64::consts::TAU)
+                        };
+                        DVec2::from_angle(ang) * slack.plan * rng.random_range(0.0..=1.0f64).sqrt()
+                    };
+                    let a = occ.a + off(&mut rng);
+                    let b = occ.b + off(&mut rng);
+                    let h = occ.height - slack.height * rng.random_range(0.0..=1.0);
+                    // Segment v→p against the vertical rectangle over a–b up to h.
+                    let (vp, ab) = (p.truncate() - v.truncate(), b - a);
+                    let den = vp.perp_dot(ab);
+                    assert!(den != 0.0, "{v} {p} {a} {b}");
+                    let t = (a - v.truncate()).perp_dot(ab) / den;
+                    let u = (a - v.truncate()).perp_dot(vp) / den;
+                    assert!(
+                        (-1e-9..=1.0 + 1e-9).contains(&t) && (-1e-9..=1.0 + 1e-9).contains(&u),
+                        "ray misses the wall: t {t} u {u}, {v} {p} {occ:?} {slack:?}"
+                    );
+                    let z = v.z + (p.z - v.z) * t;
+                    assert!(z <= h + 1e-9, "over the wall: {z} > {h}, {v} {p}");
+                }
+            }
+        }
+        assert!(hidden_points > 1000, "vacuous: {hidden_points}");
+    }
+
+    #[test]
+    fn zero_slack_is_the_exact_shadow() {
+        let v = DVec3::new(0.0, 0.0, 2.0);
+        assert_eq!(
+            OccluderShadow::with_slack(v, &wall(), Slack::default()),
+            OccluderShadow::new(v, &wall())
+        );
+        // Slack only ever shrinks the region.
+        let s = OccluderShadow::with_slack(
+            v,
+            &wall(),
+            Slack {
+                plan: 0.1,
+                height: 0.1,
+            },
+        )
+        .unwrap();
+        assert!(s.contains(DVec2::new(20.0, 0.0)));
+        assert!(!s.contains(DVec2::new(10.05, 0.0)), "inside the slab");
+        assert!(
+            !s.contains(DVec2::new(20.0, 9.99)),
+            "outside the narrowed wedge"
+        );
+        assert!(s.plane.at(DVec2::new(20.0, 0.0)) < 18.0);
+    }
+
     #[test]
     fn hidden_points_really_are_behind_the_wall() {
         // Brute force: for random points, "inside region and below plane" must imply that the

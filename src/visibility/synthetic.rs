@@ -3,7 +3,7 @@
 use crate::blocks::{Block, BlockId, BlockKind, BlockLayout, BlockSource};
 use crate::city::{Building, BuildingId, City, CityReport, HeightSource, LocalFrame, Mesh};
 use geo_types::{coord, LineString, Polygon};
-use glam::{DVec2, DVec3};
+use glam::DVec2;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
@@ -25,9 +25,22 @@ pub struct SyntheticCity {
 impl SyntheticCity {
     /// A `cols × rows` grid of blocks from `seed`.
     pub fn generate(cols: usize, rows: usize, seed: u64, origin: DVec2) -> Self {
+        Self::generate_shifted(cols, rows, seed, origin, DVec2::ZERO)
+    }
+
+    /// As [`SyntheticCity::generate`], with the buildings `shift` metres from the local frame's
+    /// origin (world coordinates unchanged, the frame's origin moved by `-shift`), so that the
+    /// f32 meshes carry the rounding of coordinates that large (e.g. 5 km: ulp 0.5 mm).
+    pub fn generate_shifted(
+        cols: usize,
+        rows: usize,
+        seed: u64,
+        origin: DVec2,
+        shift: DVec2,
+    ) -> Self {
         let mut rng = ChaCha8Rng::seed_from_u64(seed);
         let frame = LocalFrame {
-            origin: origin.extend(0.0),
+            origin: (origin - shift).extend(0.0),
         };
         let mut buildings: Vec<Building> = Vec::new();
         let mut blocks: Vec<Block> = Vec::new();
@@ -163,8 +176,8 @@ impl SyntheticCity {
                     });
                     for (a, b) in boxes {
                         let m = super::oracle::box_mesh(
-                            LocalFrame::round_to_f32(DVec3::new(a.x, a.y, min_height)),
-                            LocalFrame::round_to_f32(DVec3::new(b.x, b.y, height)),
+                            LocalFrame::round_to_f32((a + shift).extend(min_height)),
+                            LocalFrame::round_to_f32((b + shift).extend(height)),
                         );
                         let base = mesh.positions.len() as u32;
                         mesh.positions.extend_from_slice(&m.positions);
