@@ -2,7 +2,7 @@
 //! walk (culling + bookkeeping, no rendering) of 300 frames through every structure.
 
 use blockwalk::geom::Aabb3;
-use blockwalk::route::{paper_route, Lens, PaperRouteParams, StreetGraph};
+use blockwalk::route::{paper_route, Lens, Obstacles, PaperRouteParams, StreetGraph};
 use criterion::{criterion_group, criterion_main, Criterion};
 use geo_types::LineString;
 use glam::DVec3;
@@ -42,6 +42,7 @@ fn route_sampling(c: &mut Criterion) {
             paper_route(
                 black_box(&bounds),
                 Some(&g),
+                &Obstacles::none(),
                 &PaperRouteParams::default(),
                 Lens::default(),
             )
@@ -51,6 +52,7 @@ fn route_sampling(c: &mut Criterion) {
     let r = paper_route(
         &bounds,
         Some(&g),
+        &Obstacles::none(),
         &PaperRouteParams::default(),
         Lens::default(),
     )
@@ -77,9 +79,11 @@ fn walk_300_frames(c: &mut Criterion) {
         ..SceneOptions::default()
     };
     let scene = Scene::load(&source, &opts, &mut |_| {}).unwrap();
+    let obstacles = Obstacles::from_buildings(&scene.city.buildings, &scene.city.frame);
     let route = paper_route(
         &scene.city_bounds(),
         None,
+        &obstacles,
         &PaperRouteParams::default(),
         Lens::default(),
     )

@@ -1,19 +1,24 @@
 //! Spatial structures against brute force: no false culls, ever (seed 003 §4).
 
 use blockwalk::blocks::BlockId;
+use blockwalk::geom::BoundingSphere;
 use blockwalk::geom::{Aabb3, Camera, CoherenceState, Frustum};
 use blockwalk::index::{
-    synthetic::block_grid, BlockBounds, BqrParams, BqrTree, CityIndex, CullQuery, FlatList,
-    enclosing_sphere, IndexError, NoStructure, ObjectId, RstarIndex, Structure, VamSplitParams,
+    enclosing_sphere, synthetic::block_grid, BlockBounds, BqrParams, BqrTree, CityIndex, CullQuery,
+    FlatList, IndexError, NoStructure, ObjectId, RstarIndex, Structure, VamSplitParams,
     VamSplitTree,
 };
-use blockwalk::geom::BoundingSphere;
 use glam::{DVec2, DVec3};
 use proptest::prelude::*;
 use std::collections::HashSet;
 
 fn block(i: usize, min: DVec3, max: DVec3, center: DVec2) -> BlockBounds {
-    BlockBounds::from_box(BlockId(i as u32), Aabb3::new(min, max), center, 10 + i as u32)
+    BlockBounds::from_box(
+        BlockId(i as u32),
+        Aabb3::new(min, max),
+        center,
+        10 + i as u32,
+    )
 }
 
 /// (x, y, w, d, h, centre jitter) per block.

@@ -4,7 +4,7 @@
 
 use blockwalk::blocks::BlockId;
 use blockwalk::index::{BlockBounds, Structure};
-use blockwalk::route::{paper_route, Lens, PaperRouteParams, StreetGraph};
+use blockwalk::route::{paper_route, Lens, Obstacles, PaperRouteParams, StreetGraph};
 use blockwalk::scene::{CitySource, Scene, SceneOptions};
 use blockwalk::visibility::CullerOptions;
 use blockwalk::walk::{run_walk, CullMode, Drawing, OcclusionMode, WalkError, WalkParams};
@@ -25,9 +25,11 @@ fn scene(occlusion: bool) -> Scene {
 
 fn params(scene: &Scene, occlusion: OcclusionMode) -> WalkParams {
     let graph = StreetGraph::from_world_lines(&scene.layout.street_edges, &scene.city.frame);
+    let obstacles = Obstacles::from_buildings(&scene.city.buildings, &scene.city.frame);
     let route = paper_route(
         &scene.city_bounds(),
         Some(&graph),
+        &obstacles,
         &PaperRouteParams::default(),
         Lens::default(),
     )

@@ -418,7 +418,10 @@ mod tests {
         assert_eq!(vol("sphere").accepted, vol("box_sphere_of_box").accepted);
         assert_eq!(vol("box_sphere").accepted, vol("box").accepted);
         let (bqr, boxed) = (
-            r.structures.iter().find(|s| s.name == Structure::Bqr).unwrap(),
+            r.structures
+                .iter()
+                .find(|s| s.name == Structure::Bqr)
+                .unwrap(),
             r.bqr_box_leaves.as_ref().unwrap(),
         );
         assert_eq!(bqr.blocks_accepted_mean, boxed.blocks_accepted_mean);

@@ -137,7 +137,11 @@ fn pad_for_f32(s: BoundingSphere) -> BoundingSphere {
 
 /// The vertices of a building's extruded prism: its exterior ring at both heights (holes lie
 /// inside the exterior, so they add nothing to a convex volume).
-fn push_prism_vertices(b: &Building, to_local: &impl Fn(&Coord<f64>) -> DVec2, out: &mut Vec<DVec3>) {
+fn push_prism_vertices(
+    b: &Building,
+    to_local: &impl Fn(&Coord<f64>) -> DVec2,
+    out: &mut Vec<DVec3>,
+) {
     let lo = b.min_height_m.min(b.height_m);
     let hi = b.height_m.max(b.min_height_m);
     for c in b.footprint.exterior().coords() {

@@ -730,9 +730,10 @@ impl BqrTree {
                 );
                 let holds_sphere = (b.sphere.center - n.sphere.center).length() + b.sphere.radius
                     <= n.sphere.radius + tol(&n.sphere);
-                let holds_box = b.aabb.corners().iter().all(|&p| {
-                    (p - n.sphere.center).length() <= n.sphere.radius + tol(&n.sphere)
-                });
+                let holds_box =
+                    b.aabb.corners().iter().all(|&p| {
+                        (p - n.sphere.center).length() <= n.sphere.radius + tol(&n.sphere)
+                    });
                 assert!(
                     holds_sphere || holds_box,
                     "node {i}: sphere misses block {:?}",

@@ -73,7 +73,9 @@ pub enum IndexError {
         id: u32,
     },
     /// A block's bounds hold NaN or infinite coordinates, an empty box or a negative radius.
-    #[error("{structure}: block {index} (id {id}) has a non-finite or empty box, centre or sphere")]
+    #[error(
+        "{structure}: block {index} (id {id}) has a non-finite or empty box, centre or sphere"
+    )]
     BadBlock {
         /// Structure being built.
         structure: Structure,

@@ -113,10 +113,7 @@ fn mtf(pts: &mut [DVec3], end: usize, support: &mut Vec<DVec3>) -> Ball {
             // Affinely dependent support (within rounding): keep the ball of the earlier
             // support points, grown to reach the newest one. The final radius is measured.
             let (last, head) = support.split_last().expect("a degenerate set is not empty");
-            let mut b = ball_through(head).unwrap_or(Ball {
-                c: *last,
-                r2: 0.0,
-            });
+            let mut b = ball_through(head).unwrap_or(Ball { c: *last, r2: 0.0 });
             b.r2 = b.r2.max((*last - b.c).length_squared());
             b
         }
