@@ -2,7 +2,7 @@
 //! index traversal with cull map tests, on a synthetic street grid of about 80,000 buildings
 //! (55 × 55 blocks) from street level, at several resolutions.
 
-use blockwalk::index::{block_bounds, FlatList};
+use blockwalk::index::{block_bounds, CityIndex, CullQuery, FlatList};
 use blockwalk::visibility::synthetic::SyntheticCity;
 use blockwalk::visibility::views::{random_views, ViewKind, ViewOptions};
 use blockwalk::visibility::{CullerOptions, OccluderShadow, OcclusionCuller, Resolution};
@@ -24,6 +24,21 @@ fn cullmap(c: &mut Criterion) {
     let base = OcclusionCuller::new(&s.city, &s.layout, CullerOptions::default()).unwrap();
     let mut g = c.benchmark_group("cullmap_street_frame");
     g.sample_size(20);
+    // The same views and index with frustum culling alone (no filter: subtrees found
+    // completely inside are accepted whole, seed 003 §5), beside the occlusion numbers.
+    g.bench_function("frustum_only", |b| {
+        let mut k = 0;
+        let mut out = Vec::new();
+        b.iter(|| {
+            out.clear();
+            let cam = &views[k % views.len()].camera;
+            let f = cam.frustum();
+            k += 1;
+            index
+                .cull(&CullQuery::with_eye(&f, cam.position), None, &mut out)
+                .blocks_accepted
+        })
+    });
     for res in [64u32, 256, 1024] {
         let culler = base.with_resolution(Resolution::Cells(res)).unwrap();
         g.bench_with_input(BenchmarkId::new("build_and_cull", res), &res, |b, _| {

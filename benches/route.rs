@@ -2,7 +2,7 @@
 //! walk (culling + bookkeeping, no rendering) of 300 frames through every structure.
 
 use blockwalk::geom::Aabb3;
-use blockwalk::route::{paper_route, Lens, PaperRouteParams, StreetGraph};
+use blockwalk::route::{paper_route, Lens, Obstacles, PaperRouteParams, StreetGraph};
 use criterion::{criterion_group, criterion_main, Criterion};
 use geo_types::LineString;
 use glam::DVec3;
@@ -42,6 +42,7 @@ fn route_sampling(c: &mut Criterion) {
             paper_route(
                 black_box(&bounds),
                 Some(&g),
+                &Obstacles::none(),
                 &PaperRouteParams::default(),
                 Lens::default(),
             )
@@ -51,6 +52,7 @@ fn route_sampling(c: &mut Criterion) {
     let r = paper_route(
         &bounds,
         Some(&g),
+        &Obstacles::none(),
         &PaperRouteParams::default(),
         Lens::default(),
     )
@@ -63,40 +65,52 @@ fn route_sampling(c: &mut Criterion) {
     });
 }
 
-/// The walk without rendering: 300 frames of the paper route, five structures, frustum culling
-/// and the per-frame bookkeeping, on a synthetic street grid of 50 × 50 blocks (2,500 blocks,
-/// about the block count of a generated city of 80,000 buildings).
+/// The walk without rendering: 300 frames of the paper route, five structures, the per-frame
+/// bookkeeping, on a synthetic street grid of 50 × 50 blocks (2,500 blocks, about the block count
+/// of a generated city of 80,000 buildings); frustum culling alone (no hidden-volume filter, so
+/// the structures accept subtrees found completely inside, seed 003 §5) and frustum + occlusion
+/// culling (cull map, seed 004 §3.2), side by side.
 fn walk_300_frames(c: &mut Criterion) {
     use blockwalk::index::Structure;
     use blockwalk::scene::{CitySource, Scene, SceneOptions};
+    use blockwalk::visibility::CullerOptions;
     use blockwalk::walk::{run_walk, Drawing, OcclusionMode, WalkParams};
     let source =
         CitySource::parse(std::path::Path::new("synthetic:50x50"), None, None, &[], 1).unwrap();
     let opts = SceneOptions {
         structures: Structure::ALL.to_vec(),
+        occlusion: Some(CullerOptions::default()),
         ..SceneOptions::default()
     };
     let scene = Scene::load(&source, &opts, &mut |_| {}).unwrap();
+    let graph = StreetGraph::from_world_lines(&scene.layout.street_edges, &scene.city.frame);
+    let obstacles = Obstacles::from_buildings(&scene.city.buildings, &scene.city.frame);
     let route = paper_route(
         &scene.city_bounds(),
-        None,
+        Some(&graph).filter(|g| !g.is_empty()),
+        &obstacles,
         &PaperRouteParams::default(),
         Lens::default(),
     )
     .unwrap();
-    let params = WalkParams {
-        route,
-        frames: 300,
-        occlusion: OcclusionMode::Off,
-        image_every: 0,
-        oracle: false,
-        size: (1280, 720),
-    };
-    let mut g = c.benchmark_group("walk");
+    let mut g = c.benchmark_group("walk_paper_route_300_frames_5_structures_2500_blocks");
     g.sample_size(10);
-    g.bench_function("paper route 300 frames, 5 structures, 2500 blocks", |b| {
-        b.iter(|| run_walk(&scene, &params, Drawing::Off, &mut |_, _| {}).unwrap())
-    });
+    for (label, occlusion) in [
+        ("frustum_only", OcclusionMode::Off),
+        ("frustum_and_occlusion", OcclusionMode::On),
+    ] {
+        let params = WalkParams {
+            route: route.clone(),
+            frames: 300,
+            occlusion,
+            image_every: 0,
+            oracle: false,
+            size: (1280, 720),
+        };
+        g.bench_function(label, |b| {
+            b.iter(|| run_walk(&scene, &params, Drawing::Off, &mut |_, _| {}).unwrap())
+        });
+    }
     g.finish();
 }
 

@@ -1,22 +1,24 @@
 //! Spatial structures against brute force: no false culls, ever (seed 003 §4).
 
 use blockwalk::blocks::BlockId;
+use blockwalk::geom::BoundingSphere;
 use blockwalk::geom::{Aabb3, Camera, CoherenceState, Frustum};
 use blockwalk::index::{
-    synthetic::block_grid, BlockBounds, BqrParams, BqrTree, CityIndex, CullQuery, FlatList,
-    IndexError, NoStructure, ObjectId, RstarIndex, Structure, VamSplitParams, VamSplitTree,
+    enclosing_sphere, synthetic::block_grid, BlockBounds, BqrParams, BqrTree, CityIndex, CullQuery,
+    FlatList, IndexError, NoStructure, ObjectId, RstarIndex, Structure, VamSplitParams,
+    VamSplitTree,
 };
 use glam::{DVec2, DVec3};
 use proptest::prelude::*;
 use std::collections::HashSet;
 
 fn block(i: usize, min: DVec3, max: DVec3, center: DVec2) -> BlockBounds {
-    BlockBounds {
-        id: BlockId(i as u32),
-        aabb: Aabb3::new(min, max),
+    BlockBounds::from_box(
+        BlockId(i as u32),
+        Aabb3::new(min, max),
         center,
-        triangles: 10 + i as u32,
-    }
+        10 + i as u32,
+    )
 }
 
 /// (x, y, w, d, h, centre jitter) per block.
@@ -413,4 +415,198 @@ fn hierarchies_visit_fewer_volumes_than_the_flat_list_at_street_level() {
     }
     // One BqR-tree and two VAMSplit trees (capacities 4 and 8), each checked on its own.
     assert_eq!(checked, 3);
+}
+
+/// A block of 1–4 buildings, each an axis-aligned prism `(dx, dy, w, d, floor, height)` placed in
+/// a 100 m cell at `(x, y)`: L-shapes, a tower on a low block, empty corners.
+type RawBuilding = (f64, f64, f64, f64, f64, f64);
+
+fn building_city() -> impl Strategy<Value = Vec<Vec<Aabb3>>> {
+    prop::collection::vec(
+        (
+            -800.0..800.0f64,
+            -800.0..800.0f64,
+            prop::collection::vec(
+                (
+                    0.0..80.0f64,
+                    0.0..80.0f64,
+                    2.0..40.0f64,
+                    2.0..40.0f64,
+                    prop::sample::select(vec![0.0, 0.0, 5.0]),
+                    3.0..150.0f64,
+                ),
+                1..5,
+            ),
+        ),
+        0..60,
+    )
+    .prop_map(|blocks: Vec<(f64, f64, Vec<RawBuilding>)>| {
+        blocks
+            .into_iter()
+            .map(|(x, y, bs)| {
+                bs.into_iter()
+                    .map(|(dx, dy, w, d, lo, h)| {
+                        Aabb3::new(
+                            DVec3::new(x + dx, y + dy, lo),
+                            DVec3::new(x + dx + w, y + dy + d, lo + h),
+                        )
+                    })
+                    .collect()
+            })
+            .collect()
+    })
+}
+
+/// Bounds as `block_bounds` makes them: the union box and the smallest sphere around every
+/// building's vertices.
+fn building_bounds(city: &[Vec<Aabb3>]) -> Vec<BlockBounds> {
+    city.iter()
+        .enumerate()
+        .map(|(i, bs)| {
+            let aabb = bs.iter().fold(Aabb3::EMPTY, |a, b| a.union(*b));
+            let corners: Vec<DVec3> = bs.iter().flat_map(|b| b.corners()).collect();
+            BlockBounds {
+                id: BlockId(i as u32),
+                aabb,
+                sphere: enclosing_sphere(&corners).unwrap(),
+                center: aabb.center().truncate(),
+                triangles: 12 * bs.len() as u32,
+            }
+        })
+        .collect()
+}
+
+/// Blocks whose geometry (some building) meets the frustum: exact box–frustum tests per building.
+fn geometry_visible(city: &[Vec<Aabb3>], f: &Frustum) -> Vec<BlockId> {
+    city.iter()
+        .enumerate()
+        .filter(|(_, bs)| bs.iter().any(|b| f.intersects_aabb_exact(b)))
+        .map(|(i, _)| BlockId(i as u32))
+        .collect()
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(128))]
+
+    /// The sphere holds every vertex exactly (no tolerance) and is never larger than the sphere
+    /// around the box of the same points (that one holds them all, so the smallest is smaller).
+    #[test]
+    fn enclosing_sphere_holds_every_vertex(
+        pts in prop::collection::vec((-500.0..500.0f64, -500.0..500.0f64, 0.0..200.0f64), 1..80),
+        offset in prop::sample::select(vec![0.0, 5e3, 3e4, 6e6]),
+    ) {
+        let pts: Vec<DVec3> = pts.into_iter().map(|(x, y, z)| DVec3::new(x + offset, y, z)).collect();
+        let s = enclosing_sphere(&pts).unwrap();
+        for p in &pts {
+            prop_assert!(s.contains_point(*p), "{p} outside {s:?}");
+        }
+        let around_box = BoundingSphere::from_aabb(&Aabb3::from_points(pts.iter().copied()));
+        prop_assert!(
+            s.radius <= around_box.radius * (1.0 + 1e-9) + 1e-6,
+            "{} > box sphere {}", s.radius, around_box.radius
+        );
+        // Some point is on the sphere (it is not loose all round).
+        let far = pts.iter().map(|p| p.distance(s.center)).fold(0.0, f64::max);
+        prop_assert!(s.radius - far < 1e-6 * (1.0 + far));
+    }
+
+    /// With the blocks' own tight spheres, culling keeps every block whose geometry is in view,
+    /// and the BqR-tree's result is the same as with box-only leaves or a subset of it.
+    #[test]
+    fn tight_leaf_spheres_never_lose_a_visible_block(
+        city in building_city(),
+        cams in prop::collection::vec(camera(), 1..6),
+    ) {
+        let bounds = building_bounds(&city);
+        for b in &bounds {
+            prop_assert!(b.sphere.radius <= BoundingSphere::from_aabb(&b.aabb).radius * (1.0 + 1e-9) + 1e-6);
+        }
+        let boxed: Vec<BlockBounds> = bounds
+            .iter()
+            .map(|b| BlockBounds::from_box(b.id, b.aabb, b.center, b.triangles))
+            .collect();
+        let tight = BqrTree::build(&bounds, &BqrParams::default()).unwrap();
+        tight.check_invariants();
+        let loose = BqrTree::build(&boxed, &BqrParams::default()).unwrap();
+        let others = structures(&bounds);
+        let mut state = CoherenceState::default();
+        for cam in &cams {
+            let f = cam.frustum();
+            let truth = geometry_visible(&city, &f);
+            let (mut a, mut b, mut c) = (Vec::new(), Vec::new(), Vec::new());
+            tight.cull(&CullQuery::new(&f), None, &mut a);
+            loose.cull(&CullQuery::new(&f), None, &mut b);
+            tight.cull_coherent(&f, &mut state, &mut c);
+            let (a, b, c): (HashSet<_>, HashSet<_>, HashSet<_>) =
+                (a.into_iter().collect(), b.into_iter().collect(), c.into_iter().collect());
+            for id in &truth {
+                prop_assert!(a.contains(id), "tight BqR culls visible block {id:?}, camera {cam:?}");
+            }
+            prop_assert!(a.is_subset(&b), "tight leaves accept a block box leaves do not");
+            prop_assert_eq!(&a, &c);
+            for s in &others {
+                let mut out = Vec::new();
+                s.cull(&CullQuery::with_eye(&f, cam.position), Some(&mut |_: &Aabb3| true), &mut out);
+                let got: HashSet<BlockId> = out.into_iter().collect();
+                for id in &truth {
+                    prop_assert!(got.contains(id), "{} culls visible block {id:?}", s.structure());
+                }
+            }
+        }
+    }
+}
+
+/// Blocks of a low slab with a tall tower in the middle: the box's sphere is larger than the
+/// geometry's (70.54 m against 77.78 m), and over many views the tight leaves accept strictly fewer blocks, losing none.
+#[test]
+fn tight_leaf_spheres_accept_strictly_fewer_blocks_on_towers() {
+    let mut city = Vec::new();
+    for gx in 0..20 {
+        for gy in 0..20 {
+            let (x, y) = (gx as f64 * 100.0 - 1000.0, gy as f64 * 100.0 - 1000.0);
+            city.push(vec![
+                Aabb3::new(DVec3::new(x, y, 0.0), DVec3::new(x + 70.0, y + 70.0, 8.0)),
+                Aabb3::new(
+                    DVec3::new(x + 27.5, y + 27.5, 0.0),
+                    DVec3::new(x + 42.5, y + 42.5, 120.0),
+                ),
+            ]);
+        }
+    }
+    let bounds = building_bounds(&city);
+    let boxed: Vec<BlockBounds> = bounds
+        .iter()
+        .map(|b| BlockBounds::from_box(b.id, b.aabb, b.center, b.triangles))
+        .collect();
+    let tight = BqrTree::build(&bounds, &BqrParams::default()).unwrap();
+    let loose = BqrTree::build(&boxed, &BqrParams::default()).unwrap();
+    // Views at tower height with a short far plane, where a box's empty upper corners (above
+    // the slab, beside the tower) are what a frustum meets.
+    let cams: Vec<Camera> = (0..400)
+        .map(|k| {
+            let t = k as f64;
+            let eye = DVec3::new(
+                900.0 * (t * 0.37).sin(),
+                900.0 * (t * 0.53).cos(),
+                20.0 + 130.0 * (0.5 + 0.5 * (t * 0.71).sin()),
+            );
+            let mut c = Camera::new(eye, t * 0.9, 0.3 * (t * 1.3).sin());
+            c.far = 250.0;
+            c
+        })
+        .collect();
+    let (mut n_tight, mut n_loose) = (0usize, 0usize);
+    for cam in &cams {
+        let f = cam.frustum();
+        let (mut a, mut b) = (Vec::new(), Vec::new());
+        tight.cull(&CullQuery::new(&f), None, &mut a);
+        loose.cull(&CullQuery::new(&f), None, &mut b);
+        let got: HashSet<BlockId> = a.iter().copied().collect();
+        for id in geometry_visible(&city, &f) {
+            assert!(got.contains(&id), "lost {id:?} at {cam:?}");
+        }
+        n_tight += a.len();
+        n_loose += b.len();
+    }
+    assert!(n_tight < n_loose, "tight {n_tight} vs box leaves {n_loose}");
 }

@@ -1,5 +1,5 @@
-//! Block bounds and structures on the bundled real data (Bubeneč, Helsinki): boxes hold the
-//! extruded meshes, the triangle formula matches the extrusion, no false culls.
+//! Block bounds and structures on the bundled real data (Bubeneč, Helsinki): boxes and the
+//! blocks' tight spheres hold the extruded meshes, the triangle formula matches the extrusion, no false culls.
 
 use blockwalk::city::extrude::extrude_building;
 use blockwalk::index::bench::{run_cull_bench, CullBenchParams};
@@ -39,6 +39,12 @@ fn scene_bounds(buildings: &str, streets: &str) -> Vec<BlockBounds> {
                 bb.aabb.min.cmple(p + 1e-3).all() && p.cmple(bb.aabb.max + 1e-3).all(),
                 "block {i}: mesh vertex {p} outside {:?}",
                 bb.aabb
+            );
+            // The block's own sphere holds what is drawn (f32 vertices), with no tolerance.
+            assert!(
+                bb.sphere.contains_point(p),
+                "block {i}: mesh vertex {p} outside its sphere {:?}",
+                bb.sphere
             );
         }
         let mut tris = 0u64;

@@ -2,9 +2,12 @@
 
 use super::common::{load_scene, spinner, CityArgs};
 use anyhow::{bail, Context};
-use blockwalk::index::bench::{run_cull_bench, CullBenchParams, CullBenchReport};
+use blockwalk::index::bench::{random_views, run_cull_bench, CullBenchParams, CullBenchReport};
 use blockwalk::index::{synthetic::block_grid, BlockBounds, Structure};
-use blockwalk::scene::SceneOptions;
+use blockwalk::scene::{Scene, SceneOptions};
+use blockwalk::visibility::CullerOptions;
+use serde::Serialize;
+use std::time::Instant;
 
 /// The most blocks of a `--synthetic` grid.
 pub const MAX_SYNTHETIC_BLOCKS: usize = 10_000_000;
@@ -37,12 +40,18 @@ pub struct Args {
     /// Skip the brute-force check (false culls are then not counted).
     #[arg(long)]
     pub no_check: bool,
+    /// Also cull every view through each structure with the occlusion culler (cull map, seed 004
+    /// §3.2) and report it beside frustum-only culling. Needs a city (e.g. `synthetic:30x30`),
+    /// not `--synthetic N`, which has blocks but no buildings to cast shadows.
+    #[arg(long, conflicts_with = "synthetic")]
+    pub occlusion: bool,
     /// Print one JSON object.
     #[arg(long)]
     pub json: bool,
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
+    let mut scene: Option<Scene> = None;
     let (name, bounds): (String, Vec<BlockBounds>) = match (&args.city, args.synthetic) {
         (_, Some(n)) => (
             format!("synthetic grid of {n} blocks"),
@@ -51,10 +60,13 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         (Some(city_args), None) => {
             let opts = SceneOptions {
                 structures: Vec::new(),
+                occlusion: args.occlusion.then(CullerOptions::default),
                 ..SceneOptions::default()
             };
-            let scene = load_scene(city_args, args.seed, &opts)?;
-            (scene.name, scene.bounds)
+            let s = load_scene(city_args, args.seed, &opts)?;
+            let out = (s.name.clone(), s.bounds.clone());
+            scene = Some(s);
+            out
         }
         (None, None) => bail!("give a city (footprint files) or --synthetic N"),
     };
@@ -71,9 +83,16 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         bounds.len()
     ));
     let report = run_cull_bench(&bounds, &params).context("building the structures")?;
+    let occlusion = match scene.as_ref().filter(|_| args.occlusion) {
+        Some(scene) => occlusion_side_by_side(scene, &params)?,
+        None => Vec::new(),
+    };
     pb.finish_and_clear();
     if args.json {
         let mut v = serde_json::to_value(&report)?;
+        if args.occlusion {
+            v["occlusion"] = serde_json::to_value(&occlusion)?;
+        }
         v["city"] = serde_json::Value::String(name);
         if let Some(r) = report.bqr_over_vamsplit() {
             v["bqr_over_vamsplit"] = serde_json::json!({
@@ -84,12 +103,123 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         println!("{}", serde_json::to_string(&v)?);
     } else {
         print_summary(&name, &report);
+        print_side_by_side(&report, &occlusion);
     }
     let false_culls: u64 = report.structures.iter().map(|s| s.false_culls).sum();
     if false_culls > 0 {
         bail!("{false_culls} false culls (visible blocks dropped): a structure is broken");
     }
     Ok(())
+}
+
+/// One structure culled with the occlusion culler over the bench's views.
+#[derive(Clone, Debug, Serialize)]
+struct OcclusionRow {
+    name: Structure,
+    /// Median per-view time, cull map build and traversal with cull map tests, microseconds.
+    total_us_median: f64,
+    /// Median per-view time of the traversal with cull map tests alone, microseconds.
+    traversal_us_median: f64,
+    /// Mean nodes (and block volumes) visited per view.
+    nodes_visited_mean: f64,
+    /// Mean blocks kept per view.
+    blocks_mean: f64,
+    /// Mean volumes the cull map was asked about per view.
+    map_tests_mean: f64,
+    /// Views where the culler drew no map (e.g. the eye inside a building) and so filtered
+    /// nothing.
+    skipped: usize,
+}
+
+/// Every structure of `params` through the scene's occlusion culler, over the same seeded views
+/// as the frustum-only bench.
+fn occlusion_side_by_side(
+    scene: &Scene,
+    params: &CullBenchParams,
+) -> anyhow::Result<Vec<OcclusionRow>> {
+    let culler = scene
+        .occlusion
+        .as_ref()
+        .context("the scene was loaded without an occlusion culler")?;
+    let cams = random_views(
+        &scene.bounds,
+        params.views,
+        params.seed,
+        params.street_far_m,
+        params.flying_far_m,
+    );
+    let median = |v: &mut Vec<f64>| {
+        v.sort_by(f64::total_cmp);
+        v.get(v.len() / 2).copied().unwrap_or(0.0)
+    };
+    let mut rows = Vec::new();
+    for &name in &params.structures {
+        let index = name.build(&scene.bounds)?;
+        let (mut total, mut traversal) = (Vec::new(), Vec::new());
+        let (mut nodes, mut blocks, mut tests, mut skipped) = (0u64, 0u64, 0u64, 0usize);
+        let mut out = Vec::new();
+        for cam in &cams {
+            out.clear();
+            let t0 = Instant::now();
+            let st = culler.cull(index.as_ref(), cam, &mut out);
+            total.push(t0.elapsed().as_secs_f64() * 1e6);
+            traversal.push(st.test_ms * 1e3);
+            nodes += st.cull.nodes_visited;
+            blocks += st.blocks_out;
+            tests += st.volumes_tested;
+            skipped += usize::from(st.skipped.is_some() || st.cells_covered == 0);
+        }
+        let n = cams.len().max(1) as f64;
+        rows.push(OcclusionRow {
+            name,
+            total_us_median: median(&mut total),
+            traversal_us_median: median(&mut traversal),
+            nodes_visited_mean: nodes as f64 / n,
+            blocks_mean: blocks as f64 / n,
+            map_tests_mean: tests as f64 / n,
+            skipped,
+        });
+    }
+    Ok(rows)
+}
+
+fn print_side_by_side(r: &CullBenchReport, occ: &[OcclusionRow]) {
+    if occ.is_empty() {
+        return;
+    }
+    println!(
+        "frustum only vs frustum + occlusion (cull map at the culler's default resolution), same views; {} views drew no map",
+        occ.first().map_or(0, |o| o.skipped)
+    );
+    println!(
+        "{:<9} | {:>10} {:>9} {:>8} | {:>10} {:>10} {:>9} {:>9} {:>8}",
+        "structure",
+        "µs md",
+        "visited",
+        "blocks",
+        "µs md",
+        "travers.",
+        "visited",
+        "map tests",
+        "blocks"
+    );
+    for o in occ {
+        let Some(s) = r.structures.iter().find(|s| s.name == o.name) else {
+            continue;
+        };
+        println!(
+            "{:<9} | {:>10.1} {:>9.1} {:>8.1} | {:>10.1} {:>10.1} {:>9.1} {:>9.1} {:>8.1}",
+            o.name,
+            s.cull_us_median,
+            s.nodes_visited_mean,
+            s.blocks_accepted_mean,
+            o.total_us_median,
+            o.traversal_us_median,
+            o.nodes_visited_mean,
+            o.map_tests_mean,
+            o.blocks_mean
+        );
+    }
 }
 
 fn print_summary(name: &str, r: &CullBenchReport) {
@@ -120,6 +250,21 @@ fn print_summary(name: &str, r: &CullBenchReport) {
         println!(
             "{:<9} {:>9.2} {:>7} {:>10.1} {:>10.1} {:>10.1} {:>10.1} {:>9.1} {:>12.0} {:>7}",
             s.name,
+            s.build_ms,
+            s.nodes,
+            s.cull_us_median,
+            s.cull_us_p95,
+            s.nodes_visited_mean,
+            s.plane_tests_mean,
+            s.blocks_accepted_mean,
+            s.triangles_accepted_mean,
+            s.false_culls
+        );
+    }
+    if let Some(s) = &r.bqr_box_leaves {
+        println!(
+            "{:<9} {:>9.2} {:>7} {:>10.1} {:>10.1} {:>10.1} {:>10.1} {:>9.1} {:>12.0} {:>7}   (bqr with box-only leaves: each block's sphere replaced by its box's)",
+            "bqr-box",
             s.build_ms,
             s.nodes,
             s.cull_us_median,

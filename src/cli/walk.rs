@@ -73,6 +73,7 @@ pub fn resolve_route(
         city: &scene.name,
         bounds: scene.city_bounds(),
         street_edges: &scene.layout.street_edges,
+        buildings: &scene.city.buildings,
         frame: &scene.city.frame,
         aspect: size.aspect(),
     };

@@ -1,10 +1,11 @@
-//! Per-block bounds for the structures: box, outline centre, triangle count (seed 003 §4: "identify
-//! all the blocks in the town and calculate its geometric centers and bounding spheres").
+//! Per-block bounds for the structures: box, tight sphere, outline centre, triangle count (seed
+//! 003 §4: "identify all the blocks in the town and calculate its geometric centers and bounding
+//! spheres").
 
-use super::BlockBounds;
+use super::{enclosing_sphere, BlockBounds};
 use crate::blocks::BlockLayout;
 use crate::city::{Building, City};
-use crate::geom::Aabb3;
+use crate::geom::{Aabb3, BoundingSphere};
 use geo::Centroid;
 use geo_types::{Coord, LineString, Polygon};
 use glam::{DVec2, DVec3};
@@ -49,6 +50,9 @@ fn ring_vertices(r: &LineString<f64>) -> usize {
 ///   `min_height_m` to the highest `height_m`. A block without buildings keeps its outline's box
 ///   at z 0..0 and zero triangles: it has nothing to draw, but it stays in the list so that ids
 ///   stay aligned with positions.
+/// - `sphere`: the smallest sphere ([`enclosing_sphere`]) around every building's exterior
+///   vertices at its own `min_height_m` and `height_m` (the extruded prisms' vertices, so it
+///   holds the prisms); for a block without buildings, its box's sphere.
 /// - `center`: the centroid of the block outline (local), or of its box when the outline is
 ///   degenerate (seed 003 §4 assigns blocks to quadrants by this "geometric center").
 /// - `triangles`: the sum of [`extruded_triangles`] over its buildings.
@@ -63,12 +67,14 @@ pub fn block_bounds(city: &City, layout: &BlockLayout) -> Vec<BlockBounds> {
         .map(|block| {
             let mut aabb = Aabb3::EMPTY;
             let mut triangles = 0u32;
+            let mut vertices = Vec::new();
             for bid in &block.buildings {
                 let Some(b) = city.buildings.get(bid.0 as usize) else {
                     continue;
                 };
                 aabb = aabb.union(building_box(b, &to_local));
                 triangles = triangles.saturating_add(extruded_triangles(&b.footprint));
+                push_prism_vertices(b, &to_local, &mut vertices);
             }
             let outline_box = block
                 .polygon
@@ -103,14 +109,46 @@ pub fn block_bounds(city: &City, layout: &BlockLayout) -> Vec<BlockBounds> {
                     };
                     b.center().truncate()
                 });
+            let sphere = enclosing_sphere(&vertices)
+                .map(pad_for_f32)
+                .unwrap_or_else(|| BoundingSphere::from_aabb(&aabb));
             BlockBounds {
                 id: block.id,
                 aabb,
+                sphere,
                 center,
                 triangles,
             }
         })
         .collect()
+}
+
+/// The meshes are drawn in f32 relative to the frame origin: a drawn vertex may lie up to half an
+/// f32 ulp of its coordinate's magnitude away from its f64 position. Grow the sphere by that (a
+/// whole ulp of the largest coordinate per axis, √3 over three axes, rounded up to 2) so that it
+/// holds what is drawn, not only the f64 vertices.
+fn pad_for_f32(s: BoundingSphere) -> BoundingSphere {
+    let magnitude = s.center.abs().max_element() + s.radius;
+    BoundingSphere {
+        center: s.center,
+        radius: s.radius + 2.0 * magnitude * f64::from(f32::EPSILON),
+    }
+}
+
+/// The vertices of a building's extruded prism: its exterior ring at both heights (holes lie
+/// inside the exterior, so they add nothing to a convex volume).
+fn push_prism_vertices(
+    b: &Building,
+    to_local: &impl Fn(&Coord<f64>) -> DVec2,
+    out: &mut Vec<DVec3>,
+) {
+    let lo = b.min_height_m.min(b.height_m);
+    let hi = b.height_m.max(b.min_height_m);
+    for c in b.footprint.exterior().coords() {
+        let p = to_local(c);
+        out.push(DVec3::new(p.x, p.y, lo));
+        out.push(DVec3::new(p.x, p.y, hi));
+    }
 }
 
 fn building_box(b: &Building, to_local: &impl Fn(&Coord<f64>) -> DVec2) -> Aabb3 {

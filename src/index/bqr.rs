@@ -171,11 +171,12 @@ impl Builder<'_> {
             for &i in items.iter() {
                 let b = &self.input[i as usize].aabb;
                 aabb = aabb.union(*b);
-                // Deviation (seed 003 §4 intersects the block's sphere with the quadrant box): a
-                // block is assigned by its centre and may stick out of its quadrant, so the
-                // quadrant box is not conservative; we intersect with the block's own AABB.
-                // With only the AABB known, the leaf sphere is the box's circumscribed sphere.
-                let s = BoundingSphere::from_aabb(b);
+                // The leaf volume is the block's own sphere (the smallest around its geometry,
+                // `BlockBounds::sphere`) ∩ a box. Deviation (seed 003 §4 intersects it with the
+                // quadrant box): a block is assigned by its centre and may stick out of its
+                // quadrant, so the quadrant box is not conservative; we intersect with the
+                // block's own AABB. Each holds the geometry, so the intersection does.
+                let s = self.input[i as usize].sphere;
                 sphere = Some(match sphere {
                     None => s,
                     Some(acc) => acc.merge(s),
@@ -463,7 +464,7 @@ impl BqrTree {
             };
             if n.kind == BqrNodeKind::Leaf {
                 for b in &self.blocks[n.block_start as usize..n.block_end as usize] {
-                    add(b.aabb, BoundingSphere::from_aabb(&b.aabb));
+                    add(b.aabb, b.sphere);
                 }
             }
             for &c in n.children.iter().filter(|&&c| c != NONE) {
@@ -719,20 +720,25 @@ impl BqrTree {
                     assert!(n.children.iter().any(|&c| c != NONE), "inner {i} is empty");
                 }
             }
-            // The volume holds every block of the subtree, and the leaf's quadrant its centre.
+            // The volume holds every block of the subtree (its box, and its sphere or its box:
+            // either holds the geometry), and the leaf's quadrant its centre.
             for b in &self.blocks[n.block_start as usize..n.block_end as usize] {
                 assert!(
                     n.aabb.contains_point(b.aabb.min) && n.aabb.contains_point(b.aabb.max),
                     "node {i}: box misses block {:?}",
                     b.id
                 );
-                for p in b.aabb.corners() {
-                    assert!(
-                        (p - n.sphere.center).length() <= n.sphere.radius + tol(&n.sphere),
-                        "node {i}: sphere misses block {:?}",
-                        b.id
-                    );
-                }
+                let holds_sphere = (b.sphere.center - n.sphere.center).length() + b.sphere.radius
+                    <= n.sphere.radius + tol(&n.sphere);
+                let holds_box =
+                    b.aabb.corners().iter().all(|&p| {
+                        (p - n.sphere.center).length() <= n.sphere.radius + tol(&n.sphere)
+                    });
+                assert!(
+                    holds_sphere || holds_box,
+                    "node {i}: sphere misses block {:?}",
+                    b.id
+                );
                 let c = b.center;
                 assert!(
                     n.quad_min.cmple(c).all() && c.cmple(n.quad_max).all(),
@@ -798,10 +804,18 @@ impl Traversal<'_, '_, '_, '_> {
         } else if let Some(coh) = self.coherence.as_deref_mut() {
             let slot = coh.slot(i);
             match n.kind {
-                // box ∩ sphere of a box's circumscribed sphere is the box.
-                BqrNodeKind::Leaf => self
-                    .frustum
-                    .test_aabb_coherent(&n.aabb, &mut m, slot, tests),
+                // Box first (with coherence), then the sphere as below: the same volume, so the
+                // same result as without coherence.
+                BqrNodeKind::Leaf => {
+                    let r = self
+                        .frustum
+                        .test_aabb_coherent(&n.aabb, &mut m, slot, tests);
+                    if r == Containment::Intersecting && !n.box_only {
+                        self.frustum.test_sphere_masked(&n.sphere, &mut m, tests)
+                    } else {
+                        r
+                    }
+                }
                 BqrNodeKind::Inner => self
                     .frustum
                     .test_sphere_coherent(&n.sphere, &mut m, slot, tests),

@@ -17,6 +17,7 @@ mod bounds;
 mod bqr;
 mod flat;
 mod rstar_index;
+mod sphere;
 pub mod synthetic;
 mod vamsplit;
 
@@ -24,10 +25,11 @@ pub use bounds::{block_bounds, extruded_triangles};
 pub use bqr::{BqrNodeKind, BqrNodeView, BqrParams, BqrTree, ObjectId};
 pub use flat::{FlatList, NoStructure};
 pub use rstar_index::RstarIndex;
+pub use sphere::enclosing_sphere;
 pub use vamsplit::{VamSplitParams, VamSplitTree};
 
 use crate::blocks::BlockId;
-use crate::geom::{Aabb3, Frustum};
+use crate::geom::{Aabb3, BoundingSphere, Frustum};
 use glam::DVec3;
 use serde::Serialize;
 
@@ -70,8 +72,10 @@ pub enum IndexError {
         /// The object's id.
         id: u32,
     },
-    /// A block's bounds hold NaN or infinite coordinates, or an empty box.
-    #[error("{structure}: block {index} (id {id}) has a non-finite or empty box or centre")]
+    /// A block's bounds hold NaN or infinite coordinates, an empty box or a negative radius.
+    #[error(
+        "{structure}: block {index} (id {id}) has a non-finite or empty box, centre or sphere"
+    )]
     BadBlock {
         /// Structure being built.
         structure: Structure,
@@ -82,14 +86,19 @@ pub enum IndexError {
     },
 }
 
-/// Checks what every structure needs of its input: finite, non-empty boxes and centres.
+/// Checks what every structure needs of its input: finite, non-empty boxes, finite centres and
+/// spheres.
 pub(crate) fn validate_bounds(
     structure: Structure,
     bounds: &[BlockBounds],
 ) -> Result<(), IndexError> {
     for (index, b) in bounds.iter().enumerate() {
-        let finite = b.aabb.min.is_finite() && b.aabb.max.is_finite() && b.center.is_finite();
-        if !finite || b.aabb.is_empty() {
+        let finite = b.aabb.min.is_finite()
+            && b.aabb.max.is_finite()
+            && b.center.is_finite()
+            && b.sphere.center.is_finite()
+            && b.sphere.radius.is_finite();
+        if !finite || b.aabb.is_empty() || !(b.sphere.radius >= 0.0) {
             return Err(IndexError::BadBlock {
                 structure,
                 index,
@@ -137,10 +146,29 @@ pub struct BlockBounds {
     pub id: BlockId,
     /// Box around all of the block's geometry (footprint × [0, max height]), local frame.
     pub aabb: Aabb3,
+    /// The block's own bounding sphere: the smallest sphere around its geometry's vertices
+    /// (footprint vertices × [min height, height] of every building, [`enclosing_sphere`]), local
+    /// frame. The BqR-tree's leaf volume is this sphere ∩ `aabb` (seed 003 §4); it holds every
+    /// vertex, so the intersection holds the geometry.
+    pub sphere: BoundingSphere,
     /// Geometric centre of the block's outline (x, y), local frame.
     pub center: glam::DVec2,
     /// Triangles of the block's meshes.
     pub triangles: u32,
+}
+
+impl BlockBounds {
+    /// Bounds of a block whose geometry fills its box (or of which only the box is known): the
+    /// sphere is the box's circumscribed sphere, so box ∩ sphere is the box.
+    pub fn from_box(id: BlockId, aabb: Aabb3, center: glam::DVec2, triangles: u32) -> Self {
+        Self {
+            id,
+            aabb,
+            sphere: BoundingSphere::from_aabb(&aabb),
+            center,
+            triangles,
+        }
+    }
 }
 
 /// Per-query work counters.

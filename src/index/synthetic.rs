@@ -36,13 +36,13 @@ pub fn block_grid(n: usize, seed: u64) -> Vec<BlockBounds> {
             };
             let lo = c - w * 0.5;
             let hi = c + w * 0.5;
-            BlockBounds {
-                id: BlockId(i as u32),
-                aabb: Aabb3::new(lo.extend(0.0), DVec3::new(hi.x, hi.y, h)),
+            BlockBounds::from_box(
+                BlockId(i as u32),
+                Aabb3::new(lo.extend(0.0), DVec3::new(hi.x, hi.y, h)),
                 // The outline centroid is not the box centre in general.
-                center: c + DVec2::new(rng.random_range(-3.0..3.0), rng.random_range(-3.0..3.0)),
-                triangles: rng.random_range(200..3000),
-            }
+                c + DVec2::new(rng.random_range(-3.0..3.0), rng.random_range(-3.0..3.0)),
+                rng.random_range(200..3000),
+            )
         })
         .collect()
 }

@@ -1,10 +1,10 @@
 //! The route a command plays: a named generated route or a route file.
 
 use super::{
-    orbit_route, paper_route, street_walk, CameraRoute, FrameSpec, Lens, PaperRouteParams,
-    RouteError, RouteFile, StreetGraph,
+    orbit_route, paper_route, street_walk, CameraRoute, FrameSpec, Lens, Obstacles,
+    PaperRouteParams, RouteError, RouteFile, StreetGraph,
 };
-use crate::city::LocalFrame;
+use crate::city::{Building, LocalFrame};
 use crate::geom::Aabb3;
 use geo_types::LineString;
 use std::path::PathBuf;
@@ -58,8 +58,8 @@ impl std::fmt::Display for RouteChoice {
     }
 }
 
-/// What a route is made for: the city's box (local frame), its street edges (metric world) and
-/// frame, and the image's aspect ratio.
+/// What a route is made for: the city's box (local frame), its street edges and buildings
+/// (metric world) and frame, and the image's aspect ratio.
 #[derive(Clone, Copy, Debug)]
 pub struct RouteContext<'a> {
     /// City name, for messages.
@@ -68,6 +68,8 @@ pub struct RouteContext<'a> {
     pub bounds: Aabb3,
     /// Street edges, metric world coordinates (may be empty).
     pub street_edges: &'a [LineString<f64>],
+    /// The buildings generated routes keep their eye clear of (metric world; may be empty).
+    pub buildings: &'a [Building],
     /// The city's local frame.
     pub frame: &'a LocalFrame,
     /// Image width / height.
@@ -89,12 +91,14 @@ impl RouteChoice {
             ..Lens::default()
         };
         let graph = || StreetGraph::from_world_lines(ctx.street_edges, ctx.frame);
+        let obstacles = || Obstacles::from_buildings(ctx.buildings, ctx.frame);
         Ok(match self {
             RouteChoice::Paper => {
                 let g = graph();
                 let route = paper_route(
                     &ctx.bounds,
                     Some(&g).filter(|g| !g.is_empty()),
+                    &obstacles(),
                     &PaperRouteParams::default(),
                     lens,
                 )?;
@@ -103,6 +107,7 @@ impl RouteChoice {
             RouteChoice::Orbit => (
                 orbit_route(
                     &ctx.bounds,
+                    &obstacles(),
                     ORBIT_RADIUS_FACTOR,
                     ORBIT_HEIGHT_M,
                     ORBIT_DURATION_S,
@@ -121,7 +126,15 @@ impl RouteChoice {
                 let from = ctx.bounds.min.truncate();
                 let to = ctx.bounds.max.truncate();
                 (
-                    street_walk(&g, from, to, STREET_EYE_HEIGHT_M, STREET_SPEED_M_S, lens)?,
+                    street_walk(
+                        &g,
+                        &obstacles(),
+                        from,
+                        to,
+                        STREET_EYE_HEIGHT_M,
+                        STREET_SPEED_M_S,
+                        lens,
+                    )?,
                     None,
                 )
             }
@@ -169,6 +182,7 @@ mod tests {
             city: "empty",
             bounds: Aabb3::from_points([glam::DVec3::ZERO, glam::DVec3::new(100.0, 100.0, 10.0)]),
             street_edges: &[],
+            buildings: &[],
             frame: &frame,
             aspect: 16.0 / 9.0,
         };

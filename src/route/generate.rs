@@ -1,10 +1,12 @@
 //! Routes for any city: the paper's route (seed 003 §5), a street-level walk, an orbit; and the
 //! street graph they walk on.
 
+use super::obstacles::{Obstacles, EYE_CLEARANCE_M};
 use super::{CameraRoute, KeyFrame, Lens, RouteError};
 use crate::city::LocalFrame;
 use crate::geom::tolerance::ROUTE_NODE_GRID_M;
 use crate::geom::Aabb3;
+use crate::geom::Camera;
 use geo_types::LineString;
 use glam::{DVec2, DVec3};
 use std::cmp::Reverse;
@@ -162,6 +164,45 @@ impl StreetGraph {
         Some(path)
     }
 
+    /// The graph a camera at `eye_height` can walk without coming closer than `clearance` to a
+    /// building: the nodes at least that far from every building, joined by the edges whose whole
+    /// segment is (street lines through a passage, under an arcade or across a courtyard drop
+    /// out). Node ids change.
+    pub fn walkable(&self, obstacles: &Obstacles, eye_height: f64, clearance: f64) -> StreetGraph {
+        if obstacles.is_empty() {
+            return self.clone();
+        }
+        let mut new_id = vec![u32::MAX; self.nodes.len()];
+        let mut g = StreetGraph::default();
+        for (i, p) in self.nodes.iter().enumerate() {
+            if obstacles.is_clear(p.extend(eye_height), clearance) {
+                new_id[i] = g.nodes.len() as u32;
+                g.nodes.push(*p);
+                g.adjacency.push(Vec::new());
+            }
+        }
+        for (i, adj) in self.adjacency.iter().enumerate() {
+            let a = new_id[i];
+            if a == u32::MAX {
+                continue;
+            }
+            for &(j, w) in adj {
+                let b = new_id[j as usize];
+                // Each undirected edge once (from its lower old id), then both directions.
+                if b == u32::MAX || (j as usize) < i {
+                    continue;
+                }
+                let (pa, pb) = (self.nodes[i], self.nodes[j as usize]);
+                if obstacles.segment_distance(pa, pb, eye_height, clearance) >= clearance {
+                    g.adjacency[a as usize].push((b, w));
+                    g.adjacency[b as usize].push((a, w));
+                }
+            }
+        }
+        g.label_components();
+        g
+    }
+
     /// Total length of a node path, metres.
     pub fn path_length(&self, path: &[u32]) -> f64 {
         path.windows(2)
@@ -210,6 +251,62 @@ fn walk_keys(points: &[DVec2], eye: f64, speed: f64, t0: f64) -> (Vec<KeyFrame>,
     (keys, t)
 }
 
+/// Turns every key whose view (its heading, its pitch) has no building within 500 m to the
+/// nearest heading, by 45° steps, that has one ([`heading_with_city_in_view`]): a walk looks
+/// along its way unless the way leads out of the city.
+fn face_the_city(keys: &mut [KeyFrame], lens: Lens, obstacles: &Obstacles) {
+    for k in keys.iter_mut() {
+        let (yaw, pitch) = super::yaw_pitch_from_orientation(k.orientation);
+        let turned = heading_with_city_in_view(k.position, yaw, pitch, lens, obstacles);
+        if turned != yaw {
+            k.orientation = super::orientation_from_yaw_pitch(turned, pitch);
+        }
+    }
+}
+
+/// Builds the route from `keys`, then samples every segment (a step of a quarter of
+/// `clearance`) and, where the spline's curve comes closer than `clearance` to a building (it
+/// cuts a street corner), makes both ends of that segment corners, which turns the segment into
+/// the straight chord between its keys (clear when its keys were chosen clear). Repeats until
+/// nothing changes (at most a few rounds: corners only spread to neighbouring segments).
+fn keep_clear(
+    name: &str,
+    mut keys: Vec<KeyFrame>,
+    lens: Lens,
+    obstacles: &Obstacles,
+    clearance: f64,
+) -> Result<CameraRoute, RouteError> {
+    loop {
+        let route = CameraRoute::new(name, keys.clone(), lens)?;
+        if obstacles.is_empty() {
+            return Ok(route);
+        }
+        let mut changed = false;
+        for i in 0..keys.len() - 1 {
+            if keys[i].corner && keys[i + 1].corner {
+                continue;
+            }
+            let (t0, t1) = (keys[i].time, keys[i + 1].time);
+            let len = keys[i].position.distance(keys[i + 1].position);
+            let n = (len / (0.25 * clearance)).ceil().clamp(1.0, 20_000.0) as usize;
+            let blocked = (0..=n).any(|k| {
+                let p = route
+                    .camera_at(t0 + (t1 - t0) * k as f64 / n as f64)
+                    .position;
+                !obstacles.is_clear(p, clearance)
+            });
+            if blocked {
+                keys[i].corner = true;
+                keys[i + 1].corner = true;
+                changed = true;
+            }
+        }
+        if !changed {
+            return Ok(route);
+        }
+    }
+}
+
 /// Parameters of the paper's route (seed 003 §5).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct PaperRouteParams {
@@ -225,8 +322,12 @@ pub struct PaperRouteParams {
     pub rise_share: f64,
     /// Route duration, seconds (sampling chooses the frame count).
     pub duration: f64,
-    /// Pitch at the end of the descent, radians (negative: looking down at the landing).
+    /// Pitch at the end of the descent, radians (negative: looking down a little). The descent
+    /// starts straight down and turns to this pitch on the way, so that the last frames look at
+    /// the city, not at the ground at the camera's feet.
     pub landing_pitch: f64,
+    /// Least distance from the eye to any building anywhere on the route, metres.
+    pub clearance_m: f64,
 }
 
 impl Default for PaperRouteParams {
@@ -240,24 +341,33 @@ impl Default for PaperRouteParams {
             walk_share: 0.25,
             rise_share: 0.45,
             duration: 60.0,
-            landing_pitch: -60f64.to_radians(),
+            landing_pitch: -10f64.to_radians(),
+            clearance_m: EYE_CLEARANCE_M,
         }
     }
 }
 
 /// The paper's route (seed 003 §5) for a city whose geometry lies in `bounds` (local frame):
 /// it starts outside the city at street level (south of the box, `start_margin` out), walks to
-/// the centre (along the street network when `streets` has nodes: the shortest path from the
-/// street node nearest the start to the node nearest the centre; else straight), rises
-/// vertically above the roofs while turning to look straight down, then flies diagonally down
-/// to the ground, facing the floor, to a point a quarter of the box's diagonal north-east of the
-/// centre.
+/// the centre (along the street network when `streets` has nodes: the shortest path, over the
+/// streets a camera can walk clear of `obstacles`, from the street node nearest the start to the
+/// node nearest the centre; else straight, stopping before the first building in the way), rises
+/// vertically above the roofs while turning to look straight down, then flies diagonally down to
+/// the ground, straight down at first and turning to `landing_pitch`, to the clear street node
+/// (or point) nearest to a quarter of the box's diagonal north-east of the centre whose descent
+/// passes no building.
+///
+/// The eye keeps `params.clearance_m` from every building of `obstacles` on every frame (the
+/// walk's curve is straightened where it would cut a corner, see [`StreetGraph::walkable`]), and
+/// the landing heading is the descent's, or the nearest turn of it by 45° steps that has a
+/// building in view.
 ///
 /// Deviation: the paper gives no numbers for the heights or the landing point; the defaults in
 /// [`PaperRouteParams`] are ours.
 pub fn paper_route(
     bounds: &Aabb3,
     streets: Option<&StreetGraph>,
+    obstacles: &Obstacles,
     params: &PaperRouteParams,
     lens: Lens,
 ) -> Result<CameraRoute, RouteError> {
@@ -272,33 +382,47 @@ pub fn paper_route(
         && params.rise_share > 0.0
         && params.walk_share + params.rise_share < 1.0
         && params.duration > 0.0
-        && params.eye_height > 0.0;
+        && params.eye_height > 0.0
+        && params.clearance_m >= 0.0
+        && params.clearance_m.is_finite();
     if !ok {
         return Err(bad(
-            "route shares must be positive and sum below 1; duration and eye height positive",
+            "route shares must be positive and sum below 1; duration and eye height positive; clearance finite and not negative",
         ));
     }
+    let eye = params.eye_height;
+    let gap = params.clearance_m;
+    let clear = |p: DVec2| obstacles.is_clear(p.extend(eye), gap);
     let ext = bounds.extent();
     let side = ext.x.max(ext.y).max(1.0);
     let centre = bounds.center().truncate();
     let anchor = DVec2::new(centre.x, bounds.min.y - params.start_margin * side);
 
-    let mut walk: Vec<DVec2> = vec![anchor];
-    if let Some(g) = streets.filter(|g| !g.is_empty()) {
+    let graph = streets
+        .filter(|g| !g.is_empty())
+        .map(|g| g.walkable(obstacles, eye, gap));
+    let mut walk: Vec<DVec2> = Vec::new();
+    if let Some(g) = &graph {
         let s = g.nearest_in_main_component(anchor);
         let e = g.nearest_in_main_component(centre);
         if let (Some(s), Some(e)) = (s, e) {
             if let Some(path) = g.shortest_path(s, e) {
+                let first = g.nodes[s as usize];
+                // The way in from outside, unless a building stands in it.
+                if clear(anchor) && obstacles.segment_distance(anchor, first, eye, gap) >= gap {
+                    walk.push(anchor);
+                }
                 walk.extend(path.iter().map(|&i| g.nodes[i as usize]));
             }
         }
     }
-    if walk.len() == 1 {
-        walk.push(centre);
+    if walk.len() < 2 {
+        walk = straight_walk(anchor, centre, &clear);
     }
     let walk = thin(walk, 1.0);
     let walk = if walk.len() < 2 {
-        vec![anchor, centre]
+        // Nowhere to walk (the start is shut in): step one metre back out.
+        vec![anchor - DVec2::Y, anchor]
     } else {
         walk
     };
@@ -306,38 +430,124 @@ pub fn paper_route(
     let walk_len: f64 = walk.windows(2).map(|w| w[0].distance(w[1])).sum();
     let t_walk = params.duration * params.walk_share;
     let speed = walk_len.max(1e-3) / t_walk;
-    let (mut keys, t_end) = walk_keys(&walk, params.eye_height, speed, 0.0);
-    let top_z = bounds.max.z.max(0.0) + params.clearance;
-    let last = *keys.last().unwrap();
+    let (mut keys, t_end) = walk_keys(&walk, eye, speed, 0.0);
+    face_the_city(&mut keys, lens, obstacles);
+    let top_z = bounds.max.z.max(obstacles.max_height()).max(0.0) + params.clearance.max(gap);
+    let last = *keys.last().expect("a walk has keys");
     let (yaw, _) = super::yaw_pitch_from_orientation(last.orientation);
     let here = last.position.truncate();
     // Keep the heading of the walk while turning to look down; the end of the walk is a corner.
-    keys.last_mut().unwrap().corner = true;
+    keys.last_mut().expect("a walk has keys").corner = true;
     let t_rise = t_end + params.duration * params.rise_share;
     keys.push(KeyFrame::new(t_rise, here.extend(top_z), yaw, -FRAC_PI_2).corner());
     let diag = DVec2::new(ext.x, ext.y).length().max(1.0);
-    let land = here + DVec2::new(1.0, 1.0).normalize() * (0.25 * diag);
+    let target = here + DVec2::new(1.0, 1.0).normalize() * (0.25 * diag);
+    let top = here.extend(top_z);
+    let descent_clear = |p: DVec2| clear(p) && obstacles.segment_is_clear(top, p.extend(eye), gap);
+    let land = landing_point(target, graph.as_ref(), &descent_clear).unwrap_or(here);
     let fly = land - here;
-    let fly_yaw = fly.y.atan2(fly.x);
-    let t_land = params.duration;
-    // Looking straight down the whole way except the end, as in Fig. 4 ("facing the floor").
-    let t_mid = t_rise + 0.8 * (t_land - t_rise);
-    let mid = here + fly * 0.8;
-    let mid_z = top_z + (params.eye_height - top_z) * 0.8;
-    keys.push(KeyFrame::new(t_mid, mid.extend(mid_z), fly_yaw, -FRAC_PI_2));
-    keys.push(KeyFrame::new(
-        t_land,
-        land.extend(params.eye_height),
+    let fly_yaw = if fly.length() > 1e-6 {
+        fly.y.atan2(fly.x)
+    } else {
+        yaw
+    };
+    let land_yaw = heading_with_city_in_view(
+        land.extend(eye),
         fly_yaw,
         params.landing_pitch,
+        lens,
+        obstacles,
+    );
+    // Straight down at the top, turning to the landing pitch on the way down (seed 003 Fig. 4
+    // flies down "facing the floor"; the last frames look at the city, not at the ground).
+    keys.push(KeyFrame::new(
+        params.duration,
+        land.extend(eye),
+        land_yaw,
+        params.landing_pitch,
     ));
-    CameraRoute::new("paper", keys, lens)
+    keep_clear("paper", keys, lens, obstacles, gap)
+}
+
+/// The straight walk from `from` to `to`, stopping at the last metre step before the first point
+/// that is not `clear` (the whole line when nothing is in the way).
+fn straight_walk(from: DVec2, to: DVec2, clear: &dyn Fn(DVec2) -> bool) -> Vec<DVec2> {
+    let n = from.distance(to).ceil().max(1.0) as usize;
+    let mut end = from;
+    for i in 0..=n {
+        let p = from.lerp(to, i as f64 / n as f64);
+        if !clear(p) {
+            break;
+        }
+        end = p;
+    }
+    vec![from, end]
+}
+
+/// The landing point nearest `target` for which `ok` holds: among the walkable street nodes when
+/// there is a graph, else among points on rings around `target` (5 m apart, 16 per ring, out to
+/// 1 km). `None` when none qualifies.
+fn landing_point(
+    target: DVec2,
+    graph: Option<&StreetGraph>,
+    ok: &dyn Fn(DVec2) -> bool,
+) -> Option<DVec2> {
+    let mut candidates: Vec<DVec2> = match graph {
+        Some(g) if !g.is_empty() => g.nodes.clone(),
+        _ => {
+            let mut c = vec![target];
+            for ring in 1..=200 {
+                let r = 5.0 * ring as f64;
+                c.extend((0..16).map(|k| {
+                    let a = TAU * k as f64 / 16.0;
+                    target + DVec2::new(a.cos(), a.sin()) * r
+                }));
+            }
+            c
+        }
+    };
+    candidates.sort_by(|a, b| {
+        a.distance_squared(target)
+            .total_cmp(&b.distance_squared(target))
+    });
+    candidates.into_iter().take(2000).find(|p| ok(*p))
+}
+
+/// `yaw`, or the nearest turn of it by 45° steps, whose view from `eye` at `pitch` has a
+/// building in it (within 500 m); `yaw` itself when none has or there are no buildings.
+fn heading_with_city_in_view(
+    eye: DVec3,
+    yaw: f64,
+    pitch: f64,
+    lens: Lens,
+    obstacles: &Obstacles,
+) -> f64 {
+    if obstacles.is_empty() {
+        return yaw;
+    }
+    let step = std::f64::consts::FRAC_PI_4;
+    [0.0, 1.0, -1.0, 2.0, -2.0, 3.0, -3.0, 4.0]
+        .into_iter()
+        .map(|k| yaw + k * step)
+        .find(|&y| {
+            let mut c = Camera::new(eye, y, pitch);
+            c.fov_y = lens.fov_y;
+            c.aspect = lens.aspect;
+            c.near = lens.near;
+            c.far = lens.far.min(500.0);
+            obstacles.any_in_view(&c.frustum(), eye.truncate(), 500.0)
+        })
+        .unwrap_or(yaw)
 }
 
 /// A walk at eye height along the shortest street path between the street nodes nearest to
-/// `from` and `to` (local frame), at `speed` m/s, looking along the way.
+/// `from` and `to` (local frame), at `speed` m/s, looking along the way (or, where the way
+/// leads out of the city, turned by 45° steps toward a building), over the streets a
+/// camera can walk [`EYE_CLEARANCE_M`] clear of `obstacles` ([`StreetGraph::walkable`]; the
+/// curve is straightened where it would cut a corner).
 pub fn street_walk(
     graph: &StreetGraph,
+    obstacles: &Obstacles,
     from: DVec2,
     to: DVec2,
     eye_height: f64,
@@ -351,12 +561,13 @@ pub fn street_walk(
     if !(speed > 0.0 && speed.is_finite()) {
         return Err(bad(format!("speed must be positive, got {speed}")));
     }
+    let graph = &graph.walkable(obstacles, eye_height, EYE_CLEARANCE_M);
     let s = graph
         .nearest_in_main_component(from)
-        .ok_or_else(|| bad("the street graph is empty".into()))?;
+        .ok_or_else(|| bad("no street node is clear of the buildings".into()))?;
     let e = graph
         .nearest_in_main_component(to)
-        .ok_or_else(|| bad("the street graph is empty".into()))?;
+        .ok_or_else(|| bad("no street node is clear of the buildings".into()))?;
     let path = graph
         .shortest_path(s, e)
         .ok_or_else(|| bad("no street path between the two points".into()))?;
@@ -367,15 +578,18 @@ pub fn street_walk(
             graph.nodes[s as usize].x, graph.nodes[s as usize].y
         )));
     }
-    let (keys, _) = walk_keys(&pts, eye_height, speed, 0.0);
-    CameraRoute::new("street", keys, lens)
+    let (mut keys, _) = walk_keys(&pts, eye_height, speed, 0.0);
+    face_the_city(&mut keys, lens, obstacles);
+    keep_clear("street", keys, lens, obstacles, EYE_CLEARANCE_M)
 }
 
 /// An orbit around the centre of `bounds` at `radius_factor` × the box's larger half-side, at
-/// `height` metres above the highest roof, looking at the centre of the ground; one turn in
+/// `height` metres above the highest roof (of `bounds` and of `obstacles`), looking at the centre
+/// of the ground; one turn in
 /// `duration` seconds, counter-clockwise, starting south.
 pub fn orbit_route(
     bounds: &Aabb3,
+    obstacles: &Obstacles,
     radius_factor: f64,
     height: f64,
     duration: f64,
@@ -391,7 +605,8 @@ pub fn orbit_route(
     let c = bounds.center();
     let ext = bounds.extent();
     let r = radius_factor * 0.5 * ext.x.max(ext.y).max(1.0);
-    let z = bounds.max.z.max(0.0) + height;
+    // Above every roof (of the box and of any building outside it), so the eye is always clear.
+    let z = bounds.max.z.max(obstacles.max_height()).max(0.0) + height.max(EYE_CLEARANCE_M);
     let target = DVec3::new(c.x, c.y, 0.0);
     let n = 24;
     let keys = (0..=n)

@@ -6,16 +6,19 @@
 //! - [`file`]: the route file format (TOML or JSON), see [`file::RouteFile`].
 //! - [`generate`]: routes for any city: the paper's route, a street-level walk, an orbit; the
 //!   street graph and its shortest paths.
+//! - [`obstacles`]: the buildings a generated route keeps its eye [`EYE_CLEARANCE_M`] away from.
 //! - [`spline`]: the interpolation kernels.
 
 pub mod choice;
 pub mod file;
 pub mod generate;
+pub mod obstacles;
 pub mod spline;
 
 pub use choice::{RouteChoice, RouteContext};
 pub use file::RouteFile;
 pub use generate::{orbit_route, paper_route, street_walk, PaperRouteParams, StreetGraph};
+pub use obstacles::{Obstacles, EYE_CLEARANCE_M};
 
 use crate::geom::Camera;
 use glam::{DQuat, DVec3};
