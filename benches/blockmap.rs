@@ -1,11 +1,15 @@
 //! BlockMap construction figures (a plain main that prints them; no timing assertions): all maps
-//! at K = 64 (seed 000 §4's competitive stop, and `--levels 6`) of the 80,000-building generated
-//! city, of Helsinki, and of Astana from `../shared/data/astana` when it is there.
+//! at K = 64 (seed 000 §4's competitive stop) of the 80,000-building generated city, of Helsinki,
+//! and of Astana from `../shared/data/astana` when it is there; each without and with ambient
+//! occlusion, and the distance-map leap against the plain grid walk.
 //!
 //! `cargo bench --bench blockmap` (release). Prints maps, bytes (96 KiB per map at K = 64), MiB
-//! per km² of the city's box, build seconds (construction + error measurement), and ε.
+//! per km² of the city's box, build seconds (construction + error measurement), ε, the AO cost
+//! and effect, and the leap's steps and time per ray.
 
-use blockwalk::blockmap::{build_tree, BuildOptions, Source, Stop, TreeOptions};
+use blockwalk::blockmap::cast::{cast_f32, CastOptions, Hit};
+use blockwalk::blockmap::compare::{pixel_ray, random_views};
+use blockwalk::blockmap::{build_tree, BuildOptions, MapTree, Source, Stop, TreeOptions};
 use blockwalk::blocks::{detect, BlockOptions};
 use blockwalk::city::build::{build_city, BuildOptions as CityOptions};
 use blockwalk::city::extrude::extrude_city;
@@ -26,14 +30,18 @@ fn run(name: &str, fp: &Layer, st: Option<&Layer>) {
         .iter()
         .fold(blockwalk::geom::Aabb3::EMPTY, |a, b| a.union(b.aabb));
     let km2 = b.extent().x * b.extent().y / 1e6;
-    for stop in [Stop::Competitive, Stop::Levels(6)] {
+    let mut plain_s = 0.0;
+    for (stop, ao) in [(Stop::Competitive, false), (Stop::Competitive, true)] {
         let t = Instant::now();
         let maps = build_tree(
             &source,
             &layout,
             &tree,
             &TreeOptions {
-                build: BuildOptions::default(),
+                build: BuildOptions {
+                    ao,
+                    ..BuildOptions::default()
+                },
                 stop,
             },
             &|_, _| {},
@@ -48,7 +56,7 @@ fn run(name: &str, fp: &Layer, st: Option<&Layer>) {
             .fold(0.0, f64::max);
         let thin: usize = maps.maps.iter().map(|m| m.error.thin.len()).sum();
         println!(
-            "{name}: {} buildings, {} blocks, {km2:.2} km²; stop {stop:?}: {} maps, {} KiB each, {:.1} MiB, {:.2} MiB/km², built in {s:.2} s ({:.1} ms/map), ε max {eps:.2} m, {thin} thin features",
+            "{name}: {} buildings, {} blocks, {km2:.2} km²; stop {stop:?}, AO {ao}: {} maps, {} KiB each, {:.1} MiB, {:.2} MiB/km², built in {s:.2} s ({:.1} ms/map), ε max {eps:.2} m, {thin} thin features",
             city.buildings.len(),
             layout.blocks.len(),
             maps.maps.len(),
@@ -57,7 +65,94 @@ fn run(name: &str, fp: &Layer, st: Option<&Layer>) {
             bytes as f64 / 1048576.0 / km2.max(1e-9),
             1e3 * s / maps.maps.len().max(1) as f64,
         );
+        if !ao {
+            plain_s = s;
+            leap_figures(name, &maps);
+        } else {
+            let st: Vec<_> = maps
+                .maps
+                .iter()
+                .filter_map(|m| m.stats.ao.clone())
+                .collect();
+            let n = st.len().max(1) as f64;
+            println!(
+                "{name}: AO costs {:.2} s ({:+.0} %); mean openness roofs {:.3}, ground {:.3}, walls {:.3}; {:.1} % of texels below 0.9",
+                s - plain_s,
+                100.0 * (s - plain_s) / plain_s.max(1e-9),
+                st.iter().map(|a| a.roof_mean).sum::<f64>() / n,
+                st.iter().map(|a| a.ground_mean).sum::<f64>() / n,
+                st.iter().map(|a| a.wall_mean).sum::<f64>() / n,
+                100.0 * st.iter().map(|a| a.occluded_share).sum::<f64>() / n,
+            );
+        }
     }
+}
+
+/// The distance-map leap (seed 000 §3.2) against the plain grid walk (seed 002 §4.2.2): the
+/// f32 caster over every pixel of one seeded random view per map (up to 64 maps spread over the
+/// tree, 320×180, projected error 1 px), mean steps per ray and time, and hits compared.
+fn leap_figures(name: &str, maps: &MapTree) {
+    let n = maps.maps.len().min(64);
+    let (w, h) = (320u32, 180u32);
+    let mut rays = Vec::new();
+    let mut picked = Vec::new();
+    for q in 0..n {
+        let m = &maps.maps[q * maps.maps.len() / n];
+        let cam = random_views(&m.map, 1, m.key ^ 0x5eed, h)[0];
+        let dm = m.map.distance_map();
+        let mut rs = Vec::with_capacity((w * h) as usize);
+        for y in 0..h {
+            for x in 0..w {
+                let (o, d) = pixel_ray(&cam, x, y, w, h);
+                rs.push(m.map.tex_ray(o, d).to_f32());
+            }
+        }
+        rays.push(rs);
+        picked.push((m, dm));
+    }
+    let mut times = [0.0f64; 2];
+    let mut steps = [0u64; 2];
+    let mut hits = [0u64; 2];
+    let mut differ = 0u64;
+    let mut total = 0u64;
+    let mut results: Vec<Vec<Hit>> = Vec::new();
+    for (mode, leap) in [false, true].into_iter().enumerate() {
+        let t = Instant::now();
+        for ((m, dm), rs) in picked.iter().zip(&rays) {
+            let opts = CastOptions {
+                leap: leap.then_some(&dm[..]),
+            };
+            let mut out = Vec::with_capacity(rs.len());
+            for r in rs {
+                let c = cast_f32(&m.map, r, &opts);
+                steps[mode] += c.steps as u64;
+                hits[mode] += u64::from(c.hit != Hit::Miss);
+                out.push(c.hit);
+            }
+            results.push(out);
+        }
+        times[mode] = t.elapsed().as_secs_f64();
+    }
+    for q in 0..picked.len() {
+        for (a, b) in results[q].iter().zip(&results[picked.len() + q]) {
+            total += 1;
+            differ += u64::from(a.texel() != b.texel());
+        }
+    }
+    let rays_n = total.max(1) as f64;
+    println!(
+        "{name}: leap over {} maps, {} rays: mean steps {:.2} plain vs {:.2} with the leap ({:.1} % saved), {:.1} vs {:.1} ns per ray, hits {} vs {}, {} rays with another texel",
+        picked.len(),
+        total,
+        steps[0] as f64 / rays_n,
+        steps[1] as f64 / rays_n,
+        100.0 * (1.0 - steps[1] as f64 / steps[0].max(1) as f64),
+        1e9 * times[0] / rays_n,
+        1e9 * times[1] / rays_n,
+        hits[0],
+        hits[1],
+        differ,
+    );
 }
 
 fn main() {

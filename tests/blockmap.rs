@@ -156,6 +156,40 @@ proptest! {
         let o = DVec3::new(ox, oy, oz);
         agree(&m, &ray(&m, o, target - o), false)?;
     }
+
+    #[test]
+    fn leap_gives_the_hits_of_the_plain_walk(seed in 0u64..1000, k in prop::sample::select(vec![32u32, 64, 128]),
+        fill in 0.0f64..0.3, ox in -300.0f64..500.0, oy in -300.0f64..500.0, oz in 1.0f64..400.0,
+        tx in 0.0f64..1.0, ty in 0.0f64..1.0, tz in 0.0f64..1.0, inside in any::<bool>()) {
+        // Sparse maps, where leaps happen; the eye outside the box or inside it.
+        let m = random_map(k, seed, fill * fill, 1);
+        let dm = m.distance_map();
+        let b = m.aabb();
+        let target = b.min + (b.max - b.min) * DVec3::new(tx, ty, tz);
+        let o = if inside {
+            b.min + (b.max - b.min) * DVec3::new(ty, tz, tx)
+        } else {
+            DVec3::new(ox, oy, oz)
+        };
+        prop_assume!((target - o).length() > 1e-3);
+        let r = ray(&m, o, target - o);
+        let plain = cast_f64(&m, &r, &CastOptions::default());
+        let leap = cast_f64(&m, &r, &CastOptions { leap: Some(&dm) });
+        prop_assume!(!plain.is_tie(1e-4) && !leap.is_tie(1e-4));
+        prop_assert_eq!(plain.hit.texel(), leap.hit.texel());
+        prop_assert_eq!(std::mem::discriminant(&plain.hit), std::mem::discriminant(&leap.hit));
+        if let (Hit::Wall { face: a, .. }, Hit::Wall { face: b, .. }) = (plain.hit, leap.hit) {
+            prop_assert_eq!(a, b);
+        }
+        if let (Some(a), Some(b)) = (plain.hit.t(), leap.hit.t()) {
+            prop_assert!((a - b).abs() <= 1e-9 * (1.0 + a.abs()), "{} vs {}", a, b);
+        }
+        prop_assert!(leap.steps <= plain.steps, "{} > {}", leap.steps, plain.steps);
+        // The GPU's f32 walk with the leap gives the same hit as without it.
+        let p32 = cast_f32(&m, &r.to_f32(), &CastOptions::default());
+        let l32 = cast_f32(&m, &r.to_f32(), &CastOptions { leap: Some(&dm) });
+        prop_assert_eq!(p32.hit.texel(), l32.hit.texel());
+    }
 }
 
 #[test]
@@ -321,4 +355,199 @@ fn bound_never_violated_on_the_bundled_data() {
         }
         assert!(worst_cov <= 0.01, "{fp}: coverage error {worst_cov}");
     }
+}
+
+#[test]
+fn maps_are_deterministic_and_the_footprint_scan_matches_the_oracle() {
+    let (city, layout) = real_city("helsinki/buildings.shp", "helsinki/streets_blockclass.shp");
+    let meshes = extrude_city(&city);
+    let source = Source::new(&city, &layout, &meshes).unwrap();
+    let bounds = block_bounds(&city, &layout);
+    let tree = BqrTree::build(&bounds, &BqrParams::default()).unwrap();
+    let opts = TreeOptions {
+        build: BuildOptions {
+            ao: true,
+            ..BuildOptions::default()
+        },
+        stop: Stop::Levels(3),
+    };
+    let a = build_tree(&source, &layout, &tree, &opts, &|_, _| {}).unwrap();
+    let b = build_tree(&source, &layout, &tree, &opts, &|_, _| {}).unwrap();
+    assert_eq!(a.maps.len(), b.maps.len());
+    for (x, y) in a.maps.iter().zip(&b.maps) {
+        assert_eq!(x.map, y.map, "node {}", x.key);
+        assert_eq!(x.error, y.error, "node {}", x.key);
+    }
+    // The footprint scan against the oracle's triangle rasteriser through the same orthographic
+    // projection: the same owner at every texel centre that is not on an edge.
+    use blockwalk::blockmap::build::{top_down_owners, SKY};
+    use blockwalk::visibility::oracle::render_ids_clip;
+    for m in a.maps.iter().take(6) {
+        let k = m.map.k() as usize;
+        let s = m.map.texel_m();
+        let min = DVec2::new(m.map.meta.min[0], m.map.meta.min[1]);
+        let side = m.map.meta.side;
+        let bs: Vec<_> = m
+            .buildings
+            .iter()
+            .filter_map(|&i| source.buildings[i as usize].as_ref())
+            .collect();
+        let scan = top_down_owners(&bs, min, s, k);
+        let (ztop, zbot) = (m.map.meta.zmax + 1.0, -1.0);
+        let clip = glam::DMat4::from_cols(
+            glam::DVec4::new(2.0 / side, 0.0, 0.0, 0.0),
+            glam::DVec4::new(0.0, -2.0 / side, 0.0, 0.0),
+            glam::DVec4::new(0.0, 0.0, -1.0 / (ztop - zbot), 0.0),
+            glam::DVec4::new(
+                -2.0 * min.x / side - 1.0,
+                2.0 * min.y / side + 1.0,
+                ztop / (ztop - zbot),
+                1.0,
+            ),
+        );
+        let pairs: Vec<_> = bs
+            .iter()
+            .map(|b| (blockwalk::blocks::BlockId(b.id.0), &meshes[b.id.0 as usize]))
+            .collect();
+        let ids = render_ids_clip(&pairs, &clip, k as u32, k as u32).ids;
+        let mut differ = 0;
+        for t in 0..k * k {
+            let (a, o) = (scan[t], ids[t]);
+            if a == o {
+                continue;
+            }
+            // Allowed only where the centre lies on (within 1e-6 m of) a footprint edge, or on
+            // roofs of equal height (either may win).
+            let c = min + DVec2::new((t % k) as f64 + 0.5, (t / k) as f64 + 0.5) * s;
+            let near_edge = bs.iter().any(|b| {
+                b.rings.iter().any(|r| {
+                    (0..r.len()).any(|e| {
+                        let (p, q) = (r[e], r[(e + 1) % r.len()]);
+                        let d = q - p;
+                        let u = ((c - p).dot(d) / d.length_squared()).clamp(0.0, 1.0);
+                        (p + d * u - c).length() < 1e-6
+                    })
+                })
+            });
+            let same_height = a != SKY
+                && o != SKY
+                && source.buildings[a as usize].as_ref().map(|b| b.z1)
+                    == source.buildings[o as usize].as_ref().map(|b| b.z1);
+            assert!(
+                near_edge || same_height,
+                "node {} texel {t}: scan {a} vs oracle {o}",
+                m.key
+            );
+            differ += 1;
+        }
+        assert!(
+            differ <= k * k / 100,
+            "node {}: {differ} texels differ",
+            m.key
+        );
+    }
+}
+
+#[test]
+fn ambient_occlusion_darkens_only_the_a_channels() {
+    let sc = SyntheticCity::generate(3, 3, 11, DVec2::new(5.0e5, 6.0e6));
+    let meshes = extrude_city(&sc.city);
+    let source = Source::new(&sc.city, &sc.layout, &meshes).unwrap();
+    let all: Vec<u32> = source.buildings_of(
+        &sc.layout,
+        &sc.layout.blocks.iter().map(|b| b.id).collect::<Vec<_>>(),
+    );
+    let (plain, _, ps) = build_map(&source, &all, &BuildOptions::default()).unwrap();
+    let (ao, _, st) = build_map(
+        &source,
+        &all,
+        &BuildOptions {
+            ao: true,
+            ..BuildOptions::default()
+        },
+    )
+    .unwrap();
+    assert!(ps.ao.is_none());
+    let st = st.ao.expect("AO asked for");
+    let k = plain.k();
+    assert!((0..k).all(|j| (k..2 * k).all(|i| plain.texel(i, j)[3] == 255)));
+    let mut darker = 0;
+    for v in 0..k {
+        for u in 0..plain.width() {
+            let (p, a) = (plain.texel(u, v), ao.texel(u, v));
+            assert_eq!(p[..3], a[..3], "texel ({u}, {v})");
+            if u < k {
+                assert_eq!(p[3], a[3], "the shape section is untouched at ({u}, {v})");
+            } else {
+                assert!(a[3] <= p[3]);
+                darker += usize::from(a[3] < p[3]);
+            }
+        }
+    }
+    assert!(darker > 0);
+    // Streets between blocks are darker than open roofs; walls darker than roofs.
+    assert!(
+        st.ground_mean < 1.0 && st.wall_mean < st.roof_mean,
+        "{st:?}"
+    );
+    assert!(matches!(
+        build_map(
+            &source,
+            &all,
+            &BuildOptions {
+                ao: true,
+                ao_radius_m: f64::NAN,
+                ..BuildOptions::default()
+            }
+        ),
+        Err(blockwalk::blockmap::BlockMapError::BadParameter(_))
+    ));
+}
+
+#[test]
+fn scene_builds_the_maps_in_one_call() {
+    use blockwalk::blockmap::CityMapsOptions;
+    use blockwalk::scene::{CitySource, Scene, SceneOptions};
+    let src = CitySource::parse(std::path::Path::new("synthetic:3x2"), None, None, &[], 7).unwrap();
+    let scene = Scene::load(
+        &src,
+        &SceneOptions {
+            structures: Vec::new(),
+            ..SceneOptions::default()
+        },
+        &mut |_| {},
+    )
+    .unwrap();
+    let maps = scene
+        .blockmaps(
+            &CityMapsOptions {
+                tree: TreeOptions {
+                    build: BuildOptions::default(),
+                    stop: Stop::Levels(2),
+                },
+                checks: 2,
+                check_size: (80, 45),
+            },
+            &|_, _| {},
+        )
+        .unwrap();
+    assert!(!maps.maps.maps.is_empty());
+    assert_eq!(maps.checks.len(), 2);
+    let s = maps.summary();
+    for key in [
+        "maps",
+        "bytes",
+        "build_s",
+        "eps_declared_max",
+        "eps_measured_max",
+        "bound_violations",
+        "thin_features",
+    ] {
+        assert!(
+            s.get(key).is_some_and(|v| !v.is_null()),
+            "{key} missing: {s}"
+        );
+    }
+    assert_eq!(s["maps"], maps.maps.maps.len());
+    assert_eq!(s["bytes"], maps.maps.maps.len() * 96 * 1024);
 }

@@ -2,11 +2,14 @@
 //! CPU, deterministic.
 //!
 //! 1. **Height map and roof attributes** (seed 002 §4.3.2 "HeightMap and Roof/Ground Surface
-//!    Attributes"): the buildings' meshes are drawn top-down through an orthographic
-//!    `clip_from_world` by the visibility oracle's rasteriser ([`crate::visibility::oracle::render_ids_clip`]),
-//!    one sample per texel centre. The winning building gives the texel its height (its exact
-//!    `height_m`, quantised to the nearest of 256 levels; a building lower than half a level gets
-//!    level 1, so that it never vanishes as "empty") and its roof colour.
+//!    Attributes"): a top-down orthographic render of the prisms with one sample per texel
+//!    centre. For vertical prisms that render is scan conversion of the footprints with the
+//!    highest roof winning ([`top_down_owners`]), done directly on the footprints (the oracle's
+//!    triangle rasteriser through an orthographic `clip_from_world` gives the same picture up to
+//!    centres on an edge, and a test checks it, but costs a projection per triangle). The
+//!    winning building gives the texel its height (its exact `height_m`, quantised to the
+//!    nearest of 256 levels; a building lower than half a level gets level 1, so that it never
+//!    vanishes as "empty") and its roof colour.
 //! 2. **Exposed texels** (seed 000 §3.1): a texel with at least one 4-neighbour lower than
 //!    itself (outside the map counts as empty).
 //! 3. **Wall parametrisation** (seed 002 §4.3.2 "Walls Parametrization"): per slice, exposed
@@ -20,7 +23,7 @@
 //!    colours are averaged into the column. Deviation: seed 002 samples walls from many views on
 //!    the GPU; for LoD1 prisms with one facade colour per height the nearest facade edge gives
 //!    the same attributes without rendering.
-//! 5. **AO**: not computed yet (A = 255, open sky), see the module docs.
+//! 5. **AO** (optional, [`BuildOptions::ao`]): horizon-based over the height map, see [`super::ao`].
 
 use super::colors;
 use super::layout::{encode_unit, BlockMap};
@@ -28,8 +31,10 @@ use super::BlockMapError;
 use crate::blocks::{BlockId, BlockLayout};
 use crate::city::appearance::{building_style, ring_u, BuildingStyle};
 use crate::city::{BuildingId, City, Mesh};
-use crate::visibility::oracle::{render_ids_clip, SKY};
-use glam::{DMat4, DVec2, DVec3, DVec4};
+
+/// The owner of a texel no building covers.
+pub const SKY: u32 = u32::MAX;
+use glam::{DVec2, DVec3};
 use serde::Serialize;
 
 /// A building as the construction and the error measure see it: local frame, f64.
@@ -184,6 +189,10 @@ pub struct BuildOptions {
     pub k: u32,
     /// Smallest slice height in rows (≥ 2, seed 002 §4.3.2).
     pub min_slice_rows: u32,
+    /// Compute ambient occlusion ([`super::ao`]); off leaves the A channels at 255 (open sky).
+    pub ao: bool,
+    /// How far AO looks for occluders, metres (at least one texel is always looked at).
+    pub ao_radius_m: f64,
 }
 
 impl Default for BuildOptions {
@@ -191,6 +200,8 @@ impl Default for BuildOptions {
         Self {
             k: 64,
             min_slice_rows: 2,
+            ao: false,
+            ao_radius_m: 30.0,
         }
     }
 }
@@ -211,6 +222,8 @@ pub struct BuildStats {
     pub slices: u32,
     /// Buildings no texel centre falls in (they vanish from the map).
     pub dropped_buildings: Vec<BuildingId>,
+    /// The ambient occlusion computed, when asked for.
+    pub ao: Option<super::ao::AoStats>,
 }
 
 /// Builds the BlockMap of `buildings` (indices into `source.buildings`) over the square that
@@ -227,6 +240,12 @@ pub fn build_map(
         return Err(BlockMapError::BadParameter(format!(
             "min_slice_rows = {}: need 2..=K",
             opts.min_slice_rows
+        )));
+    }
+    if opts.ao && !(opts.ao_radius_m.is_finite() && opts.ao_radius_m > 0.0) {
+        return Err(BlockMapError::BadParameter(format!(
+            "ao_radius_m = {}: need a finite radius > 0",
+            opts.ao_radius_m
         )));
     }
     let bs: Vec<&SourceBuilding> = buildings
@@ -251,26 +270,9 @@ pub fn build_map(
     let mut map = BlockMap::empty(opts.k, min.extend(0.0), side, zmax)?;
     let k = opts.k as usize;
 
-    // 1. Top-down orthographic render: x → [−1, 1]; y → clip y so that pixel row 0 is the
-    //    south row (the oracle puts clip y = +1 on row 0); depth 0 at the top.
-    let (ztop, zbot) = (zmax + 1.0, -1.0);
-    let m = DMat4::from_cols(
-        DVec4::new(2.0 / side, 0.0, 0.0, 0.0),
-        DVec4::new(0.0, -2.0 / side, 0.0, 0.0),
-        DVec4::new(0.0, 0.0, -1.0 / (ztop - zbot), 0.0),
-        DVec4::new(
-            -2.0 * min.x / side - 1.0,
-            2.0 * min.y / side + 1.0,
-            ztop / (ztop - zbot),
-            1.0,
-        ),
-    );
-    let pairs: Vec<(BlockId, &Mesh)> = bs
-        .iter()
-        .map(|b| (BlockId(b.id.0), &source.meshes[b.id.0 as usize]))
-        .collect();
-    let ids = render_ids_clip(&pairs, &m, opts.k, opts.k).ids;
-    let mut owner = vec![SKY; k * k];
+    // 1. Top-down orthographic sampling at the texel centres: the highest roof over a centre
+    //    wins (the depth test of a top-down render).
+    let owner = top_down_owners(&bs, min, map.texel_m(), k);
     let mut stats = BuildStats {
         buildings: bs.len(),
         ..BuildStats::default()
@@ -278,12 +280,11 @@ pub fn build_map(
     let index_of = |id: u32| source.buildings[id as usize].as_ref();
     for j in 0..k {
         for i in 0..k {
-            let id = ids[j * k + i];
+            let id = owner[j * k + i];
             if id == SKY {
                 continue;
             }
             let Some(b) = index_of(id) else { continue };
-            owner[j * k + i] = id;
             stats.filled_texels += 1;
             let code = ((b.z1 / zmax * 255.0).round().clamp(1.0, 255.0)) as u8;
             let t = map.texel_mut(i as u32, j as u32);
@@ -414,8 +415,70 @@ pub fn build_map(
                 [encode_unit(n.x), encode_unit(n.y), encode_unit(n.z), 255];
         }
     }
+    // 5. Ambient occlusion (seed 002 §4.2.1), when asked for.
+    if opts.ao {
+        stats.ao = Some(super::ao::compute(&mut map, &exposed, opts.ao_radius_m));
+    }
     let kept: Vec<u32> = bs.iter().map(|b| b.id.0).collect();
     Ok((map, kept, stats))
+}
+
+/// The building whose roof is highest over each texel centre of the `k × k` grid with lower
+/// corner `min` and texel side `s` (row-major, row 0 south), or [`SKY`]: a top-down orthographic
+/// render of the prisms with one sample per texel centre, done as scan conversion of the
+/// footprints (for vertical prisms the two are the same picture). A centre is inside a footprint
+/// by the even-odd rule with half-open crossings (the test of `error::in_polygon`), so a centre
+/// on an edge shared by two footprints belongs to exactly one; equal roofs keep the building
+/// given first.
+pub fn top_down_owners(bs: &[&SourceBuilding], min: DVec2, s: f64, k: usize) -> Vec<u32> {
+    let mut owner = vec![SKY; k * k];
+    let mut top = vec![f64::NEG_INFINITY; k * k];
+    let mut xs: Vec<f64> = Vec::new();
+    for b in bs {
+        // Rows whose centre y lies in the footprint's y range.
+        let j0 = (((b.min.y - min.y) / s - 0.5).floor().max(0.0)) as usize;
+        let j1 = (((b.max.y - min.y) / s - 0.5).ceil().max(0.0) as usize).min(k - 1);
+        for j in j0..=j1 {
+            let y = min.y + (j as f64 + 0.5) * s;
+            if y < b.min.y || y > b.max.y {
+                continue;
+            }
+            xs.clear();
+            for ring in &b.rings {
+                let n = ring.len();
+                let mut q = n - 1;
+                for p in 0..n {
+                    let (a, c) = (ring[p], ring[q]);
+                    if (a.y > y) != (c.y > y) {
+                        xs.push((c.x - a.x) * (y - a.y) / (c.y - a.y) + a.x);
+                    }
+                    q = p;
+                }
+            }
+            xs.sort_by(f64::total_cmp);
+            // A centre x is inside when an odd number of crossings lie right of it
+            // (x < crossing): x ∈ [xs[2m], xs[2m + 1]).
+            for span in xs.chunks_exact(2) {
+                let (x0, x1) = (span[0], span[1]);
+                let mut i = (((x0 - min.x) / s - 0.5).floor().max(0.0)) as usize;
+                while i < k {
+                    let x = min.x + (i as f64 + 0.5) * s;
+                    if x >= x1 {
+                        break;
+                    }
+                    if x >= x0 {
+                        let t = j * k + i;
+                        if b.z1 > top[t] {
+                            top[t] = b.z1;
+                            owner[t] = b.id.0;
+                        }
+                    }
+                    i += 1;
+                }
+            }
+        }
+    }
+    owner
 }
 
 /// Exposed texels of rows `[r0, r1)` in unfolding order: start at the first unvisited exposed

@@ -218,7 +218,8 @@ impl<'a> BuildingGrid<'a> {
             let dh = if l == p.z && p.z < 0.0 {
                 f64::INFINITY // below the ground, only upwards
             } else {
-                horizontal_exit(&covering, xy)
+                // Only an exit nearer than √(best² − dz²) can improve on `best`.
+                horizontal_exit(&covering, xy, (best * best - dz * dz).max(0.0).sqrt())
             };
             best = best.min((dh * dh + dz * dz).sqrt());
         }
@@ -272,13 +273,14 @@ fn horizontal_distance(b: &SourceBuilding, p: DVec2) -> f64 {
 }
 
 /// Horizontal distance from `p` to the complement of the union of `polys`' footprints (0 when
-/// `p` is outside them all). An edge point counts as a way out when a point just outside it lies
-/// in no footprint; the nearest such point of each edge is tried.
-fn horizontal_exit(polys: &[&SourceBuilding], p: DVec2) -> f64 {
+/// `p` is outside them all), or `bound` when there is no way out nearer than `bound`. An edge
+/// point counts as a way out when a point just outside it lies in no footprint; the nearest such
+/// point of each edge is tried.
+fn horizontal_exit(polys: &[&SourceBuilding], p: DVec2, bound: f64) -> f64 {
     if !polys.iter().any(|b| in_polygon(b, p)) {
         return 0.0;
     }
-    let mut best = f64::INFINITY;
+    let mut best = bound;
     for b in polys {
         for ring in &b.rings {
             let n = ring.len();
@@ -392,6 +394,7 @@ pub fn measure(map: &BlockMap, source: &Source, buildings: &[u32]) -> ErrorRepor
         }
     };
     let mut scratch = Vec::new();
+    let mut covers: Vec<(f64, f64)> = Vec::new();
     let mut samples = 0usize;
     // Original → map.
     let mut o2m: f64 = 0.0;
@@ -429,14 +432,16 @@ pub fn measure(map: &BlockMap, source: &Source, buildings: &[u32]) -> ErrorRepor
                 for q in 0..steps {
                     let xy = a + (c - a) * (q as f64 / steps as f64);
                     let probe = xy + out * (1e-6 * (1.0 + xy.abs().max_element()));
+                    // The neighbour prisms standing just outside this point of the wall: where
+                    // one covers a height, the wall there is no surface.
+                    grid.near(probe, 0.0, &mut scratch);
+                    covers.clear();
+                    covers.extend(scratch.iter().filter_map(|&m| {
+                        let o = grid.all[m as usize];
+                        (o.id != b.id && in_polygon(o, probe)).then_some((o.z0, o.z1))
+                    }));
                     for &z in &zs {
-                        // A wall covered by a neighbour prism is no surface.
-                        grid.near(probe, 0.0, &mut scratch);
-                        let covered = scratch.iter().any(|&m| {
-                            let o = grid.all[m as usize];
-                            o.id != b.id && z >= o.z0 && z <= o.z1 && in_polygon(o, probe)
-                        });
-                        if covered {
+                        if covers.iter().any(|&(z0, z1)| z >= z0 && z <= z1) {
                             continue;
                         }
                         samples += 1;

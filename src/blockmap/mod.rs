@@ -15,9 +15,9 @@
 //! - [`compare`]: ray-cast image against the oracle's mesh image: coverage error, the projected
 //!   bound at silhouettes, 3D point error, colour PSNR.
 //! - [`colors`]: the one definition of colours and light used by all of the above.
-//!
-//! Not done yet: ambient occlusion (the A channels are 255, "open sky").
+//! - [`ao`]: optional ambient occlusion, horizon-based over the height map (seed 002 §4.2.1).
 
+pub mod ao;
 pub mod build;
 pub mod cast;
 pub mod colors;
@@ -30,7 +30,9 @@ pub use build::{build_map, BuildOptions, BuildStats, Source};
 pub use cast::{cast_f32, cast_f64, Cast, CastOptions, Face, Hit, TexRay};
 pub use error::{measure, ErrorReport, ThinFeature, ThinKind};
 pub use layout::{BlockMap, BlockMapMeta};
-pub use tree::{build_tree, MapTree, NodeMap, Stop, TreeOptions};
+pub use tree::{
+    build_city_maps, build_tree, CityMaps, CityMapsOptions, MapTree, NodeMap, Stop, TreeOptions,
+};
 
 use std::path::PathBuf;
 

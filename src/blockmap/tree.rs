@@ -228,3 +228,209 @@ impl MapTree {
         }
     }
 }
+
+/// Options of [`build_city_maps`].
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct CityMapsOptions {
+    /// Which maps and how they are built.
+    pub tree: TreeOptions,
+    /// Maps to check against the oracle's mesh image (one seeded random view each, projected
+    /// error 1 px), spread evenly over the list.
+    pub checks: usize,
+    /// Size of the check images.
+    pub check_size: (u32, u32),
+}
+
+impl Default for CityMapsOptions {
+    fn default() -> Self {
+        Self {
+            tree: TreeOptions::default(),
+            checks: 8,
+            check_size: (160, 90),
+        }
+    }
+}
+
+/// The maps of a city and their figures: what `blockwalk blockmaps` prints.
+#[derive(Clone, Debug)]
+pub struct CityMaps {
+    /// City name.
+    pub city: String,
+    /// The maps.
+    pub maps: MapTree,
+    /// Seconds spent building and measuring the maps (not loading, extruding or checking).
+    pub build_s: f64,
+    /// Area of the blocks' box, km².
+    pub area_km2: f64,
+    /// The image checks: node key and figures.
+    pub checks: Vec<(u64, super::compare::ViewCompare)>,
+}
+
+/// Builds the BlockMaps of a city in one call: the per-building prisms, the block quadtree over
+/// `bounds`, every selected node's map ([`build_tree`], parallel), the hierarchy's invariants,
+/// and `opts.checks` ray-cast images against the oracle's mesh images.
+///
+/// # Errors
+/// [`BlockMapError::BadParameter`] when the quadtree cannot be built or the options are out of
+/// range; the first map that fails, naming its node.
+pub fn build_city_maps(
+    city: &crate::city::City,
+    layout: &BlockLayout,
+    bounds: &[crate::index::BlockBounds],
+    opts: &CityMapsOptions,
+    progress: &(dyn Fn(usize, usize) + Sync),
+) -> Result<CityMaps, BlockMapError> {
+    let meshes = crate::city::extrude::extrude_city(city);
+    let tree = BqrTree::build(bounds, &crate::index::BqrParams::default()).map_err(|e| {
+        BlockMapError::BadParameter(format!("the block quadtree of {}: {e}", city.name))
+    })?;
+    let source = Source::new(city, layout, &meshes)?;
+    let t0 = std::time::Instant::now();
+    let maps = build_tree(&source, layout, &tree, &opts.tree, progress)?;
+    let build_s = t0.elapsed().as_secs_f64();
+    maps.check_invariants();
+    let mut checks = Vec::new();
+    if opts.checks > 0 && !maps.maps.is_empty() {
+        let n = opts.checks.min(maps.maps.len());
+        let (w, h) = opts.check_size;
+        let picked: Vec<&NodeMap> = (0..n)
+            .map(|q| &maps.maps[q * maps.maps.len() / n])
+            .collect();
+        checks = picked
+            .par_iter()
+            .map(|m| {
+                let cam = super::compare::random_views(&m.map, 1, m.key, h)[0];
+                (
+                    m.key,
+                    super::compare::compare_view(&m.map, &source, &m.buildings, &cam, w, h),
+                )
+            })
+            .collect();
+    }
+    let b = bounds
+        .iter()
+        .fold(crate::geom::Aabb3::EMPTY, |a, b| a.union(b.aabb));
+    let e = b.extent();
+    Ok(CityMaps {
+        city: city.name.clone(),
+        maps,
+        build_s,
+        area_km2: (e.x * e.y / 1e6).max(1e-9),
+        checks,
+    })
+}
+
+impl CityMaps {
+    /// Pixels beyond the screen-space bound plus hit points beyond ε, over all checks.
+    pub fn bound_violations(&self) -> usize {
+        self.checks
+            .iter()
+            .map(|(_, c)| c.point_violations + c.beyond_bound)
+            .sum()
+    }
+
+    /// Writes every map as `DIR/node_KEY.png` + `.json`.
+    ///
+    /// # Errors
+    /// [`BlockMapError::Io`] naming the file.
+    pub fn write(&self, dir: &std::path::Path) -> Result<(), BlockMapError> {
+        std::fs::create_dir_all(dir).map_err(|e| BlockMapError::Io {
+            path: dir.to_path_buf(),
+            what: e.to_string(),
+        })?;
+        for m in &self.maps.maps {
+            m.map.write(dir, &format!("node_{:x}", m.key))?;
+        }
+        Ok(())
+    }
+
+    /// The figures as one JSON object: `maps`, `bytes`, `build_s`, `eps_declared_max`,
+    /// `eps_measured_max`, `bound_violations`, `thin_features`, per-level rows, the thin
+    /// features by building, the checks, and the AO summary when AO was computed.
+    pub fn summary(&self) -> serde_json::Value {
+        let maps = &self.maps;
+        let k = maps.maps.first().map(|m| m.map.k()).unwrap_or(0);
+        let bytes: usize = maps.maps.iter().map(|m| m.map.bytes()).sum();
+        let mut levels: Vec<serde_json::Value> = Vec::new();
+        let max_level = maps.maps.iter().map(|m| m.level).max().unwrap_or(0);
+        for l in 0..=max_level {
+            let at: Vec<&NodeMap> = maps.maps.iter().filter(|m| m.level == l).collect();
+            if at.is_empty() {
+                continue;
+            }
+            let f = |g: &dyn Fn(&NodeMap) -> f64| at.iter().map(|m| g(m)).fold(0.0, f64::max);
+            levels.push(serde_json::json!({
+                "level": l,
+                "maps": at.len(),
+                "texel_m_max": f(&|m| m.map.texel_m()),
+                "eps_declared_max_m": f(&|m| m.map.meta.eps_m),
+                "eps_measured_max_m": f(&|m| m.error.measured_m),
+                "half_voxel_diagonal_max_m": f(&|m| m.error.half_voxel_diagonal_m),
+                "exposed_texels": at.iter().map(|m| m.stats.exposed_texels).sum::<usize>(),
+                "shared_columns": at.iter().map(|m| m.stats.shared_columns).sum::<usize>(),
+                "slices_max": at.iter().map(|m| m.stats.slices).max().unwrap_or(1),
+                "thin_features": at.iter().map(|m| m.error.thin.len()).sum::<usize>(),
+            }));
+        }
+        let thin: Vec<serde_json::Value> = maps
+            .maps
+            .iter()
+            .flat_map(|m| {
+                m.error.thin.iter().map(move |t| {
+                    serde_json::json!({"node": m.key, "level": m.level, "kind": t.kind,
+                        "building": t.building, "source_id": t.source_id, "error_m": t.error_m, "at": t.at})
+                })
+            })
+            .collect();
+        let fmax = |g: &dyn Fn(&NodeMap) -> f64| maps.maps.iter().map(g).fold(0.0, f64::max);
+        let cov_max = self
+            .checks
+            .iter()
+            .map(|(_, c)| c.coverage_error)
+            .fold(0.0, f64::max);
+        let psnr_min = self
+            .checks
+            .iter()
+            .map(|(_, c)| c.psnr_db)
+            .fold(f64::INFINITY, f64::min);
+        let ao: Vec<&super::ao::AoStats> = maps
+            .maps
+            .iter()
+            .filter_map(|m| m.stats.ao.as_ref())
+            .collect();
+        let ao = if ao.is_empty() {
+            serde_json::Value::Null
+        } else {
+            let n = ao.len() as f64;
+            serde_json::json!({
+                "roof_mean": ao.iter().map(|a| a.roof_mean).sum::<f64>() / n,
+                "ground_mean": ao.iter().map(|a| a.ground_mean).sum::<f64>() / n,
+                "wall_mean": ao.iter().map(|a| a.wall_mean).sum::<f64>() / n,
+                "occluded_share": ao.iter().map(|a| a.occluded_share).sum::<f64>() / n,
+            })
+        };
+        serde_json::json!({
+            "city": self.city,
+            "k": k,
+            "maps": maps.maps.len(),
+            "bytes": bytes,
+            "bytes_per_map": maps.maps.first().map(|m| m.map.bytes()).unwrap_or(0),
+            "area_km2": self.area_km2,
+            "mib_per_km2": bytes as f64 / 1048576.0 / self.area_km2,
+            "build_s": self.build_s,
+            "eps_declared_max": fmax(&|m| m.map.meta.eps_m),
+            "eps_measured_max": fmax(&|m| m.error.measured_m),
+            "bound_violations": self.bound_violations(),
+            "thin_features": thin.len(),
+            "thin": thin,
+            "raised_parts": maps.maps.iter().map(|m| m.error.raised_parts).sum::<usize>(),
+            "bridges": maps.maps.iter().map(|m| m.error.bridges).sum::<usize>(),
+            "dropped_buildings": maps.maps.iter().map(|m| m.stats.dropped_buildings.len()).sum::<usize>(),
+            "levels": levels,
+            "checks": self.checks.iter().map(|(k, c)| serde_json::json!({"node": k, "view": c})).collect::<Vec<_>>(),
+            "coverage_error_max": cov_max,
+            "psnr_min_db": if psnr_min.is_finite() { serde_json::json!(psnr_min) } else { serde_json::Value::Null },
+            "ao": ao,
+        })
+    }
+}

@@ -226,6 +226,20 @@ impl Scene {
             .fold(Aabb3::EMPTY, |b, bb| b.union(bb.aabb))
     }
 
+    /// The BlockMaps of the scene's blocks ([`crate::blockmap::build_city_maps`]: the block
+    /// quadtree over [`Scene::bounds`], a map per selected node, their measured error and
+    /// `opts.checks` image checks). `progress(done, total)` hears the maps as they finish.
+    ///
+    /// # Errors
+    /// See [`crate::blockmap::build_city_maps`].
+    pub fn blockmaps(
+        &self,
+        opts: &crate::blockmap::CityMapsOptions,
+        progress: &(dyn Fn(usize, usize) + Sync),
+    ) -> Result<crate::blockmap::CityMaps, crate::blockmap::BlockMapError> {
+        crate::blockmap::build_city_maps(&self.city, &self.layout, &self.bounds, opts, progress)
+    }
+
     /// Triangles of each block, indexed by block id.
     pub fn triangles_by_block(&self) -> Vec<u64> {
         let n = self
