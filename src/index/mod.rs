@@ -98,7 +98,8 @@ pub(crate) fn validate_bounds(
             && b.center.is_finite()
             && b.sphere.center.is_finite()
             && b.sphere.radius.is_finite();
-        if !finite || b.aabb.is_empty() || !(b.sphere.radius >= 0.0) {
+        // `finite` has ruled NaN out: a plain comparison is enough.
+        if !finite || b.aabb.is_empty() || b.sphere.radius < 0.0 {
             return Err(IndexError::BadBlock {
                 structure,
                 index,
