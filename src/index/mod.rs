@@ -7,7 +7,7 @@
 //! - [`FlatList`], [`NoStructure`]: test every block, or none.
 //! - [`RstarIndex`]: the same queries through the `rstar` crate.
 //! - [`synthetic`]: seeded synthetic block grids for benches and tests.
-//! - [`bench`]: the `cull-bench` core (random views, timings, false culls against brute force).
+//! - [`mod@bench`]: the `cull-bench` core (random views, timings, false culls against brute force).
 //!
 //! Every structure is immutable after its build and `Send + Sync`; per-frame state (temporal
 //! coherence) is owned by the caller.
