@@ -1,45 +1,17 @@
 //! Spatial structures: build time and per-frame frustum culling at 1k, 10k, 100k and 1M blocks
 //! (seeded jittered block grids, `index::synthetic::block_grid`), for each structure.
 //!
+//! Every cull here passes no hidden-volume filter, so each structure accepts a subtree found
+//! completely inside the frustum without further tests (seed 003 §5): this is the paper's
+//! traversal. Occlusion culling is benched beside frustum-only culling in `benches/cullmap.rs`
+//! (`frustum_only` against `build_and_cull`) and `benches/route.rs` (the walk, both modes), and
+//! `blockwalk cull-bench CITY --occlusion` prints the two side by side per structure.
+//!
 //! Goals: build ≤ 200 ms for 100k blocks; street-level culling ≤ 100 µs per frame (median) for a
 //! 100k-block city with a 2 km far plane. Short runs: `cargo bench --bench index -- --quick`.
-//! Set `BLOCKWALK_BENCH_MAX` (e.g. 100000) to skip the larger sizes.
-//!
-//! Indicative figures (shared, busy 2-core machine; `--quick`, dev profile at opt-level 3 with
-//! debug assertions; per view = the 8-view figure / 8):
-//!
-//! | 100k blocks | build | street cull / view | flying cull / view |
-//! |---|---|---|---|
-//! | bqr | 61 ms | 188 µs | 1.09 ms |
-//! | vamsplit | 62 ms | 78 µs | 208 µs |
-//! | rstar | 103 ms | 190 µs | 1.13 ms |
-//! | flat | — | 3.3 ms | 3.0 ms |
-//!
-//! Both build goals are met; the 100 µs street-level goal is met by the VAMSplit R-tree, not by
-//! the BqR-tree, whose loose spheres are rarely fully inside the frustum, so it descends to
-//! many more leaves before a subtree is accepted whole (BqR/VAMSplit = 2.4 street, 5.2 flying
-//! in time here; the paper's Table 1 has 0.638 in frame time, see `index::bench`).
-//!
-//! BqR traversal tuned (single-child chains tested once at their deepest node, leaf box tested
-//! before its sphere and the sphere skipped when it holds the box, children ordered front to
-//! back by the eye's quadrant instead of distances and a sort, inner spheres the smaller of the
-//! merged children's spheres and the sphere around the node's box). Work per view from
-//! `blockwalk cull-bench --synthetic N --views 400` (half street level, half flying; counts do
-//! not depend on the build profile; no false cull in either version):
-//!
-//! | blocks | BqR/VAMSplit | nodes visited | plane tests |
-//! |---|---|---|---|
-//! | 10k | before | 1.29 | 1.45 |
-//! | 10k | after | 1.22 | 1.21 |
-//! | 100k | before | 1.33 | 1.53 |
-//! | 100k | after | 1.25 | 1.25 |
-//!
-//! Median time per view, same command, dev profile at opt-level 3 (busy shared machine):
-//! 10k: BqR 64 → 34 µs, VAMSplit 35 / 31 µs (ratio 1.83 → 1.10); 100k: BqR 118 → 79 µs,
-//! VAMSplit 56 / 46 µs (ratio 2.12 → 1.71). Against the paper's Table 1 (BqR/VAMSplit =
-//! 0.638 in frame time) the BqR-tree here is still slower than the VAMSplit R-tree: with one
-//! block per leaf it has about ten times the nodes, and its spheres, loose around flat city
-//! blocks, are rarely found fully inside the frustum.
+//! Set `BLOCKWALK_BENCH_MAX` (e.g. 100000) to skip the larger sizes. The README's table of
+//! culling figures comes from `blockwalk cull-bench` (release build), which counts the work
+//! (nodes visited, plane tests) as well as the time and checks every result against brute force.
 
 use blockwalk::geom::{Camera, Frustum};
 use blockwalk::index::{

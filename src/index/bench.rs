@@ -1,6 +1,6 @@
 //! The `cull-bench` core: build each structure over the same blocks, cull the same seeded
-//! random views with each, time it, and check every result against brute force (the exact
-//! box–frustum test, [`Frustum::intersects_aabb_exact`]).
+//! random views with each, time it, and check every result against brute force
+//! ([`may_be_visible`], built on the exact box–frustum test [`Frustum::intersects_aabb_exact`]).
 //!
 //! This reproduces the setting of seed 003 §5.1 (Table 1: seconds per frame of no tree,
 //! VAMSplit R-tree and BqR-tree; BqR/VAMSplit = 0.638) for the culling part only: the paper's
@@ -8,22 +8,21 @@
 //! accepted triangles separately.
 //!
 //! # Against Table 1
-//! On seeded jittered block grids (`synthetic::block_grid`, 100 random views, half at street
-//! level with a 2 km far plane, half flying), the counts are independent of the machine:
+//! The counts (nodes visited, plane tests, blocks and triangles accepted) depend only on the
+//! seed; the README's "The paper's Table 1, honestly" has the figures of `blockwalk cull-bench`
+//! on synthetic grids and the real cities, and the command lines. The paper's 0.638
+//! (BqR frame time / VAMSplit frame time) is not reproduced for the culling itself: the BqR-tree's
+//! fan-out of at most 4 (and single-child quadrants) makes it visit about as many or more volumes
+//! than a VAMSplit R-tree of capacity 8. Its leaves are the paper's box ∩ sphere with each block's
+//! own smallest sphere (`BlockBounds::sphere`), so on real cities it accepts 1–3 % fewer triangles
+//! than the box-based structures; on grids of box blocks the sphere is the box's and the accepted
+//! sets are the same. [`CullBenchReport::bqr_box_leaves`] runs the BqR-tree again with box-only
+//! leaves to show the difference. The paper's gain is in frame time, which is dominated by
+//! drawing.
 //!
-//! | blocks | BqR/VAMSplit nodes visited | plane tests | triangles accepted |
-//! |---|---|---|---|
-//! | 2 000 | 1.31 | 1.40 | 1.000 |
-//! | 10 000 | 1.27 | 1.40 | 1.000 |
-//! | 100 000 | 1.30 | 1.46 | 1.000 |
-//!
-//! So the paper's 0.638 (BqR frame time / VAMSplit frame time) is not reproduced for the
-//! culling itself: the BqR-tree's fan-out of at most 4 (and single-child quadrants) makes it
-//! visit about 30 % more volumes than a VAMSplit R-tree of capacity 8, and both accept exactly
-//! the same blocks because both end with a per-block box test (box ∩ circumscribed sphere is
-//! the box). The paper's gain is in frame time, which is dominated by drawing: a scene-graph
-//! VAMSplit leaf drawn as a whole (up to `node_capacity` blocks) accepts more triangles than
-//! one block per leaf; our VAMSplit tests the blocks of a partially visible leaf one by one.
+//! # Brute force
+//! [`may_be_visible`]: the block's box meets the frustum (exact test) and its sphere is outside
+//! no plane; the geometry lies in both, so every block whose geometry is in view is counted.
 
 use super::{BlockBounds, CityIndex, CullQuery, IndexError, Structure};
 use crate::blocks::BlockId;

@@ -7,7 +7,7 @@
 //! - [`FlatList`], [`NoStructure`]: test every block, or none.
 //! - [`RstarIndex`]: the same queries through the `rstar` crate.
 //! - [`synthetic`]: seeded synthetic block grids for benches and tests.
-//! - [`bench`]: the `cull-bench` core (random views, timings, false culls against brute force).
+//! - [`mod@bench`]: the `cull-bench` core (random views, timings, false culls against brute force).
 //!
 //! Every structure is immutable after its build and `Send + Sync`; per-frame state (temporal
 //! coherence) is owned by the caller.
@@ -98,7 +98,8 @@ pub(crate) fn validate_bounds(
             && b.center.is_finite()
             && b.sphere.center.is_finite()
             && b.sphere.radius.is_finite();
-        if !finite || b.aabb.is_empty() || !(b.sphere.radius >= 0.0) {
+        // `finite` has ruled NaN out: a plain comparison is enough.
+        if !finite || b.aabb.is_empty() || b.sphere.radius < 0.0 {
             return Err(IndexError::BadBlock {
                 structure,
                 index,

@@ -79,10 +79,11 @@ fn ball_through(s: &[DVec3]) -> Option<Ball> {
             return None;
         }
         a.swap(col, piv);
-        for row in col + 1..k {
-            let f = a[row][col] / a[col][col];
-            for c in col..=k {
-                a[row][c] -= f * a[col][c];
+        let pivot_row = a[col];
+        for row in a.iter_mut().take(k).skip(col + 1) {
+            let f = row[col] / pivot_row[col];
+            for (x, p) in row.iter_mut().zip(pivot_row).skip(col) {
+                *x -= f * p;
             }
         }
     }

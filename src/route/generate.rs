@@ -15,7 +15,7 @@ use std::f64::consts::{FRAC_PI_2, TAU};
 
 /// An undirected street graph in the local frame (x, y metres): vertices of the street lines are
 /// nodes (vertices that round to the same point of the
-/// [`ROUTE_NODE_GRID_M`](crate::geom::tolerance::ROUTE_NODE_GRID_M) grid, 1 cm, are one node; see
+/// [`crate::geom::tolerance::ROUTE_NODE_GRID_M`] grid, 1 cm, are one node; see
 /// there why it is finer than the blocks' snap tolerance), consecutive vertices are joined by
 /// edges weighted by length.
 #[derive(Clone, Debug, Default)]

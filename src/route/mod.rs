@@ -3,7 +3,7 @@
 //! - [`CameraRoute`]: timed key frames (local frame, metres) interpolated with centripetal
 //!   Catmull–Rom (positions) and squad (orientations), sampled into [`Camera`]s.
 //! - [`choice`]: [`RouteChoice`], a named generated route or a route file, resolved for a city.
-//! - [`file`]: the route file format (TOML or JSON), see [`file::RouteFile`].
+//! - [`mod@file`]: the route file format (TOML or JSON), see [`file::RouteFile`].
 //! - [`generate`]: routes for any city: the paper's route, a street-level walk, an orbit; the
 //!   street graph and its shortest paths.
 //! - [`obstacles`]: the buildings a generated route keeps its eye [`EYE_CLEARANCE_M`] away from.

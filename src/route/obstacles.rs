@@ -155,3 +155,50 @@ impl Obstacles {
         (0..=n).all(|i| self.distance(a.lerp(b, i as f64 / n as f64), need) >= need)
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::city::model::{BuildingId, HeightSource};
+    use geo_types::polygon;
+
+    fn one_building() -> Obstacles {
+        let b = Building {
+            id: BuildingId(0),
+            source_id: "t:0".into(),
+            footprint: polygon![(x: 10., y: 10.), (x: 20., y: 10.), (x: 20., y: 20.), (x: 10., y: 20.)],
+            height_m: 12.0,
+            min_height_m: 0.0,
+            height_source: HeightSource::Height,
+            attributes: Default::default(),
+        };
+        let frame = LocalFrame {
+            origin: DVec3::new(10.0, 10.0, 0.0),
+        };
+        Obstacles::from_buildings(&[b], &frame)
+    }
+
+    #[test]
+    fn distances_to_a_prism() {
+        let o = one_building();
+        assert_eq!(o.len(), 1);
+        assert_eq!(o.max_height(), 12.0);
+        // Local frame: the building covers 0..10 × 0..10, 0..12 m.
+        assert_eq!(o.distance(DVec3::new(5.0, 5.0, 1.7), 50.0), 0.0);
+        assert!((o.distance(DVec3::new(13.0, 5.0, 1.7), 50.0) - 3.0).abs() < 1e-12);
+        assert!((o.distance(DVec3::new(5.0, 5.0, 16.0), 50.0) - 4.0).abs() < 1e-12);
+        assert!((o.distance(DVec3::new(13.0, 14.0, 12.0), 50.0) - 5.0).abs() < 1e-12);
+        assert_eq!(o.distance(DVec3::new(100.0, 5.0, 1.7), 50.0), 50.0);
+        assert!(!o.is_clear(DVec3::new(10.5, 5.0, 1.7), 1.0));
+        assert!(o.is_clear(DVec3::new(11.0, 5.0, 1.7), 1.0));
+        // A street past the wall at 2 m is clear, one through the building is not; a descent
+        // over the roof is clear until it comes down beside the wall too close.
+        let (a, b) = (DVec2::new(-5.0, 12.0), DVec2::new(15.0, 12.0));
+        assert!(o.segment_distance(a, b, 1.7, 5.0) >= 2.0 - 1e-12);
+        assert_eq!(o.segment_distance(a, DVec2::new(15.0, 5.0), 1.7, 5.0), 0.0);
+        let top = DVec3::new(5.0, 5.0, 40.0);
+        assert!(o.segment_is_clear(top, DVec3::new(5.0, 5.0, 14.0), 1.0));
+        assert!(!o.segment_is_clear(top, DVec3::new(10.5, 5.0, 1.7), 1.0));
+        assert!(Obstacles::none().is_clear(DVec3::ZERO, 1.0));
+    }
+}
