@@ -85,7 +85,7 @@ pub fn resolve_route(
 /// A GPU renderer for the scene, or why there is none.
 #[cfg(feature = "render")]
 fn gpu_renderer(scene: &Scene, size: Size) -> Result<Box<dyn FrameRenderer>, String> {
-    match blockwalk::render::GpuFrameRenderer::new(&scene.meshes, size.pair()) {
+    match blockwalk::render::GpuFrameRenderer::new(&scene.meshes, &scene.ground, size.pair()) {
         Ok(r) => Ok(Box::new(r)),
         Err(e) => Err(e.to_string()),
     }

@@ -22,16 +22,22 @@ impl std::fmt::Debug for GpuFrameRenderer {
 
 impl GpuFrameRenderer {
     /// A headless device ([`Gpu::new_headless`]) and the meshes (local frame) uploaded to it,
-    /// drawing `size` pixels.
+    /// with the ground layers `ground` (see [`MeshRenderer::with_ground`]; an empty mesh for
+    /// the plain ground plane), drawing `size` pixels.
     ///
     /// # Errors
     /// No adapter, no device, or meshes the renderer refuses.
-    pub fn new(meshes: &[(BlockId, Mesh)], size: (u32, u32)) -> Result<Self, RenderError> {
+    pub fn new(
+        meshes: &[(BlockId, Mesh)],
+        ground: &Mesh,
+        size: (u32, u32),
+    ) -> Result<Self, RenderError> {
         let gpu = Gpu::new_headless()?;
         let refs: Vec<(BlockId, &Mesh)> = meshes.iter().map(|(b, m)| (*b, m)).collect();
-        let renderer = MeshRenderer::with_options(
+        let renderer = MeshRenderer::with_ground(
             &gpu,
             &refs,
+            ground,
             RenderOptions {
                 width: size.0,
                 height: size.1,

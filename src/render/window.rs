@@ -352,7 +352,12 @@ impl App {
             .iter()
             .map(|(b, m)| (*b, m))
             .collect();
-        MeshRenderer::with_options(gpu, &refs, RenderOptions { width, height })
+        MeshRenderer::with_ground(
+            gpu,
+            &refs,
+            &self.scene.scene.ground,
+            RenderOptions { width, height },
+        )
     }
 
     fn resize(&mut self, size: PhysicalSize<u32>) -> Result<(), WindowError> {

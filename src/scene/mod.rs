@@ -102,6 +102,10 @@ pub struct Scene {
     pub layout: BlockLayout,
     /// One mesh per block (local frame): the block's buildings merged once.
     pub meshes: Vec<(BlockId, Mesh)>,
+    /// The ground layers (local frame, z = 0): the blocks' ground and the street strips
+    /// ([`crate::city::appearance::ground_mesh`]), which the lit renderers draw under the
+    /// buildings. Never part of culling or visibility.
+    pub ground: Mesh,
     /// Per-block bounds (local frame), as the structures index them.
     pub bounds: Vec<BlockBounds>,
     /// The structures asked for, in [`SceneOptions::structures`] order.
@@ -175,6 +179,8 @@ impl Scene {
                 block_meshes(&city, &layout)
             }
         };
+        progress("laying out the ground");
+        let ground = ground_layers(&city, &layout);
         progress("building the structures");
         let bounds = block_bounds(&city, &layout);
         let indexes = opts
@@ -205,6 +211,7 @@ impl Scene {
             city,
             layout,
             meshes,
+            ground,
             bounds,
             indexes,
             occlusion,
@@ -273,4 +280,16 @@ pub fn block_meshes(city: &City, layout: &BlockLayout) -> Vec<(BlockId, Mesh)> {
             (block.id, m)
         })
         .collect()
+}
+
+/// The ground layers of a city: the ground of its street blocks (outskirts groups have no
+/// ground of their own: their outline is only a hull of footprints) and its street strips.
+pub fn ground_layers(city: &City, layout: &BlockLayout) -> Mesh {
+    let blocks: Vec<geo_types::Polygon<f64>> = layout
+        .blocks
+        .iter()
+        .filter(|b| b.kind == crate::blocks::BlockKind::Block)
+        .map(|b| b.polygon.clone())
+        .collect();
+    crate::city::appearance::ground_mesh(&city.frame, &city.streets, &blocks)
 }

@@ -138,13 +138,27 @@ pub trait FrameRenderer {
 #[derive(Clone, Copy, Debug)]
 pub struct CpuFrameRenderer<'a> {
     meshes: &'a [(BlockId, Mesh)],
+    ground: Option<&'a Mesh>,
     size: (u32, u32),
 }
 
 impl<'a> CpuFrameRenderer<'a> {
     /// A renderer of `meshes` (local frame) at `size` pixels.
     pub fn new(meshes: &'a [(BlockId, Mesh)], size: (u32, u32)) -> Self {
-        Self { meshes, size }
+        Self {
+            meshes,
+            ground: None,
+            size,
+        }
+    }
+
+    /// The same renderer drawing the ground layers `ground` (streets, blocks' ground: see
+    /// [`oracle::shade_with_ground`]) under the buildings.
+    pub fn with_ground(self, ground: &'a Mesh) -> Self {
+        Self {
+            ground: Some(ground),
+            ..self
+        }
     }
 }
 
@@ -172,7 +186,10 @@ impl FrameRenderer for CpuFrameRenderer<'_> {
             .filter(|(b, _)| keep.contains(b))
             .map(|(b, m)| (*b, m))
             .collect();
-        let img = oracle::shade(&list, camera, self.size.0, self.size.1);
+        let img = match self.ground {
+            Some(g) => oracle::shade_with_ground(&list, g, camera, self.size.0, self.size.1),
+            None => oracle::shade(&list, camera, self.size.0, self.size.1),
+        };
         Ok(DrawnFrame {
             seconds: t0.elapsed().as_secs_f64(),
             gpu_time: false,

@@ -229,7 +229,7 @@ pub fn run_walk(
     };
     let cameras = params.route.sample(params.frames);
     let triangles = scene.triangles_by_block();
-    let cpu = CpuFrameRenderer::new(&scene.meshes, params.size);
+    let cpu = CpuFrameRenderer::new(&scene.meshes, params.size).with_ground(&scene.ground);
     let renderer: Option<&dyn FrameRenderer> = match &drawing {
         Drawing::Off => None,
         Drawing::With(r) => Some(*r),
