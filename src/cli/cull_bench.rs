@@ -81,9 +81,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 "triangles_accepted": r[3],
             });
         }
-        println!("{}", serde_json::to_string(&v)?);
+        outln!("{}", serde_json::to_string(&v)?);
     } else {
-        print_summary(&name, &report);
+        print_summary(&name, &report)?;
     }
     let false_culls: u64 = report.structures.iter().map(|s| s.false_culls).sum();
     if false_culls > 0 {
@@ -92,8 +92,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     Ok(())
 }
 
-fn print_summary(name: &str, r: &CullBenchReport) {
-    println!(
+fn print_summary(name: &str, r: &CullBenchReport) -> anyhow::Result<()> {
+    outln!(
         "{name}: {} blocks, {} triangles, {} views (seed {}){}",
         r.blocks,
         r.triangles,
@@ -103,7 +103,7 @@ fn print_summary(name: &str, r: &CullBenchReport) {
             .map(|v| format!(", {v:.1} blocks intersect a view on average"))
             .unwrap_or_default()
     );
-    println!(
+    outln!(
         "{:<9} {:>9} {:>7} {:>10} {:>10} {:>10} {:>10} {:>9} {:>12} {:>7}",
         "structure",
         "build ms",
@@ -117,7 +117,7 @@ fn print_summary(name: &str, r: &CullBenchReport) {
         "f.culls"
     );
     for s in &r.structures {
-        println!(
+        outln!(
             "{:<9} {:>9.2} {:>7} {:>10.1} {:>10.1} {:>10.1} {:>10.1} {:>9.1} {:>12.0} {:>7}",
             s.name,
             s.build_ms,
@@ -132,17 +132,18 @@ fn print_summary(name: &str, r: &CullBenchReport) {
         );
     }
     if let Some(x) = r.bqr_over_vamsplit() {
-        println!(
+        outln!(
             "BqR/VAMSplit: cull time {:.3}, nodes visited {:.3}, plane tests {:.3}, triangles {:.3} (seed 003 Table 1: frame time 0.638)",
             x[0], x[1], x[2], x[3]
         );
     }
     for v in &r.volumes {
-        println!(
+        outln!(
             "per-block {:<10} false accepts {:>6.2} % of {} accepted",
             v.volume,
             100.0 * v.false_accept_rate,
             v.accepted
         );
     }
+    Ok(())
 }
