@@ -382,7 +382,8 @@ fn clean_ring(
     if pts.len() < 3 {
         return Err(RingProblem::TooFew(pts.len()));
     }
-    if ring_is_simple(&pts) && ring_signed_area(&pts) == 0.0 {
+    // The area first: it is O(n) and almost never zero, so the simplicity test is rarely run.
+    if ring_signed_area(&pts) == 0.0 && ring_is_simple(&pts) {
         return Err(RingProblem::ZeroArea);
     }
     Ok(pts)
@@ -600,6 +601,9 @@ fn ring_bbox(r: &[Coord<f64>]) -> [f64; 4] {
 /// meet its own (an R-tree lookup); the smallest such j for the smallest i is the answer.
 fn first_interacting_rings(rings: &[&[Coord<f64>]]) -> Option<(usize, usize)> {
     let total: usize = rings.iter().map(|r| r.len()).sum();
+    if rings.len() < 2 {
+        return None;
+    }
     if total < INDEX_MIN_EDGES {
         return first_interacting_rings_pairwise(rings);
     }
@@ -662,6 +666,9 @@ fn first_interacting_rings_pairwise(rings: &[&[Coord<f64>]]) -> Option<(usize, u
 /// itself is called on every ring.
 fn ring_locations(rings: &[&[Coord<f64>]], points: &[Coord<f64>]) -> Vec<Vec<(usize, Location)>> {
     let total: usize = rings.iter().map(|r| r.len()).sum();
+    if points.is_empty() {
+        return Vec::new();
+    }
     if total < INDEX_MIN_EDGES {
         return points
             .iter()
