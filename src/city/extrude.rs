@@ -5,20 +5,24 @@
 //!   not shared with other faces (flat shading), so closedness is a property of *positions*.
 //! - Roof and floor: the footprint triangulated with spade's constrained Delaunay triangulation,
 //!   every ring edge a constraint; triangles outside the footprint (in a courtyard, or in the
-//!   convex hull outside the exterior) are dropped by the exact point-in-polygon test of their
-//!   centroid ([`point_in_polygon`]).
+//!   convex hull outside the exterior) are dropped. Which triangles are inside is found by a
+//!   flood fill from the outer face that flips inside/outside at every constraint edge it
+//!   crosses (the even-odd rule, decided by the triangulation's own topology): O(n) after the
+//!   O(n log n) triangulation, where testing each triangle's centroid against the polygon cost
+//!   O(n) per triangle, O(n²) in all. For a valid footprint both give the same triangles (a
+//!   test compares them); the flood fill also stays right for slivers whose rounded centroid
+//!   falls on or across an edge.
 //! - Coordinates: the frame origin is subtracted in f64 before the one conversion to f32.
 
 use std::collections::HashMap;
 
-use geo_types::Coord;
 use glam::{DVec2, DVec3, Vec3};
 use spade::{ConstrainedDelaunayTriangulation, Point2, Triangulation};
 
 use super::appearance::{building_style, ring_u};
 use super::mesh::{Mesh, VertexAppearance};
 use super::model::{Building, City, LocalFrame};
-use crate::geom::predicates::{open_ring, orient2d, point_in_polygon, Location, Orientation};
+use crate::geom::predicates::{open_ring, orient2d, Orientation};
 
 /// Why a building could not be extruded.
 #[derive(Clone, Debug, PartialEq, thiserror::Error)]
@@ -103,25 +107,7 @@ pub fn try_extrude_building(b: &Building, frame: &LocalFrame) -> Result<Mesh, Ex
             duplicates: n_in - cdt.num_vertices(),
         });
     }
-    let mut cap: Vec<[u32; 3]> = Vec::new();
-    for f in cdt.inner_faces() {
-        let v = f.vertices();
-        let p = v.map(|h| h.position());
-        let c = Coord {
-            x: (p[0].x + p[1].x + p[2].x) / 3.0,
-            y: (p[0].y + p[1].y + p[2].y) / 3.0,
-        };
-        if point_in_polygon(c, &lp) == Location::Inside {
-            let idx = v.map(|h| h.fix().index() as u32);
-            // spade's faces are counter-clockwise; make sure (exactly).
-            let [a, b2, c2] = p.map(|q| DVec2::new(q.x, q.y));
-            if orient2d(a, b2, c2) != Orientation::Clockwise {
-                cap.push(idx);
-            } else {
-                cap.push([idx[0], idx[2], idx[1]]);
-            }
-        }
-    }
+    let cap = cap_triangles(&cdt);
 
     // The footprint is already local (origin subtracted in f64): this is the one f32 rounding.
     let p32 = |x: f64, y: f64, z: f64| LocalFrame::round_to_f32(DVec3::new(x, y, z));
@@ -181,6 +167,61 @@ pub fn try_extrude_building(b: &Building, frame: &LocalFrame) -> Result<Mesh, Ex
         }
     }
     Ok(m)
+}
+
+/// The footprint's CDT.
+type Cdt = ConstrainedDelaunayTriangulation<Point2<f64>>;
+
+/// The triangles of the CDT inside the footprint, in spade's face order, counter-clockwise (as
+/// vertex indices).
+///
+/// A breadth-first flood fill over the faces: the outer face is outside, and crossing an edge
+/// flips inside/outside exactly when the edge is a constraint (a ring edge). A face is inside
+/// when an odd number of ring edges separate it from the outer face: inside the exterior and
+/// outside every hole. O(faces).
+fn cap_triangles(cdt: &Cdt) -> Vec<[u32; 3]> {
+    let mut inside: Vec<Option<bool>> = vec![None; cdt.num_all_faces()];
+    inside[cdt.outer_face().fix().index()] = Some(false);
+    let mut queue = std::collections::VecDeque::new();
+    // Seeds: the faces on the convex hull, next to the outer face.
+    for f in cdt.inner_faces() {
+        for e in f.adjacent_edges() {
+            if e.rev().face().is_outer() && inside[f.fix().index()].is_none() {
+                inside[f.fix().index()] = Some(e.is_constraint_edge());
+                queue.push_back(f);
+            }
+        }
+    }
+    while let Some(f) = queue.pop_front() {
+        let here = inside[f.fix().index()].expect("queued faces are classified");
+        for e in f.adjacent_edges() {
+            if let Some(g) = e.rev().face().as_inner() {
+                let slot = &mut inside[g.fix().index()];
+                if slot.is_none() {
+                    *slot = Some(here != e.is_constraint_edge());
+                    queue.push_back(g);
+                }
+            }
+        }
+    }
+    cdt.inner_faces()
+        .filter(|f| inside[f.fix().index()] == Some(true))
+        .map(|f| oriented(f.vertices()))
+        .collect()
+}
+
+/// A face's vertex indices, counter-clockwise by the exact orientation (spade's faces are
+/// counter-clockwise; this makes sure).
+fn oriented(
+    v: [spade::handles::VertexHandle<'_, Point2<f64>, (), spade::CdtEdge<()>>; 3],
+) -> [u32; 3] {
+    let idx = v.map(|h| h.fix().index() as u32);
+    let [a, b, c] = v.map(|h| DVec2::new(h.position().x, h.position().y));
+    if orient2d(a, b, c) != Orientation::Clockwise {
+        idx
+    } else {
+        [idx[0], idx[2], idx[1]]
+    }
 }
 
 /// Extrudes a building of a [`City`] (valid by construction) into a closed prism in the local
@@ -297,7 +338,7 @@ mod tests {
     use crate::city::model::{BuildingId, HeightSource};
     use crate::geom::predicates::polygon_area;
     use crate::geom::repair::repair_polygon;
-    use geo_types::{LineString, Polygon};
+    use geo_types::{Coord, LineString, Polygon};
     use proptest::prelude::*;
 
     fn building(p: Polygon<f64>, h: f64, min: f64) -> Building {
@@ -435,6 +476,36 @@ mod tests {
         assert!(std::error::Error::source(&e).is_some());
     }
 
+    /// The former classification, kept as the reference: a triangle is kept when its centroid
+    /// is inside the polygon by the exact point-in-polygon test. O(n) per triangle.
+    fn cap_triangles_by_centroid(cdt: &Cdt, lp: &Polygon<f64>) -> Vec<[u32; 3]> {
+        use crate::geom::predicates::{point_in_polygon, Location};
+        cdt.inner_faces()
+            .filter(|f| {
+                let p = f.vertices().map(|h| h.position());
+                let c = Coord {
+                    x: (p[0].x + p[1].x + p[2].x) / 3.0,
+                    y: (p[0].y + p[1].y + p[2].y) / 3.0,
+                };
+                point_in_polygon(c, lp) == Location::Inside
+            })
+            .map(|f| oriented(f.vertices()))
+            .collect()
+    }
+
+    /// The CDT of a polygon's rings, as [`try_extrude_building`] builds it.
+    fn cdt_of(p: &Polygon<f64>) -> Cdt {
+        let mut verts = Vec::new();
+        let mut edges = Vec::new();
+        for ring in std::iter::once(p.exterior()).chain(p.interiors()) {
+            let r = open_ring(&ring.0);
+            let start = verts.len();
+            verts.extend(r.iter().map(|c| Point2::new(c.x, c.y)));
+            edges.extend((0..r.len()).map(|i| [start + i, start + (i + 1) % r.len()]));
+        }
+        Cdt::bulk_load_cdt(verts, edges).unwrap()
+    }
+
     fn star(n: usize, seed: u64, cx: f64, cy: f64, rmin: f64, rmax: f64) -> Vec<(f64, f64)> {
         use rand::{Rng, SeedableRng};
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
@@ -483,5 +554,73 @@ mod tests {
             // And against the exact f64 area, up to f32 rounding of the coordinates.
             prop_assert!(((area - polygon_area(&p)) / polygon_area(&p)).abs() < 1e-5);
         }
+
+        /// The flood fill keeps exactly the triangles the centroid test kept, on star-shaped
+        /// footprints with holes, comb-like ones on an integer grid (many collinear edges) and
+        /// footprints whose holes touch nothing but come within a millimetre of the exterior.
+        #[test]
+        fn flood_fill_matches_the_centroid_test(
+            n in 3usize..60, seed in any::<u64>(), holes in 0usize..3, grid in any::<bool>(),
+            off in prop_oneof![Just(0.0), Just(1.0e7)],
+        ) {
+            let mut ext = star(n, seed, off, off, 40.0, 60.0);
+            if grid {
+                for p in &mut ext {
+                    *p = ((p.0 - off).round() + off, (p.1 - off).round() + off);
+                }
+            }
+            let hs: Vec<LineString<f64>> = (0..holes)
+                .map(|k| {
+                    let a = std::f64::consts::TAU * k as f64 / 3.0;
+                    let mut s = star(3 + (seed as usize + k) % 6, seed ^ k as u64, off + 22.0 * a.cos(), off + 22.0 * a.sin(), 3.0, 8.0);
+                    s.reverse();
+                    LineString::from(s)
+                })
+                .collect();
+            let Ok(rep) = repair_polygon(&Polygon::new(LineString::from(ext), hs)) else {
+                return Ok(());
+            };
+            for p in &rep.polygons {
+                let frame = LocalFrame { origin: DVec3::new(off, off, 0.0) };
+                let lp = frame.to_local_polygon(p);
+                let cdt = cdt_of(&lp);
+                prop_assert_eq!(cap_triangles(&cdt), cap_triangles_by_centroid(&cdt, &lp));
+            }
+        }
+    }
+
+    #[test]
+    fn comb_footprint_triangles_match_the_centroid_test() {
+        // A comb: 200 teeth, deep notches, many collinear vertices along the spine.
+        let mut pts = vec![(0.0, 0.0)];
+        for k in 0..200 {
+            let x = 2.0 * k as f64;
+            pts.extend([
+                (x + 0.5, 0.0),
+                (x + 0.5, -30.0),
+                (x + 1.5, -30.0),
+                (x + 1.5, 0.0),
+            ]);
+        }
+        pts.extend([(400.0, 0.0), (400.0, 10.0), (0.0, 10.0), (0.0, 0.0)]);
+        pts.dedup();
+        let p = Polygon::new(LineString::from(pts), vec![square(100.0, 2.0, 5.0, false)]);
+        let rep = repair_polygon(&p).unwrap();
+        assert_eq!(rep.polygons.len(), 1);
+        let cdt = cdt_of(&rep.polygons[0]);
+        let flood = cap_triangles(&cdt);
+        assert_eq!(flood, cap_triangles_by_centroid(&cdt, &rep.polygons[0]));
+        // V + 2H − 2 triangles: the comb's vertices plus the hole's.
+        let v = cdt.num_vertices();
+        assert_eq!(flood.len(), v + 2 - 2);
+        let m = try_extrude_building(
+            &building(rep.polygons[0].clone(), 5.0, 0.0),
+            &LocalFrame {
+                origin: DVec3::ZERO,
+            },
+        )
+        .unwrap();
+        check_closed(&m).unwrap();
+        assert!((roof_area(&m) - polygon_area(&rep.polygons[0])).abs() < 1e-6);
     }
 }

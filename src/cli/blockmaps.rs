@@ -110,15 +110,15 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     std::fs::write(&path, serde_json::to_string_pretty(&summary)?)
         .with_context(|| format!("writing {}", path.display()))?;
     if args.json {
-        println!("{}", serde_json::to_string(&summary)?);
+        outln!("{}", serde_json::to_string(&summary)?);
     } else {
-        print_summary(&summary);
+        print_summary(&summary)?;
     }
     Ok(())
 }
 
-fn print_summary(s: &serde_json::Value) {
-    println!(
+fn print_summary(s: &serde_json::Value) -> anyhow::Result<()> {
+    outln!(
         "{}: {} BlockMaps at K = {} ({} KiB each), {:.1} MiB, {:.2} MiB per km² over {:.2} km², built in {:.1} s",
         s["city"].as_str().unwrap_or(""),
         s["maps"],
@@ -129,10 +129,10 @@ fn print_summary(s: &serde_json::Value) {
         s["area_km2"].as_f64().unwrap_or(0.0),
         s["build_s"].as_f64().unwrap_or(0.0)
     );
-    println!("| level | maps | texel m | ½ voxel diag m | ε measured m | ε declared m | exposed | shared cols | slices | thin |");
-    println!("|---|---|---|---|---|---|---|---|---|---|");
+    outln!("| level | maps | texel m | ½ voxel diag m | ε measured m | ε declared m | exposed | shared cols | slices | thin |");
+    outln!("|---|---|---|---|---|---|---|---|---|---|");
     for l in s["levels"].as_array().into_iter().flatten() {
-        println!(
+        outln!(
             "| {} | {} | {:.2} | {:.2} | {:.2} | {:.2} | {} | {} | {} | {} |",
             l["level"],
             l["maps"],
@@ -146,12 +146,12 @@ fn print_summary(s: &serde_json::Value) {
             l["thin_features"]
         );
     }
-    println!(
+    outln!(
         "thin features: {} ({} raised parts, {} bridges, {} buildings dropped by point sampling)",
         s["thin_features"], s["raised_parts"], s["bridges"], s["dropped_buildings"]
     );
     for t in s["thin"].as_array().into_iter().flatten().take(10) {
-        println!(
+        outln!(
             "  node {} level {}: {} building {} ({}) error {:.2} m",
             t["node"],
             t["level"],
@@ -162,7 +162,7 @@ fn print_summary(s: &serde_json::Value) {
         );
     }
     if !s["ao"].is_null() {
-        println!(
+        outln!(
             "ambient occlusion: mean openness roofs {:.3}, ground {:.3}, walls {:.3}; {:.1} % of texels below 0.9",
             s["ao"]["roof_mean"].as_f64().unwrap_or(0.0),
             s["ao"]["ground_mean"].as_f64().unwrap_or(0.0),
@@ -172,7 +172,7 @@ fn print_summary(s: &serde_json::Value) {
     }
     let checks = s["checks"].as_array().map(|a| a.len()).unwrap_or(0);
     if checks > 0 {
-        println!(
+        outln!(
             "checked {} maps against the meshes: coverage error max {:.4}, bound violations {}, PSNR min {} dB",
             checks,
             s["coverage_error_max"].as_f64().unwrap_or(0.0),
@@ -180,4 +180,5 @@ fn print_summary(s: &serde_json::Value) {
             s["psnr_min_db"]
         );
     }
+    Ok(())
 }

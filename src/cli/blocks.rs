@@ -96,16 +96,21 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         v["buildings"] = serde_json::json!(city.buildings.len());
         v["crs"] = serde_json::json!(city.transform.describe());
         v["street_layer_unusable"] = serde_json::json!(city.report.street_layer_unusable);
-        println!("{}", serde_json::to_string(&v)?);
+        outln!("{}", serde_json::to_string(&v)?);
     } else {
         if let Some(why) = &city.report.street_layer_unusable {
-            println!("street layer unusable, blocks do not come from it: {why}");
+            outln!("street layer unusable, blocks do not come from it: {why}");
         }
-        println!(
+        outln!(
             "{}: {} blocks from {:?} ({:.0} m², {:.1} in the input's units), {} outskirts groups",
-            city.name, s.blocks, s.source, s.total_area_m2, s.total_area, s.outskirts_groups
+            city.name,
+            s.blocks,
+            s.source,
+            s.total_area_m2,
+            s.total_area,
+            s.outskirts_groups
         );
-        println!(
+        outln!(
             "buildings: {} in blocks, {} in outskirts; street graph: {} edges, {} dangles; {ms:.1} ms",
             s.buildings_assigned, s.buildings_outskirts, s.street_edges, s.dangles
         );

@@ -100,10 +100,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 "triangles_accepted": r[3],
             });
         }
-        println!("{}", serde_json::to_string(&v)?);
+        outln!("{}", serde_json::to_string(&v)?);
     } else {
-        print_summary(&name, &report);
-        print_side_by_side(&report, &occlusion);
+        print_summary(&name, &report)?;
+        print_side_by_side(&report, &occlusion)?;
     }
     let false_culls: u64 = report.structures.iter().map(|s| s.false_culls).sum();
     if false_culls > 0 {
@@ -183,15 +183,15 @@ fn occlusion_side_by_side(
     Ok(rows)
 }
 
-fn print_side_by_side(r: &CullBenchReport, occ: &[OcclusionRow]) {
+fn print_side_by_side(r: &CullBenchReport, occ: &[OcclusionRow]) -> anyhow::Result<()> {
     if occ.is_empty() {
-        return;
+        return Ok(());
     }
-    println!(
+    outln!(
         "frustum only vs frustum + occlusion (cull map at the culler's default resolution), same views; {} views drew no map",
         occ.first().map_or(0, |o| o.skipped)
     );
-    println!(
+    outln!(
         "{:<9} | {:>10} {:>9} {:>8} | {:>10} {:>10} {:>9} {:>9} {:>8}",
         "structure",
         "µs md",
@@ -207,7 +207,7 @@ fn print_side_by_side(r: &CullBenchReport, occ: &[OcclusionRow]) {
         let Some(s) = r.structures.iter().find(|s| s.name == o.name) else {
             continue;
         };
-        println!(
+        outln!(
             "{:<9} | {:>10.1} {:>9.1} {:>8.1} | {:>10.1} {:>10.1} {:>9.1} {:>9.1} {:>8.1}",
             o.name,
             s.cull_us_median,
@@ -220,10 +220,11 @@ fn print_side_by_side(r: &CullBenchReport, occ: &[OcclusionRow]) {
             o.blocks_mean
         );
     }
+    Ok(())
 }
 
-fn print_summary(name: &str, r: &CullBenchReport) {
-    println!(
+fn print_summary(name: &str, r: &CullBenchReport) -> anyhow::Result<()> {
+    outln!(
         "{name}: {} blocks, {} triangles, {} views (seed {}){}",
         r.blocks,
         r.triangles,
@@ -233,7 +234,7 @@ fn print_summary(name: &str, r: &CullBenchReport) {
             .map(|v| format!(", {v:.1} blocks intersect a view on average"))
             .unwrap_or_default()
     );
-    println!(
+    outln!(
         "{:<9} {:>9} {:>7} {:>10} {:>10} {:>10} {:>10} {:>9} {:>12} {:>7}",
         "structure",
         "build ms",
@@ -247,7 +248,7 @@ fn print_summary(name: &str, r: &CullBenchReport) {
         "f.culls"
     );
     for s in &r.structures {
-        println!(
+        outln!(
             "{:<9} {:>9.2} {:>7} {:>10.1} {:>10.1} {:>10.1} {:>10.1} {:>9.1} {:>12.0} {:>7}",
             s.name,
             s.build_ms,
@@ -262,7 +263,7 @@ fn print_summary(name: &str, r: &CullBenchReport) {
         );
     }
     if let Some(s) = &r.bqr_box_leaves {
-        println!(
+        outln!(
             "{:<9} {:>9.2} {:>7} {:>10.1} {:>10.1} {:>10.1} {:>10.1} {:>9.1} {:>12.0} {:>7}   (bqr with box-only leaves: each block's sphere replaced by its box's)",
             "bqr-box",
             s.build_ms,
@@ -277,17 +278,18 @@ fn print_summary(name: &str, r: &CullBenchReport) {
         );
     }
     if let Some(x) = r.bqr_over_vamsplit() {
-        println!(
+        outln!(
             "BqR/VAMSplit: cull time {:.3}, nodes visited {:.3}, plane tests {:.3}, triangles {:.3} (seed 003 Table 1: frame time 0.638)",
             x[0], x[1], x[2], x[3]
         );
     }
     for v in &r.volumes {
-        println!(
+        outln!(
             "per-block {:<10} false accepts {:>6.2} % of {} accepted",
             v.volume,
             100.0 * v.false_accept_rate,
             v.accepted
         );
     }
+    Ok(())
 }

@@ -227,11 +227,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     ];
     let started = std::time::Instant::now();
     for (i, s) in steps.iter().enumerate() {
-        println!("\n== {}/{} {}", i + 1, steps.len(), s.title);
-        println!("   $ {}", s.argv.join(" "));
+        outln!("\n== {}/{} {}", i + 1, steps.len(), s.title);
+        outln!("   $ {}", s.argv.join(" "));
         super::run_argv(&s.argv)?;
     }
-    println!(
+    outln!(
         "\ndemo done in {:.1} s; open {} (the walk report), and the maps and .glb files in {}",
         started.elapsed().as_secs_f64(),
         hel_walk.join("report.html").display(),

@@ -46,7 +46,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let write_ms = t1.elapsed().as_secs_f64() * 1e3;
     pb.finish_and_clear();
     if args.json {
-        println!(
+        outln!(
             "{}",
             json!({
                 "output": args.output,
@@ -61,7 +61,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             })
         );
     } else {
-        println!(
+        outln!(
             "wrote {}: {} buildings, {} street segments, {} parcels in {} blocks ({:.0} ms + {:.0} ms)",
             args.output.display(),
             w.buildings,

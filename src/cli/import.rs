@@ -66,7 +66,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                     Some(BuildError::NoBuildings { reasons, .. }) => json!(reasons),
                     _ => json!([]),
                 };
-                println!(
+                outln!(
                     "{}",
                     json!({"error": format!("{e:#}"), "refused_by_reason": reasons})
                 );
@@ -131,10 +131,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             "export_ms": export_ms,
             "peak_memory_bytes": peak,
         });
-        println!("{v}");
+        outln!("{v}");
     } else {
-        println!("{}: {}", city.name, r.crs);
-        println!(
+        outln!("{}: {}", city.name, r.crs);
+        outln!(
             "footprints: {} read, {} imported, {} repaired, {} refused → {} buildings, {:.0} m²",
             r.buildings_read,
             r.buildings_imported,
@@ -144,10 +144,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             area
         );
         for n in r.buildings_repaired.iter().take(5) {
-            println!("  repaired {}: {}", n.id, n.what);
+            outln!("  repaired {}: {}", n.id, n.what);
         }
         for g in &r.refused_by_reason {
-            println!(
+            outln!(
                 "  refused {} × {} (e.g. {})",
                 g.count,
                 g.reason,
@@ -161,7 +161,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 .take(5)
                 .map(|h| format!("{} {}={}", h.id, h.field, h.value))
                 .collect();
-            println!(
+            outln!(
                 "implausible heights: {} ({}{})",
                 r.implausible_heights.len(),
                 ids.join(", "),
@@ -173,22 +173,22 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             );
         }
         for n in r.notes.iter().filter(|n| n.starts_with("warning:")) {
-            println!("{n}");
+            outln!("{n}");
         }
         let hs: Vec<String> = r
             .height_sources
             .iter()
             .map(|(k, v)| format!("{k} {v}"))
             .collect();
-        println!("heights: {}", hs.join(", "));
+        outln!("heights: {}", hs.join(", "));
         if !city.streets.is_empty() || !city.parcels.is_empty() {
-            println!(
+            outln!(
                 "streets: {} lines, parcels: {}",
                 city.streets.len(),
                 city.parcels.len()
             );
         }
-        println!(
+        outln!(
             "meshes: {} triangles{}",
             triangles,
             if errors.is_empty() {
@@ -198,10 +198,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             }
         );
         for e in errors.iter().take(5) {
-            println!("  {e}");
+            outln!("  {e}");
         }
         if let (Some(out), Some(g)) = (&args.output, glb) {
-            println!(
+            outln!(
                 "wrote {} ({} nodes, {} bytes)",
                 out.display(),
                 g.nodes,
@@ -209,9 +209,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             );
         }
         if let Some(out) = &args.geojson {
-            println!("wrote {}", out.display());
+            outln!("wrote {}", out.display());
         }
-        println!(
+        outln!(
             "time: import {import_ms:.0} ms, extrude {extrude_ms:.0} ms, export {export_ms:.0} ms{}",
             peak.map(|p| format!("; peak memory {:.0} MiB", p as f64 / 1048576.0))
                 .unwrap_or_default()

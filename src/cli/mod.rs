@@ -1,6 +1,37 @@
 //! Command-line interface: one module per subcommand. The only place `anyhow` is used.
+//!
+//! Everything printed to standard output goes through [`outln!`] / [`out!`], which turn a closed
+//! pipe (`blockwalk import … --json | head -c 10`) into [`StdoutClosed`]: the command stops, and
+//! the process exits quietly with status 0, as when the reader has read all it wanted (the
+//! conventional alternative, dying of SIGPIPE with status 141, would make `set -o pipefail`
+//! scripts fail for a reader that stopped early on purpose). Other write errors on standard
+//! output are reported as errors.
+
+use std::io::Write;
 
 use clap::{Parser, Subcommand};
+
+/// `println!` that returns [`StdoutClosed`] (through `?`) instead of panicking when standard
+/// output is a closed pipe.
+macro_rules! outln {
+    () => {
+        out!("\n")
+    };
+    ($($arg:tt)*) => {
+        out!("{}\n", ::std::format_args!($($arg)*))
+    };
+}
+
+/// `print!` that returns [`StdoutClosed`] (through `?`) instead of panicking when standard
+/// output is a closed pipe.
+macro_rules! out {
+    ($($arg:tt)*) => {
+        $crate::cli::stdout_written(::std::io::Write::write_fmt(
+            &mut ::std::io::stdout().lock(),
+            ::std::format_args!($($arg)*),
+        ))?
+    };
+}
 
 mod blockmaps;
 mod blocks;
@@ -43,12 +74,30 @@ enum Command {
     View(view::Args),
 }
 
+/// Standard output was closed by its reader: the command stops, and the process exits with
+/// status 0 without a message (see the module doc).
+#[derive(Debug, thiserror::Error)]
+#[error("standard output was closed")]
+pub struct StdoutClosed;
+
+/// The result of a write to standard output: a broken pipe becomes [`StdoutClosed`], other
+/// errors say they happened on standard output.
+pub fn stdout_written(r: std::io::Result<()>) -> anyhow::Result<()> {
+    match r {
+        Ok(()) => Ok(()),
+        Err(e) if e.kind() == std::io::ErrorKind::BrokenPipe => Err(StdoutClosed.into()),
+        Err(e) => Err(anyhow::Error::new(e).context("writing to standard output")),
+    }
+}
+
 pub fn main() -> std::process::ExitCode {
     let cli = Cli::parse();
     match dispatch(cli.command) {
         Ok(()) => std::process::ExitCode::SUCCESS,
+        Err(e) if e.chain().any(|c| c.is::<StdoutClosed>()) => std::process::ExitCode::SUCCESS,
         Err(e) => {
-            eprintln!("error: {e:#}");
+            // Standard error may be closed too: the exit status still tells.
+            let _ = writeln!(std::io::stderr(), "error: {e:#}");
             std::process::ExitCode::FAILURE
         }
     }

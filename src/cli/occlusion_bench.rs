@@ -143,9 +143,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         .with_context(|| format!("writing {}", p.display()))?;
     }
     if args.json {
-        println!("{}", serde_json::to_string(&report)?);
+        outln!("{}", serde_json::to_string(&report)?);
     } else {
-        println!(
+        outln!(
             "{}: {} buildings, {} blocks; {} views ({} street); oracle {}x{}: {:.1} blocks in frustum, {:.1} visible per view",
             city.name,
             city.buildings.len(),
@@ -157,9 +157,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             report.mean_in_frustum,
             report.mean_visible
         );
-        println!("  res   cells      ms(med)  build  test   occl  culled  false  effect  street  flying  skipped");
+        outln!("  res   cells      ms(med)  build  test   occl  culled  false  effect  street  flying  skipped");
         for r in &report.resolutions {
-            println!(
+            outln!(
                 "  {:<5} {:>4}x{:<4} {:>7.3} {:>6.3} {:>6.3} {:>6.1} {:>7.1} {:>6} {:>6.1}% {:>6.1}% {:>6.1}% {:>7}",
                 r.resolution,
                 r.cells.0,
@@ -177,7 +177,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             );
         }
         if !report.false_cull_examples.is_empty() {
-            println!("  FALSE CULLS (first): {:?}", report.false_cull_examples);
+            outln!("  FALSE CULLS (first): {:?}", report.false_cull_examples);
         }
     }
     if report.resolutions.iter().any(|r| r.false_culls > 0) {

@@ -110,9 +110,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         j["city"] = serde_json::json!(name);
         j["structure"] = serde_json::json!(args.structure);
         j["occlusion"] = serde_json::json!(occlusion);
-        println!("{}", serde_json::to_string(&j)?);
+        outln!("{}", serde_json::to_string(&j)?);
     } else {
-        println!(
+        outln!(
             "{name}: {} frames at {:.1} fps on {}; last frame {} blocks, {} triangles ({}{})",
             summary.frames,
             summary.fps,
@@ -123,7 +123,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             if occlusion { " + occlusion" } else { "" }
         );
         if let Some(p) = &summary.screenshot {
-            println!("screenshot: {}", p.display());
+            outln!("screenshot: {}", p.display());
         }
     }
     Ok(())

@@ -150,9 +150,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         let mut j = report::walk::json(&record);
         j["out"] = serde_json::json!(args.out);
         j["files"] = serde_json::json!(files);
-        println!("{}", serde_json::to_string(&j)?);
+        outln!("{}", serde_json::to_string(&j)?);
     } else {
-        print_summary(&record, &args.out);
+        print_summary(&record, &args.out)?;
     }
     if let Some(n) = record.false_culls().filter(|&n| n > 0) {
         anyhow::bail!("{n} false culls (blocks the oracle sees were dropped): a culler is broken");
@@ -160,24 +160,25 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     Ok(())
 }
 
-fn print_summary(record: &WalkRecord, out: &std::path::Path) {
-    println!(
+fn print_summary(record: &WalkRecord, out: &std::path::Path) -> anyhow::Result<()> {
+    outln!(
         "{}: route {} with {} frames; renderer: {}",
         record.city,
         record.route,
         record.cameras.len(),
         record.renderer
     );
-    print!(
+    out!(
         "{}",
         report::walk::markdown::summary_markdown(&record.summary)
     );
     for n in &record.notes {
-        println!("note: {n}");
+        outln!("note: {n}");
     }
-    println!(
+    outln!(
         "report: {} ({:.1} s)",
         out.join("report.html").display(),
         record.total_s
     );
+    Ok(())
 }

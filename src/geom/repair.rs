@@ -19,14 +19,31 @@
 //! filled), each hole is treated the same way, and the holes are subtracted. The overlay may
 //! snap coordinates to its integer grid (sub-micrometre at building scale). Every resulting part
 //! is validated again; a part that is still invalid refuses the polygon.
+//!
+//! # Cost
+//!
+//! Every step is O(n log n) in the number of vertices for footprints whose edges are short
+//! relative to the footprint (any real or generated one). Spikes are removed with a min-heap over
+//! a linked ring instead of rescanning the ring after each removal. Simplicity, contacts between
+//! rings and hole containment look edges up in an R-tree ([`rstar`]) of their bounding boxes: an
+//! edge is tested exactly only against the edges whose boxes meet its own, and a point only
+//! against the edges whose boxes meet the ray of its crossing test. The exact tests themselves
+//! are unchanged, so the answers are those of the plain pairwise loops, which are kept as the
+//! tests' brute-force references and used below [`INDEX_MIN_EDGES`] edges (where they are
+//! faster). The indexed search costs O(n log n + k), with k the number of pairs of overlapping
+//! edge boxes: k is O(n) for rings of short edges, but a pathological ring of long, mutually
+//! overlapping edges (a spiral turned 45°) can still make it grow as n².
 
+use std::cmp::Reverse;
+use std::collections::BinaryHeap;
 use std::fmt;
 
 use geo::algorithm::bool_ops::{BooleanOps, FillRule, OpType};
 use geo_types::{Coord, LineString, MultiPolygon, Polygon};
+use rstar::{RTree, RTreeObject, AABB};
 
 use super::predicates::{
-    on_segment, orient2d, point_in_ring, ring_signed_area, segments_intersect, Location,
+    on_segment, open_ring, orient2d, point_in_ring, ring_signed_area, segments_intersect, Location,
     Orientation, SegmentIntersection,
 };
 
@@ -215,9 +232,18 @@ pub fn repair_rings(exterior: &[Coord<f64>], holes: &[&[Coord<f64>]]) -> Result<
         ext.reverse();
         actions.push(RepairAction::Rewound { ring: 0 });
     }
-    let mut kept: Vec<(usize, Vec<Coord<f64>>)> = Vec::new();
-    for (k, mut h) in hs {
-        if point_in_ring(h[0], &ext) != Location::Inside {
+    // Where each hole's first point lies against the exterior (ring 0) and the other holes.
+    let locs = {
+        let rings: Vec<&[Coord<f64>]> = std::iter::once(&ext[..])
+            .chain(hs.iter().map(|(_, h)| &h[..]))
+            .collect();
+        let firsts: Vec<Coord<f64>> = hs.iter().map(|(_, h)| h[0]).collect();
+        ring_locations(&rings, &firsts)
+    };
+    // `kept` holds (ring index, hole, position in `hs`).
+    let mut kept: Vec<(usize, Vec<Coord<f64>>, usize)> = Vec::new();
+    for (pos, (k, mut h)) in hs.into_iter().enumerate() {
+        if location_in(&locs[pos], 0) != Location::Inside {
             actions.push(RepairAction::DroppedHole {
                 ring: k,
                 why: "outside the exterior".into(),
@@ -228,20 +254,26 @@ pub fn repair_rings(exterior: &[Coord<f64>], holes: &[&[Coord<f64>]]) -> Result<
             h.reverse();
             actions.push(RepairAction::Rewound { ring: k });
         }
-        kept.push((k, h));
+        kept.push((k, h, pos));
     }
-    // A hole inside another hole lies in the void: drop it.
+    // A hole inside another hole lies in the void: drop it. Hole i is nested when its first
+    // point is inside a kept hole j that is not itself nested (j > i is not decided yet, so it
+    // counts).
+    let mut kept_at: Vec<Option<usize>> = vec![None; locs.len()];
+    for (i, (_, _, pos)) in kept.iter().enumerate() {
+        kept_at[*pos] = Some(i);
+    }
     let mut nested = vec![false; kept.len()];
     for i in 0..kept.len() {
-        for j in 0..kept.len() {
-            if i != j && !nested[j] && point_in_ring(kept[i].1[0], &kept[j].1) == Location::Inside {
-                nested[i] = true;
-                break;
-            }
-        }
+        nested[i] = locs[kept[i].2].iter().any(|&(ring, l)| {
+            // Ring 0 is the exterior; ring r ≥ 1 is `hs[r - 1]`.
+            l == Location::Inside
+                && ring > 0
+                && kept_at[ring - 1].is_some_and(|j| j != i && (j > i || !nested[j]))
+        });
     }
     let mut interiors = Vec::new();
-    for ((k, h), n) in kept.into_iter().zip(nested) {
+    for ((k, h, _), n) in kept.into_iter().zip(nested) {
         if n {
             actions.push(RepairAction::DroppedHole {
                 ring: k,
@@ -287,14 +319,19 @@ pub fn check_polygon(poly: &Polygon<f64>) -> Result<(), String> {
     if let Some((i, j)) = first_interacting_rings(&open) {
         return Err(format!("ring {i} touches or crosses ring {j}"));
     }
+    let firsts: Vec<Coord<f64>> = open[1..].iter().map(|h| h[0]).collect();
+    let locs = ring_locations(&open, &firsts);
     for k in 1..open.len() {
-        if point_in_ring(open[k][0], open[0]) != Location::Inside {
+        let l = &locs[k - 1];
+        if location_in(l, 0) != Location::Inside {
             return Err(format!("hole {k} is outside the exterior"));
         }
-        for j in 1..open.len() {
-            if j != k && point_in_ring(open[k][0], open[j]) == Location::Inside {
-                return Err(format!("hole {k} is inside hole {j}"));
-            }
+        // Ascending ring order: the first hole that holds it.
+        if let Some(&(j, _)) = l
+            .iter()
+            .find(|&&(j, loc)| j >= 1 && j != k && loc == Location::Inside)
+        {
+            return Err(format!("hole {k} is inside hole {j}"));
         }
     }
     Ok(())
@@ -329,23 +366,7 @@ fn clean_ring(
         actions.push(RepairAction::ClosedRing { ring: idx });
     }
     let dropped = dedupe_cyclic(&mut pts);
-    let mut spikes = 0;
-    let mut more_dupes = 0;
-    loop {
-        let n = pts.len();
-        if n < 3 {
-            break;
-        }
-        let found = (0..n).find(|&i| is_spike(pts[(i + n - 1) % n], pts[i], pts[(i + 1) % n]));
-        match found {
-            Some(i) => {
-                pts.remove(i);
-                spikes += 1;
-                more_dupes += dedupe_cyclic(&mut pts);
-            }
-            None => break,
-        }
-    }
+    let (pts, spikes, more_dupes) = remove_spikes(pts);
     if dropped + more_dupes > 0 {
         actions.push(RepairAction::DroppedRepeatedPoints {
             ring: idx,
@@ -361,10 +382,77 @@ fn clean_ring(
     if pts.len() < 3 {
         return Err(RingProblem::TooFew(pts.len()));
     }
-    if ring_is_simple(&pts) && ring_signed_area(&pts) == 0.0 {
+    // The area first: it is O(n) and almost never zero, so the simplicity test is rarely run.
+    if ring_signed_area(&pts) == 0.0 && ring_is_simple(&pts) {
         return Err(RingProblem::ZeroArea);
     }
     Ok(pts)
+}
+
+/// Removes zero-width spikes from a ring that has no consecutive repeated points; returns the
+/// ring, the number of spikes removed and the number of repeated points dropped on the way.
+///
+/// The rule: while the ring has at least three points, remove the spike tip ([`is_spike`]) of
+/// lowest index, then, if its two neighbours are now equal, drop the one of higher index (the
+/// later one, or the last one across the ring's start), as [`dedupe_cyclic`] would. Removing a
+/// vertex changes the spike test of its neighbours only, so instead of rescanning the ring after
+/// each removal (O(n) per spike, O(n²) in all) the ring is a doubly linked list and every vertex
+/// whose neighbours changed goes back into a min-heap of candidates: the smallest candidate that
+/// is a spike is the lowest-index spike, because every vertex outside the heap has been tested
+/// against its present neighbours. O(n log n).
+fn remove_spikes(pts: Vec<Coord<f64>>) -> (Vec<Coord<f64>>, usize, usize) {
+    let n = pts.len();
+    if n < 3 {
+        return (pts, 0, 0);
+    }
+    let mut ring = LinkedRing {
+        next: (0..n).map(|i| (i + 1) % n).collect(),
+        prev: (0..n).map(|i| (i + n - 1) % n).collect(),
+        alive: vec![true; n],
+        len: n,
+    };
+    let mut heap: BinaryHeap<Reverse<usize>> = (0..n).map(Reverse).collect();
+    let (mut spikes, mut dupes) = (0usize, 0usize);
+    while ring.len >= 3 {
+        let Some(Reverse(i)) = heap.pop() else { break };
+        if !ring.alive[i] || !is_spike(pts[ring.prev[i]], pts[i], pts[ring.next[i]]) {
+            continue;
+        }
+        let (a, c) = ring.unlink(i);
+        spikes += 1;
+        heap.extend([Reverse(a), Reverse(c)]);
+        if pts[a] == pts[c] {
+            let (p, q) = ring.unlink(a.max(c));
+            dupes += 1;
+            heap.extend([Reverse(p), Reverse(q)]);
+        }
+    }
+    let kept = pts
+        .into_iter()
+        .zip(&ring.alive)
+        .filter_map(|(p, &a)| a.then_some(p))
+        .collect();
+    (kept, spikes, dupes)
+}
+
+/// A ring as a doubly linked list over the indices of its points.
+struct LinkedRing {
+    next: Vec<usize>,
+    prev: Vec<usize>,
+    alive: Vec<bool>,
+    len: usize,
+}
+
+impl LinkedRing {
+    /// Removes `i`; returns its former neighbours, now linked to each other.
+    fn unlink(&mut self, i: usize) -> (usize, usize) {
+        let (a, c) = (self.prev[i], self.next[i]);
+        self.next[a] = c;
+        self.prev[c] = a;
+        self.alive[i] = false;
+        self.len -= 1;
+        (a, c)
+    }
 }
 
 /// Drops consecutive repeated points, cyclically. Returns how many were dropped.
@@ -387,9 +475,51 @@ fn is_spike(a: Coord<f64>, b: Coord<f64>, c: Coord<f64>) -> bool {
         && (b.x - a.x) * (c.x - b.x) + (b.y - a.y) * (c.y - b.y) < 0.0
 }
 
+/// Below this many edges the pairwise loops are faster than building an R-tree; the answers
+/// are the same either way.
+pub const INDEX_MIN_EDGES: usize = 48;
+
 /// True when the open ring `r` (≥ 3 points) is simple: consecutive edges meet only at their
-/// shared vertex, other edges do not meet at all. O(n²) with bounding-box rejection.
+/// shared vertex, other edges do not meet at all.
+///
+/// Each edge is tested exactly ([`segments_intersect`]) against the edges whose bounding boxes
+/// meet its own, found in an R-tree (see the module doc for the cost). A ring with a non-finite
+/// coordinate (never simple in practice, and refused by [`repair_polygon`] before this is asked)
+/// goes through the pairwise loop, whose answer for NaN is defined by the predicates.
 pub fn ring_is_simple(r: &[Coord<f64>]) -> bool {
+    let n = r.len();
+    if n < 3 {
+        return false;
+    }
+    if n < INDEX_MIN_EDGES || r.iter().any(|c| !c.x.is_finite() || !c.y.is_finite()) {
+        return ring_is_simple_pairwise(r);
+    }
+    for i in 0..n {
+        let (a, b, c) = (r[i], r[(i + 1) % n], r[(i + 2) % n]);
+        // Consecutive edges a-b, b-c: must not fold back over each other.
+        if on_segment(a, b, c) || on_segment(b, c, a) {
+            return false;
+        }
+    }
+    let tree = edge_tree(&[r]);
+    for i in 0..n {
+        let (a, b) = (r[i], r[(i + 1) % n]);
+        for e in tree.locate_in_envelope_intersecting(&segment_box(a, b)) {
+            // Each unordered pair of non-consecutive edges once: j ≥ i + 2, and not (0, n − 1).
+            let j = e.edge as usize;
+            if j < i + 2 || (i == 0 && j == n - 1) {
+                continue;
+            }
+            if segments_intersect(a, b, r[j], r[(j + 1) % n]) != SegmentIntersection::None {
+                return false;
+            }
+        }
+    }
+    true
+}
+
+/// [`ring_is_simple`] by the pairwise loop: O(n²) with bounding-box rejection.
+fn ring_is_simple_pairwise(r: &[Coord<f64>]) -> bool {
     let n = r.len();
     if n < 3 {
         return false;
@@ -414,6 +544,41 @@ pub fn ring_is_simple(r: &[Coord<f64>]) -> bool {
     true
 }
 
+/// Edge `edge` (from point `edge` to the next, cyclically) of ring `ring`, in an R-tree.
+#[derive(Clone, Copy, Debug)]
+struct EdgeRef {
+    ring: u32,
+    edge: u32,
+    bbox: AABB<[f64; 2]>,
+}
+
+impl RTreeObject for EdgeRef {
+    type Envelope = AABB<[f64; 2]>;
+    fn envelope(&self) -> Self::Envelope {
+        self.bbox
+    }
+}
+
+fn segment_box(a: Coord<f64>, b: Coord<f64>) -> AABB<[f64; 2]> {
+    AABB::from_corners([a.x, a.y], [b.x, b.y])
+}
+
+/// An R-tree of every edge of the (open) rings, bulk loaded.
+fn edge_tree(rings: &[&[Coord<f64>]]) -> RTree<EdgeRef> {
+    let mut edges = Vec::with_capacity(rings.iter().map(|r| r.len()).sum());
+    for (k, r) in rings.iter().enumerate() {
+        let n = r.len();
+        for i in 0..n {
+            edges.push(EdgeRef {
+                ring: k as u32,
+                edge: i as u32,
+                bbox: segment_box(r[i], r[(i + 1) % n]),
+            });
+        }
+    }
+    RTree::bulk_load(edges)
+}
+
 fn ring_bbox(r: &[Coord<f64>]) -> [f64; 4] {
     let mut b = [
         f64::INFINITY,
@@ -430,8 +595,45 @@ fn ring_bbox(r: &[Coord<f64>]) -> [f64; 4] {
     b
 }
 
-/// The first pair of rings (indices) that touch or cross, if any.
+/// The first pair of rings (indices, lexicographically smallest) that touch or cross, if any.
+///
+/// Every edge of ring i is tested exactly against the edges of later rings whose bounding boxes
+/// meet its own (an R-tree lookup); the smallest such j for the smallest i is the answer.
 fn first_interacting_rings(rings: &[&[Coord<f64>]]) -> Option<(usize, usize)> {
+    let total: usize = rings.iter().map(|r| r.len()).sum();
+    if rings.len() < 2 {
+        return None;
+    }
+    if total < INDEX_MIN_EDGES {
+        return first_interacting_rings_pairwise(rings);
+    }
+    let tree = edge_tree(rings);
+    for (i, ri) in rings.iter().enumerate() {
+        let mut best: Option<usize> = None;
+        for s in 0..ri.len() {
+            let (a, b) = (ri[s], ri[(s + 1) % ri.len()]);
+            for e in tree.locate_in_envelope_intersecting(&segment_box(a, b)) {
+                let j = e.ring as usize;
+                if j <= i || best.is_some_and(|bj| j >= bj) {
+                    continue;
+                }
+                let rj = rings[j];
+                let t = e.edge as usize;
+                let (p, q) = (rj[t], rj[(t + 1) % rj.len()]);
+                if segments_intersect(a, b, p, q) != SegmentIntersection::None {
+                    best = Some(j);
+                }
+            }
+        }
+        if let Some(j) = best {
+            return Some((i, j));
+        }
+    }
+    None
+}
+
+/// [`first_interacting_rings`] by the pairwise loop over rings whose boxes meet.
+fn first_interacting_rings_pairwise(rings: &[&[Coord<f64>]]) -> Option<(usize, usize)> {
     let boxes: Vec<[f64; 4]> = rings.iter().map(|r| ring_bbox(r)).collect();
     for i in 0..rings.len() {
         for j in i + 1..rings.len() {
@@ -452,6 +654,87 @@ fn first_interacting_rings(rings: &[&[Coord<f64>]]) -> Option<(usize, usize)> {
         }
     }
     None
+}
+
+/// For each point, the rings (ascending index) where [`point_in_ring`] would not say
+/// [`Location::Outside`], with what it would say.
+///
+/// With an R-tree of all edges, a point is tested only against the edges whose bounding boxes
+/// meet the ray of the crossing test (from the point towards +x): an edge off that ray can
+/// neither hold the point nor be crossed right of it, so the parities and the boundary hits are
+/// those of [`point_in_ring`] on every ring. Below [`INDEX_MIN_EDGES`] edges, [`point_in_ring`]
+/// itself is called on every ring.
+fn ring_locations(rings: &[&[Coord<f64>]], points: &[Coord<f64>]) -> Vec<Vec<(usize, Location)>> {
+    let total: usize = rings.iter().map(|r| r.len()).sum();
+    if points.is_empty() {
+        return Vec::new();
+    }
+    if total < INDEX_MIN_EDGES {
+        return points
+            .iter()
+            .map(|&p| {
+                rings
+                    .iter()
+                    .enumerate()
+                    .map(|(k, r)| (k, point_in_ring(p, r)))
+                    .filter(|(_, l)| *l != Location::Outside)
+                    .collect()
+            })
+            .collect();
+    }
+    let rings: Vec<&[Coord<f64>]> = rings.iter().map(|r| open_ring(r)).collect();
+    let tree = edge_tree(&rings);
+    let x_max = tree.root().envelope().upper()[0];
+    points
+        .iter()
+        .map(|&p| {
+            // (ring, odd crossings, on the boundary), for the rings the ray meets.
+            let mut hits: Vec<(usize, bool, bool)> = Vec::new();
+            let ray = AABB::from_corners([p.x, p.y], [x_max.max(p.x), p.y]);
+            let mut found: Vec<&EdgeRef> = tree.locate_in_envelope_intersecting(&ray).collect();
+            found.sort_unstable_by_key(|e| (e.ring, e.edge));
+            for e in found {
+                let r = rings[e.ring as usize];
+                let i = e.edge as usize;
+                let (a, b) = (r[i], r[(i + 1) % r.len()]);
+                if hits.last().is_none_or(|h| h.0 != e.ring as usize) {
+                    hits.push((e.ring as usize, false, false));
+                }
+                let h = hits.last_mut().expect("pushed above");
+                if on_segment(a, b, p) {
+                    h.2 = true;
+                    continue;
+                }
+                let a_above = a.y >= p.y;
+                let b_above = b.y >= p.y;
+                if a_above != b_above {
+                    let o = orient2d(a, b, p);
+                    let right = if b_above {
+                        o == Orientation::CounterClockwise
+                    } else {
+                        o == Orientation::Clockwise
+                    };
+                    if right {
+                        h.1 = !h.1;
+                    }
+                }
+            }
+            hits.into_iter()
+                .filter_map(|(k, odd, on)| match (on, odd) {
+                    (true, _) => Some((k, Location::OnBoundary)),
+                    (false, true) => Some((k, Location::Inside)),
+                    (false, false) => None,
+                })
+                .collect()
+        })
+        .collect()
+}
+
+/// What [`point_in_ring`] says of ring `ring`, read from a [`ring_locations`] entry.
+fn location_in(locs: &[(usize, Location)], ring: usize) -> Location {
+    locs.iter()
+        .find(|(k, _)| *k == ring)
+        .map_or(Location::Outside, |(_, l)| *l)
 }
 
 fn closed_polygon(r: &[Coord<f64>]) -> Polygon<f64> {
@@ -702,6 +985,245 @@ mod tests {
                 }
                 (pts, simple_star)
             })
+    }
+
+    /// The former spike loop: rescan from the start after every removal. O(n²).
+    fn remove_spikes_rescan(mut pts: Vec<Coord<f64>>) -> (Vec<Coord<f64>>, usize, usize) {
+        let (mut spikes, mut dupes) = (0, 0);
+        loop {
+            let n = pts.len();
+            if n < 3 {
+                break;
+            }
+            let found = (0..n).find(|&i| is_spike(pts[(i + n - 1) % n], pts[i], pts[(i + 1) % n]));
+            match found {
+                Some(i) => {
+                    pts.remove(i);
+                    spikes += 1;
+                    dupes += dedupe_cyclic(&mut pts);
+                }
+                None => break,
+            }
+        }
+        (pts, spikes, dupes)
+    }
+
+    /// A star-shaped ring of `n` points, then damaged by `mode`: 0 none (simple), 1 rounded to
+    /// an integer grid (collinear runs, repeated points, touches), 2 a vertex moved onto another
+    /// (self-touching at a vertex), 3 a vertex moved onto the exact middle of a non-adjacent
+    /// edge, 4 two vertices swapped (crossing), 5 a zero-width spike folded back along an edge.
+    fn damaged_ring(n: usize, seed: u64, off: f64, mode: u8) -> Vec<Coord<f64>> {
+        use rand::{Rng, SeedableRng};
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
+        let mut pts: Vec<Coord<f64>> = (0..n)
+            .map(|i| {
+                let a = std::f64::consts::TAU * (i as f64 + rng.random_range(0.0..0.9)) / n as f64;
+                let r = rng.random_range(20.0..60.0);
+                c(off + r * a.cos(), off + r * a.sin())
+            })
+            .collect();
+        let grid = |pts: &mut Vec<Coord<f64>>, step: f64| {
+            for p in pts.iter_mut() {
+                *p = c(
+                    ((p.x - off) / step).round() * step + off,
+                    ((p.y - off) / step).round() * step + off,
+                );
+            }
+        };
+        let i = rng.random_range(0..n);
+        let j = (i + rng.random_range(2..n - 1)) % n;
+        match mode {
+            1 => grid(&mut pts, 1.0),
+            2 => pts[i] = pts[j],
+            3 => {
+                grid(&mut pts, 2.0);
+                let (a, b) = (pts[j], pts[(j + 1) % n]);
+                if (j + 1) % n != i {
+                    pts[i] = c(0.5 * (a.x + b.x), 0.5 * (a.y + b.y));
+                }
+            }
+            4 => pts.swap(i, j),
+            5 => {
+                let (a, b) = (pts[i], pts[(i + 1) % n]);
+                pts.insert(i + 1, c(a.x + 0.5 * (b.x - a.x), a.y + 0.5 * (b.y - a.y)));
+                pts.insert(i + 1, b);
+            }
+            _ => {}
+        }
+        pts
+    }
+
+    /// A random walk on a small integer grid: many collinear runs, spikes and repeats.
+    fn grid_walk(len: usize, seed: u64, size: i32) -> Vec<Coord<f64>> {
+        use rand::{Rng, SeedableRng};
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
+        (0..len)
+            .map(|_| {
+                c(
+                    rng.random_range(0..size) as f64,
+                    rng.random_range(0..size) as f64,
+                )
+            })
+            .collect()
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(300))]
+
+        /// The indexed simplicity test answers as the pairwise loop, above the size where the
+        /// index is used, on simple, collinear, self-touching and crossing rings.
+        #[test]
+        fn indexed_simplicity_matches_pairwise(
+            n in INDEX_MIN_EDGES..200, seed in any::<u64>(), mode in 0u8..6,
+            off in prop_oneof![Just(0.0), Just(1.0e7)],
+        ) {
+            let mut r = damaged_ring(n, seed, off, mode);
+            dedupe_cyclic(&mut r);
+            prop_assume!(r.len() >= INDEX_MIN_EDGES);
+            let simple = ring_is_simple(&r);
+            prop_assert_eq!(simple, ring_is_simple_pairwise(&r));
+            if mode == 0 {
+                prop_assert!(simple);
+            }
+            if matches!(mode, 2 | 5) {
+                prop_assert!(!simple);
+            }
+        }
+
+        /// The spike removal by heap answers as the rescanning loop: same ring, same counts.
+        #[test]
+        fn heap_spike_removal_matches_rescan(
+            len in 3usize..80, seed in any::<u64>(), size in 2i32..6,
+        ) {
+            let mut pts = grid_walk(len, seed, size);
+            dedupe_cyclic(&mut pts);
+            prop_assert_eq!(remove_spikes(pts.clone()), remove_spikes_rescan(pts));
+        }
+
+        #[test]
+        fn heap_spike_removal_matches_rescan_on_rings(
+            n in 4usize..120, seed in any::<u64>(), mode in 0u8..6,
+        ) {
+            let mut pts = damaged_ring(n, seed, 0.0, mode);
+            dedupe_cyclic(&mut pts);
+            prop_assert_eq!(remove_spikes(pts.clone()), remove_spikes_rescan(pts));
+        }
+
+        /// Indexed ring contacts and point locations answer as the pairwise loops, on an
+        /// exterior with holes that may touch or cross it and each other (integer grid).
+        #[test]
+        fn indexed_ring_queries_match_pairwise(
+            n in 12usize..80, seed in any::<u64>(), holes in 1usize..8, grid in any::<bool>(),
+        ) {
+            use rand::{Rng, SeedableRng};
+            let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed ^ 0x5eed);
+            let mut rings = vec![damaged_ring(n, seed, 0.0, if grid { 1 } else { 0 })];
+            for k in 0..holes {
+                let (cx, cy) = (rng.random_range(-70.0..70.0), rng.random_range(-70.0..70.0));
+                let m = rng.random_range(3..12);
+                let mut h = damaged_ring(m.max(4), seed.wrapping_add(k as u64 + 1), 0.0, 0);
+                for p in &mut h {
+                    *p = c(cx + p.x * 0.2, cy + p.y * 0.2);
+                    if grid {
+                        *p = c(p.x.round(), p.y.round());
+                    }
+                }
+                dedupe_cyclic(&mut h);
+                if h.len() >= 3 {
+                    rings.push(h);
+                }
+            }
+            let refs: Vec<&[Coord<f64>]> = rings.iter().map(|r| &r[..]).collect();
+            let total: usize = refs.iter().map(|r| r.len()).sum();
+            prop_assume!(total >= INDEX_MIN_EDGES);
+            prop_assert_eq!(first_interacting_rings(&refs), first_interacting_rings_pairwise(&refs));
+            // Points: every ring's vertices, edge midpoints, and random points on the grid.
+            let mut pts: Vec<Coord<f64>> = Vec::new();
+            for r in &rings {
+                pts.extend(r.iter().step_by(3).copied());
+                pts.extend(r.windows(2).step_by(5).map(|w| c(0.5 * (w[0].x + w[1].x), 0.5 * (w[0].y + w[1].y))));
+            }
+            pts.extend((0..40).map(|_| c(rng.random_range(-80..80) as f64, rng.random_range(-80..80) as f64)));
+            let got = ring_locations(&refs, &pts);
+            for (p, locs) in pts.iter().zip(&got) {
+                for (k, r) in refs.iter().enumerate() {
+                    prop_assert_eq!(location_in(locs, k), point_in_ring(*p, r), "point {:?} ring {}", p, k);
+                }
+            }
+        }
+
+        /// Many holes, some outside the exterior and some inside another hole: the holes kept
+        /// and dropped are those of the pairwise rule (a hole inside a kept hole is dropped).
+        #[test]
+        fn many_holes_are_kept_and_dropped_as_by_the_pairwise_rule(
+            seed in any::<u64>(), holes in 8usize..30,
+        ) {
+            use rand::{Rng, SeedableRng};
+            let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
+            let ext = sq(0., 0., 100.);
+            // Cells of 10 m on a 12 × 12 grid over (−10, 110): some cells lie outside the
+            // exterior. A cell holds a 6 m square hole, sometimes with a 2 m one inside it, and
+            // sometimes just the 2 m one.
+            let mut cells: Vec<(i32, i32)> = (0..12).flat_map(|i| (0..12).map(move |j| (i, j))).collect();
+            for i in (1..cells.len()).rev() {
+                cells.swap(i, rng.random_range(0..=i));
+            }
+            let mut hs: Vec<Vec<Coord<f64>>> = Vec::new();
+            for &(i, j) in cells.iter().take(holes) {
+                let (x, y) = (-10.0 + 10.0 * i as f64, -10.0 + 10.0 * j as f64);
+                let kind = rng.random_range(0..3);
+                if kind != 2 {
+                    hs.push(sq(x + 2.0, y + 2.0, 6.0));
+                }
+                if kind != 0 {
+                    hs.push(sq(x + 4.0, y + 4.0, 2.0));
+                }
+            }
+            // Shuffle so that inner holes come before and after their outer ones.
+            for i in (1..hs.len()).rev() {
+                hs.swap(i, rng.random_range(0..=i));
+            }
+            // Cells straddling the exterior's edge make holes that cross it: keep only holes
+            // fully inside or fully outside.
+            hs.retain(|h| {
+                let b = ring_bbox(h);
+                b[2] < 0.0 || b[0] > 100.0 || b[3] < 0.0 || b[1] > 100.0
+                    || (b[0] > 0.0 && b[2] < 100.0 && b[1] > 0.0 && b[3] < 100.0)
+            });
+            let refs: Vec<&[Coord<f64>]> = hs.iter().map(|h| &h[..]).collect();
+            let out = repair_rings(&ext, &refs).unwrap();
+            prop_assert_eq!(out.polygons.len(), 1);
+            // The pairwise rule, as before the index.
+            let inside: Vec<usize> = (0..hs.len())
+                .filter(|&k| point_in_ring(hs[k][0], &ext) == Location::Inside)
+                .collect();
+            let mut nested = vec![false; inside.len()];
+            for a in 0..inside.len() {
+                for b in 0..inside.len() {
+                    if a != b && !nested[b]
+                        && point_in_ring(hs[inside[a]][0], &hs[inside[b]]) == Location::Inside
+                    {
+                        nested[a] = true;
+                        break;
+                    }
+                }
+            }
+            let expect: Vec<Vec<Coord<f64>>> = inside
+                .iter()
+                .zip(&nested)
+                .filter(|(_, n)| !**n)
+                .map(|(&k, _)| {
+                    let mut h = hs[k].clone();
+                    h.reverse();
+                    h.push(h[0]);
+                    h
+                })
+                .collect();
+            let got: Vec<Vec<Coord<f64>>> = out.polygons[0].interiors().iter().map(|h| h.0.clone()).collect();
+            prop_assert_eq!(got, expect);
+            prop_assert!(check_polygon(&out.polygons[0]).is_ok());
+            prop_assert!(out.polygons[0].interiors().len() + 1 >= 1);
+        }
     }
 
     proptest! {

@@ -9,7 +9,20 @@
 //!
 //! The JSON document is written with `serde_json` following the glTF 2.0 schema; the tests read
 //! the file back with the `gltf` crate, which validates it.
+//!
+//! # Streaming and the size limit
+//!
+//! The file is written in one pass to any [`Write`] ([`write_glb_to`]): the sizes of the binary
+//! chunk are computed from the meshes first, then the JSON chunk is serialised (one element at a
+//! time, never as one document tree), then the header, the JSON chunk and the binary chunk are
+//! written, the binary data straight from the meshes. Apart from the meshes themselves only the
+//! JSON text is held in memory (a few hundred bytes per building). All sizes are computed in
+//! `u64` with checked arithmetic; a `.glb` stores its total length in a `u32`, so a file over
+//! 4 GiB − 1 byte cannot be written ([`GLB_MAX_BYTES`]) and is refused with
+//! [`ExportError::TooLarge`] before anything is written (the message says to export a smaller
+//! area; splitting one city into several files is not done).
 
+use std::io::Write;
 use std::path::Path;
 
 use glam::Vec3;
@@ -31,6 +44,10 @@ pub struct GlbStats {
     pub bytes: usize,
 }
 
+/// The largest `.glb` file: its header stores the total length as a `u32` (glTF 2.0, "Binary
+/// glTF Layout").
+pub const GLB_MAX_BYTES: u64 = u32::MAX as u64;
+
 const ARRAY_BUFFER: u32 = 34962;
 const ELEMENT_ARRAY_BUFFER: u32 = 34963;
 const FLOAT: u32 = 5126;
@@ -40,17 +57,65 @@ fn y_up(v: Vec3) -> [f32; 3] {
     [v.x, v.z, -v.y]
 }
 
-fn pad4(buf: &mut Vec<u8>, byte: u8) {
-    while buf.len() & 3 != 0 {
-        buf.push(byte);
+/// `n` rounded up to a multiple of 4 (chunks are 4-byte aligned).
+fn padded(n: u64) -> Option<u64> {
+    n.checked_add(3).map(|m| m & !3)
+}
+
+/// A `.glb` ready to be written: the JSON chunk (unpadded) and the sizes.
+struct Prepared {
+    json: Vec<u8>,
+    /// Bytes of the binary buffer (positions, normals, indices), unpadded.
+    bin_len: u64,
+    /// Total file size.
+    total: u64,
+    stats: GlbStats,
+}
+
+/// The error for a file over `limit` bytes (`bytes` is `None` when the size overflows `u64`).
+fn too_large(bytes: Option<u64>, limit: u64) -> ExportError {
+    ExportError::TooLarge {
+        file: "<glb>".into(),
+        bytes,
+        limit,
     }
 }
 
-/// The `.glb` file of a city and its meshes (`meshes[i]` is building `i`'s).
+fn json_error(source: serde_json::Error) -> ExportError {
+    ExportError::Json {
+        file: "<glb>".into(),
+        source,
+    }
+}
+
+/// Appends the compact JSON of `v` to `out`.
+fn put(out: &mut Vec<u8>, v: &Value) -> Result<(), ExportError> {
+    serde_json::to_writer(&mut *out, v).map_err(json_error)
+}
+
+/// Appends `"key":[items…]` to `out`, each item serialised as it comes.
+fn put_array<I>(out: &mut Vec<u8>, key: &str, items: I) -> Result<(), ExportError>
+where
+    I: IntoIterator<Item = Value>,
+{
+    put(out, &Value::String(key.into()))?;
+    out.extend_from_slice(b":[");
+    for (k, v) in items.into_iter().enumerate() {
+        if k > 0 {
+            out.push(b',');
+        }
+        put(out, &v)?;
+    }
+    out.push(b']');
+    Ok(())
+}
+
+/// Sizes and JSON chunk of the `.glb` of `city` (see the module documentation), refusing a file
+/// over `limit` bytes.
 ///
-/// # Errors
-/// [`ExportError::MeshCount`] when `meshes` does not match the buildings (its file is `<glb>`).
-pub fn glb_bytes(city: &City, meshes: &[Mesh]) -> Result<(Vec<u8>, GlbStats), ExportError> {
+/// The document's members are written in the order `serde_json` gives an object's keys (sorted),
+/// so the bytes are those of serialising the whole document as one [`Value`].
+fn prepare(city: &City, meshes: &[Mesh], limit: u64) -> Result<Prepared, ExportError> {
     if meshes.len() != city.buildings.len() {
         return Err(ExportError::MeshCount {
             file: "<glb>".into(),
@@ -58,48 +123,58 @@ pub fn glb_bytes(city: &City, meshes: &[Mesh]) -> Result<(Vec<u8>, GlbStats), Ex
             buildings: city.buildings.len(),
         });
     }
-    let n_vert: usize = meshes.iter().map(|m| m.positions.len()).sum();
-    let n_idx: usize = meshes.iter().map(|m| m.indices.len()).sum();
-    let pos_len = n_vert * 12;
-    let idx_len = n_idx * 4;
-    let mut bin: Vec<u8> = Vec::with_capacity(2 * pos_len + idx_len);
-    for m in meshes {
-        for p in &m.positions {
-            for c in y_up(*p) {
-                bin.extend_from_slice(&c.to_le_bytes());
-            }
-        }
+    let sum = |f: fn(&Mesh) -> usize| -> Option<u64> {
+        meshes
+            .iter()
+            .try_fold(0u64, |acc, m| acc.checked_add(f(m) as u64))
+    };
+    let n_vert = sum(|m| m.positions.len());
+    let n_idx = sum(|m| m.indices.len());
+    let pos_len = n_vert.and_then(|n| n.checked_mul(12));
+    let idx_len = n_idx.and_then(|n| n.checked_mul(4));
+    let bin_len = pos_len
+        .and_then(|p| p.checked_mul(2))
+        .and_then(|p| idx_len.and_then(|i| p.checked_add(i)));
+    let (Some(n_vert), Some(pos_len), Some(idx_len), Some(bin_len)) =
+        (n_vert, pos_len, idx_len, bin_len)
+    else {
+        return Err(too_large(None, limit));
+    };
+    // Refuse before serialising anything when the binary chunk alone is too large.
+    if bin_len > limit {
+        return Err(too_large(
+            padded(bin_len).and_then(|b| b.checked_add(28)),
+            limit,
+        ));
     }
-    for m in meshes {
-        for n in &m.normals {
-            for c in y_up(*n) {
-                bin.extend_from_slice(&c.to_le_bytes());
-            }
-        }
-    }
-    for m in meshes {
-        for i in &m.indices {
-            bin.extend_from_slice(&i.to_le_bytes());
-        }
-    }
-    let bin_len = bin.len();
+    let with_tris = || {
+        city.buildings
+            .iter()
+            .zip(meshes)
+            .filter(|(_, m)| m.triangle_count() > 0)
+    };
+    let n_meshes = with_tris().count();
+    let mut stats = GlbStats {
+        nodes: city.buildings.len(),
+        meshes: n_meshes,
+        triangles: with_tris().map(|(_, m)| m.triangle_count()).sum(),
+        bytes: 0,
+    };
 
-    let mut accessors: Vec<Value> = Vec::new();
-    let mut gl_meshes: Vec<Value> = Vec::new();
-    let mut nodes: Vec<Value> = vec![Value::Null]; // root, filled below
-    let mut children: Vec<usize> = Vec::new();
-    let (mut vert_off, mut idx_off) = (0usize, 0usize);
-    let mut stats = GlbStats::default();
-    for (b, m) in city.buildings.iter().zip(meshes) {
-        let mut node = json!({
-            "name": b.source_id,
-            "extras": {
-                "source_id": b.source_id,
-                "height_m": b.height_m,
-                "min_height_m": b.min_height_m,
+    let mut out: Vec<u8> = Vec::new();
+    out.push(b'{');
+    if n_meshes > 0 {
+        // Accessors: POSITION, NORMAL and indices of each mesh, at the mesh's offsets.
+        let mut offsets = Vec::with_capacity(n_meshes);
+        let (mut vert_off, mut idx_off) = (0u64, 0u64);
+        for m in meshes {
+            if m.triangle_count() > 0 {
+                offsets.push((vert_off, idx_off, m));
             }
-        });
-        if m.triangle_count() > 0 {
+            vert_off += m.positions.len() as u64;
+            idx_off += m.indices.len() as u64;
+        }
+        let accessors = offsets.into_iter().flat_map(|(vert_off, idx_off, m)| {
             let mut lo = [f32::INFINITY; 3];
             let mut hi = [f32::NEG_INFINITY; 3];
             for p in &m.positions {
@@ -109,21 +184,61 @@ pub fn glb_bytes(city: &City, meshes: &[Mesh]) -> Result<(Vec<u8>, GlbStats), Ex
                     hi[k] = hi[k].max(q[k]);
                 }
             }
-            let a_pos = accessors.len();
-            accessors.push(json!({
-                "bufferView": 0, "byteOffset": vert_off * 12, "componentType": FLOAT,
-                "count": m.positions.len(), "type": "VEC3", "min": lo, "max": hi,
-            }));
-            accessors.push(json!({
-                "bufferView": 1, "byteOffset": vert_off * 12, "componentType": FLOAT,
-                "count": m.normals.len(), "type": "VEC3",
-            }));
-            accessors.push(json!({
-                "bufferView": 2, "byteOffset": idx_off * 4, "componentType": UNSIGNED_INT,
-                "count": m.indices.len(), "type": "SCALAR",
-            }));
-            node["mesh"] = json!(gl_meshes.len());
-            gl_meshes.push(json!({
+            [
+                json!({
+                    "bufferView": 0, "byteOffset": vert_off * 12, "componentType": FLOAT,
+                    "count": m.positions.len(), "type": "VEC3", "min": lo, "max": hi,
+                }),
+                json!({
+                    "bufferView": 1, "byteOffset": vert_off * 12, "componentType": FLOAT,
+                    "count": m.normals.len(), "type": "VEC3",
+                }),
+                json!({
+                    "bufferView": 2, "byteOffset": idx_off * 4, "componentType": UNSIGNED_INT,
+                    "count": m.indices.len(), "type": "SCALAR",
+                }),
+            ]
+        });
+        put_array(&mut out, "accessors", accessors)?;
+        out.push(b',');
+    }
+    out.extend_from_slice(br#""asset":"#);
+    put(
+        &mut out,
+        &json!({ "version": "2.0", "generator": "blockwalk" }),
+    )?;
+    if n_meshes > 0 {
+        out.push(b',');
+        let mut views = Vec::new();
+        if n_vert > 0 {
+            views.push(json!({"buffer": 0, "byteOffset": 0, "byteLength": pos_len, "byteStride": 12, "target": ARRAY_BUFFER}));
+            views.push(json!({"buffer": 0, "byteOffset": pos_len, "byteLength": pos_len, "byteStride": 12, "target": ARRAY_BUFFER}));
+            views.push(json!({"buffer": 0, "byteOffset": 2 * pos_len, "byteLength": idx_len, "target": ELEMENT_ARRAY_BUFFER}));
+        }
+        put_array(&mut out, "bufferViews", views)?;
+    }
+    if bin_len > 0 {
+        out.push(b',');
+        put_array(&mut out, "buffers", [json!({ "byteLength": bin_len })])?;
+    }
+    out.push(b',');
+    put_array(
+        &mut out,
+        "materials",
+        [json!({
+            "name": "building",
+            "pbrMetallicRoughness": {
+                "baseColorFactor": [0.82, 0.80, 0.76, 1.0],
+                "metallicFactor": 0.0,
+                "roughnessFactor": 0.9,
+            },
+        })],
+    )?;
+    if n_meshes > 0 {
+        out.push(b',');
+        let gl_meshes = with_tris().enumerate().map(|(k, (b, _))| {
+            let a_pos = 3 * k;
+            json!({
                 "name": b.source_id,
                 "primitives": [{
                     "attributes": { "POSITION": a_pos, "NORMAL": a_pos + 1 },
@@ -131,89 +246,432 @@ pub fn glb_bytes(city: &City, meshes: &[Mesh]) -> Result<(Vec<u8>, GlbStats), Ex
                     "material": 0,
                     "mode": 4,
                 }]
-            }));
-            stats.meshes += 1;
-            stats.triangles += m.triangle_count();
-        }
-        vert_off += m.positions.len();
-        idx_off += m.indices.len();
-        children.push(nodes.len());
-        nodes.push(node);
-        stats.nodes += 1;
+            })
+        });
+        put_array(&mut out, "meshes", gl_meshes)?;
     }
+    out.push(b',');
+    // Nodes: the root (children 1..=n), then one per building.
     let o = city.frame.origin;
-    nodes[0] = json!({
+    let mut root = json!({
         "name": city.name,
-        "children": children,
+        "children": (1..=city.buildings.len()).collect::<Vec<usize>>(),
         "extras": {
             "origin": [o.x, o.y, o.z],
             "crs": city.transform.describe(),
             "frame": "local metres: x east, y up, z south of the origin (glTF Y-up)",
         }
     });
-    if children.is_empty() {
-        nodes[0].as_object_mut().map(|n| n.remove("children"));
+    if city.buildings.is_empty() {
+        root.as_object_mut().map(|n| n.remove("children"));
     }
-    let mut views = Vec::new();
-    if n_vert > 0 {
-        views.push(json!({"buffer": 0, "byteOffset": 0, "byteLength": pos_len, "byteStride": 12, "target": ARRAY_BUFFER}));
-        views.push(json!({"buffer": 0, "byteOffset": pos_len, "byteLength": pos_len, "byteStride": 12, "target": ARRAY_BUFFER}));
-        views.push(json!({"buffer": 0, "byteOffset": 2 * pos_len, "byteLength": idx_len, "target": ELEMENT_ARRAY_BUFFER}));
+    let mut mesh_idx = 0usize;
+    let nodes = std::iter::once(root).chain(city.buildings.iter().zip(meshes).map(|(b, m)| {
+        let mut node = json!({
+            "name": b.source_id,
+            "extras": {
+                "source_id": b.source_id,
+                "height_m": b.height_m,
+                "min_height_m": b.min_height_m,
+            }
+        });
+        if m.triangle_count() > 0 {
+            node["mesh"] = json!(mesh_idx);
+            mesh_idx += 1;
+        }
+        node
+    }));
+    put_array(&mut out, "nodes", nodes)?;
+    out.extend_from_slice(br#","scene":0,"#);
+    put_array(
+        &mut out,
+        "scenes",
+        [json!({ "name": city.name, "nodes": [0] })],
+    )?;
+    out.push(b'}');
+
+    let total = padded(out.len() as u64)
+        .and_then(|j| j.checked_add(12 + 8))
+        .and_then(|t| {
+            if bin_len > 0 {
+                padded(bin_len)
+                    .and_then(|b| b.checked_add(8))
+                    .and_then(|b| t.checked_add(b))
+            } else {
+                Some(t)
+            }
+        });
+    match total {
+        Some(t) if t <= limit => {
+            stats.bytes = usize::try_from(t).map_err(|_| too_large(Some(t), limit))?;
+            Ok(Prepared {
+                json: out,
+                bin_len,
+                total: t,
+                stats,
+            })
+        }
+        other => Err(too_large(other, limit)),
     }
-    let mut doc = json!({
-        "asset": { "version": "2.0", "generator": "blockwalk" },
-        "scene": 0,
-        "scenes": [{ "name": city.name, "nodes": [0] }],
-        "nodes": nodes,
-        "materials": [{
-            "name": "building",
-            "pbrMetallicRoughness": {
-                "baseColorFactor": [0.82, 0.80, 0.76, 1.0],
-                "metallicFactor": 0.0,
-                "roughnessFactor": 0.9,
-            },
-        }],
-    });
-    if !gl_meshes.is_empty() {
-        doc["meshes"] = Value::Array(gl_meshes);
-        doc["accessors"] = Value::Array(accessors);
-        doc["bufferViews"] = Value::Array(views);
+}
+
+/// Writes a prepared `.glb`: header, JSON chunk, then the binary chunk from the meshes.
+fn emit<W: Write>(p: &Prepared, meshes: &[Mesh], w: &mut W) -> std::io::Result<()> {
+    // `prepare` refused totals over u32::MAX, so every length below fits.
+    let u32_of = |n: u64| u32::try_from(n).expect("checked against GLB_MAX_BYTES");
+    let json_padded = padded(p.json.len() as u64).expect("checked in prepare");
+    w.write_all(b"glTF")?;
+    w.write_all(&2u32.to_le_bytes())?;
+    w.write_all(&u32_of(p.total).to_le_bytes())?;
+    w.write_all(&u32_of(json_padded).to_le_bytes())?;
+    w.write_all(b"JSON")?;
+    w.write_all(&p.json)?;
+    w.write_all(&b"   "[..(json_padded - p.json.len() as u64) as usize])?;
+    if p.bin_len == 0 {
+        return Ok(());
     }
-    if bin_len > 0 {
-        doc["buffers"] = json!([{ "byteLength": bin_len }]);
+    let bin_padded = padded(p.bin_len).expect("checked in prepare");
+    w.write_all(&u32_of(bin_padded).to_le_bytes())?;
+    w.write_all(b"BIN\0")?;
+    // One mesh at a time through a small buffer.
+    let mut buf: Vec<u8> = Vec::new();
+    let mut vec3s = |w: &mut W, f: fn(&Mesh) -> &[Vec3]| -> std::io::Result<()> {
+        for m in meshes {
+            buf.clear();
+            for v in f(m) {
+                for c in y_up(*v) {
+                    buf.extend_from_slice(&c.to_le_bytes());
+                }
+            }
+            w.write_all(&buf)?;
+        }
+        Ok(())
+    };
+    vec3s(w, |m| &m.positions)?;
+    vec3s(w, |m| &m.normals)?;
+    for m in meshes {
+        buf.clear();
+        for i in &m.indices {
+            buf.extend_from_slice(&i.to_le_bytes());
+        }
+        w.write_all(&buf)?;
     }
-    let mut json_bytes = serde_json::to_vec(&doc).map_err(|source| ExportError::Json {
+    w.write_all(&[0u8; 3][..(bin_padded - p.bin_len) as usize])?;
+    Ok(())
+}
+
+/// Writes the `.glb` of a city and its meshes (`meshes[i]` is building `i`'s) to `w`, streaming
+/// the binary chunk from the meshes (see the module documentation).
+///
+/// # Errors
+/// [`ExportError::MeshCount`] when `meshes` does not match the buildings,
+/// [`ExportError::TooLarge`] for a file over [`GLB_MAX_BYTES`] (nothing is written then), and
+/// [`ExportError::Io`] when writing fails; their file is `<glb>`.
+pub fn write_glb_to<W: Write>(
+    city: &City,
+    meshes: &[Mesh],
+    w: &mut W,
+) -> Result<GlbStats, ExportError> {
+    write_glb_to_limited(city, meshes, w, GLB_MAX_BYTES)
+}
+
+fn write_glb_to_limited<W: Write>(
+    city: &City,
+    meshes: &[Mesh],
+    w: &mut W,
+    limit: u64,
+) -> Result<GlbStats, ExportError> {
+    let p = prepare(city, meshes, limit)?;
+    emit(&p, meshes, w).map_err(|source| ExportError::Io {
         file: "<glb>".into(),
         source,
     })?;
-    pad4(&mut json_bytes, b' ');
-    pad4(&mut bin, 0);
-    let total = 12 + 8 + json_bytes.len() + if bin_len > 0 { 8 + bin.len() } else { 0 };
-    let mut out = Vec::with_capacity(total);
-    out.extend_from_slice(b"glTF");
-    out.extend_from_slice(&2u32.to_le_bytes());
-    out.extend_from_slice(&(total as u32).to_le_bytes());
-    out.extend_from_slice(&(json_bytes.len() as u32).to_le_bytes());
-    out.extend_from_slice(b"JSON");
-    out.extend_from_slice(&json_bytes);
-    if bin_len > 0 {
-        out.extend_from_slice(&(bin.len() as u32).to_le_bytes());
-        out.extend_from_slice(b"BIN\0");
-        out.extend_from_slice(&bin);
-    }
-    stats.bytes = out.len();
+    Ok(p.stats)
+}
+
+/// The `.glb` file of a city and its meshes (`meshes[i]` is building `i`'s), in memory.
+///
+/// # Errors
+/// As [`write_glb_to`].
+pub fn glb_bytes(city: &City, meshes: &[Mesh]) -> Result<(Vec<u8>, GlbStats), ExportError> {
+    let mut out = Vec::new();
+    let stats = write_glb_to(city, meshes, &mut out)?;
     Ok((out, stats))
 }
 
-/// Writes the city's meshes as a `.glb` file (see the module documentation).
+/// Writes the city's meshes as a `.glb` file (see the module documentation), streaming it
+/// through a buffered writer.
 ///
 /// # Errors
-/// [`ExportError`] naming the file.
+/// [`ExportError`] naming the file; a file over [`GLB_MAX_BYTES`] is refused before it is
+/// created, and a file whose writing failed is removed.
 pub fn write_glb(city: &City, meshes: &[Mesh], path: &Path) -> Result<GlbStats, ExportError> {
-    let (bytes, stats) = glb_bytes(city, meshes).map_err(|e| e.for_file(path))?;
-    std::fs::write(path, bytes).map_err(|source| ExportError::Io {
+    write_glb_limited(city, meshes, path, GLB_MAX_BYTES)
+}
+
+fn write_glb_limited(
+    city: &City,
+    meshes: &[Mesh],
+    path: &Path,
+    limit: u64,
+) -> Result<GlbStats, ExportError> {
+    let p = prepare(city, meshes, limit).map_err(|e| e.for_file(path))?;
+    let io = |source| ExportError::Io {
         file: path.to_path_buf(),
         source,
-    })?;
-    Ok(stats)
+    };
+    let file = std::fs::File::create(path).map_err(io)?;
+    let mut w = std::io::BufWriter::with_capacity(1 << 20, file);
+    let written = emit(&p, meshes, &mut w).and_then(|()| w.flush());
+    if let Err(source) = written {
+        drop(w);
+        let _ = std::fs::remove_file(path);
+        return Err(io(source));
+    }
+    Ok(p.stats)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::city::build::{build_city, BuildOptions};
+    use crate::city::extrude::try_extrude_city;
+    use crate::importers::{read_layer, Theme};
+
+    fn pad4(buf: &mut Vec<u8>, byte: u8) {
+        while buf.len() & 3 != 0 {
+            buf.push(byte);
+        }
+    }
+
+    /// The former writer, kept as the reference: the whole document as one `Value`, the binary
+    /// buffer and the file each assembled in memory.
+    fn glb_bytes_in_memory(city: &City, meshes: &[Mesh]) -> Vec<u8> {
+        let n_vert: usize = meshes.iter().map(|m| m.positions.len()).sum();
+        let n_idx: usize = meshes.iter().map(|m| m.indices.len()).sum();
+        let pos_len = n_vert * 12;
+        let idx_len = n_idx * 4;
+        let mut bin: Vec<u8> = Vec::new();
+        for m in meshes {
+            for p in &m.positions {
+                for c in y_up(*p) {
+                    bin.extend_from_slice(&c.to_le_bytes());
+                }
+            }
+        }
+        for m in meshes {
+            for n in &m.normals {
+                for c in y_up(*n) {
+                    bin.extend_from_slice(&c.to_le_bytes());
+                }
+            }
+        }
+        for m in meshes {
+            for i in &m.indices {
+                bin.extend_from_slice(&i.to_le_bytes());
+            }
+        }
+        let bin_len = bin.len();
+        let mut accessors: Vec<Value> = Vec::new();
+        let mut gl_meshes: Vec<Value> = Vec::new();
+        let mut nodes: Vec<Value> = vec![Value::Null];
+        let mut children: Vec<usize> = Vec::new();
+        let (mut vert_off, mut idx_off) = (0usize, 0usize);
+        for (b, m) in city.buildings.iter().zip(meshes) {
+            let mut node = json!({
+                "name": b.source_id,
+                "extras": {
+                    "source_id": b.source_id,
+                    "height_m": b.height_m,
+                    "min_height_m": b.min_height_m,
+                }
+            });
+            if m.triangle_count() > 0 {
+                let mut lo = [f32::INFINITY; 3];
+                let mut hi = [f32::NEG_INFINITY; 3];
+                for p in &m.positions {
+                    let q = y_up(*p);
+                    for k in 0..3 {
+                        lo[k] = lo[k].min(q[k]);
+                        hi[k] = hi[k].max(q[k]);
+                    }
+                }
+                let a_pos = accessors.len();
+                accessors.push(json!({
+                    "bufferView": 0, "byteOffset": vert_off * 12, "componentType": FLOAT,
+                    "count": m.positions.len(), "type": "VEC3", "min": lo, "max": hi,
+                }));
+                accessors.push(json!({
+                    "bufferView": 1, "byteOffset": vert_off * 12, "componentType": FLOAT,
+                    "count": m.normals.len(), "type": "VEC3",
+                }));
+                accessors.push(json!({
+                    "bufferView": 2, "byteOffset": idx_off * 4, "componentType": UNSIGNED_INT,
+                    "count": m.indices.len(), "type": "SCALAR",
+                }));
+                node["mesh"] = json!(gl_meshes.len());
+                gl_meshes.push(json!({
+                    "name": b.source_id,
+                    "primitives": [{
+                        "attributes": { "POSITION": a_pos, "NORMAL": a_pos + 1 },
+                        "indices": a_pos + 2,
+                        "material": 0,
+                        "mode": 4,
+                    }]
+                }));
+            }
+            vert_off += m.positions.len();
+            idx_off += m.indices.len();
+            children.push(nodes.len());
+            nodes.push(node);
+        }
+        let o = city.frame.origin;
+        nodes[0] = json!({
+            "name": city.name,
+            "children": children,
+            "extras": {
+                "origin": [o.x, o.y, o.z],
+                "crs": city.transform.describe(),
+                "frame": "local metres: x east, y up, z south of the origin (glTF Y-up)",
+            }
+        });
+        if children.is_empty() {
+            nodes[0].as_object_mut().map(|n| n.remove("children"));
+        }
+        let mut views = Vec::new();
+        if n_vert > 0 {
+            views.push(json!({"buffer": 0, "byteOffset": 0, "byteLength": pos_len, "byteStride": 12, "target": ARRAY_BUFFER}));
+            views.push(json!({"buffer": 0, "byteOffset": pos_len, "byteLength": pos_len, "byteStride": 12, "target": ARRAY_BUFFER}));
+            views.push(json!({"buffer": 0, "byteOffset": 2 * pos_len, "byteLength": idx_len, "target": ELEMENT_ARRAY_BUFFER}));
+        }
+        let mut doc = json!({
+            "asset": { "version": "2.0", "generator": "blockwalk" },
+            "scene": 0,
+            "scenes": [{ "name": city.name, "nodes": [0] }],
+            "nodes": nodes,
+            "materials": [{
+                "name": "building",
+                "pbrMetallicRoughness": {
+                    "baseColorFactor": [0.82, 0.80, 0.76, 1.0],
+                    "metallicFactor": 0.0,
+                    "roughnessFactor": 0.9,
+                },
+            }],
+        });
+        if !gl_meshes.is_empty() {
+            doc["meshes"] = Value::Array(gl_meshes);
+            doc["accessors"] = Value::Array(accessors);
+            doc["bufferViews"] = Value::Array(views);
+        }
+        if bin_len > 0 {
+            doc["buffers"] = json!([{ "byteLength": bin_len }]);
+        }
+        let mut json_bytes = serde_json::to_vec(&doc).unwrap();
+        pad4(&mut json_bytes, b' ');
+        pad4(&mut bin, 0);
+        let total = 12 + 8 + json_bytes.len() + if bin_len > 0 { 8 + bin.len() } else { 0 };
+        let mut out = Vec::with_capacity(total);
+        out.extend_from_slice(b"glTF");
+        out.extend_from_slice(&2u32.to_le_bytes());
+        out.extend_from_slice(&(total as u32).to_le_bytes());
+        out.extend_from_slice(&(json_bytes.len() as u32).to_le_bytes());
+        out.extend_from_slice(b"JSON");
+        out.extend_from_slice(&json_bytes);
+        if bin_len > 0 {
+            out.extend_from_slice(&(bin.len() as u32).to_le_bytes());
+            out.extend_from_slice(b"BIN\0");
+            out.extend_from_slice(&bin);
+        }
+        out
+    }
+
+    fn bundled(p: &str) -> (City, Vec<Mesh>) {
+        let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("data")
+            .join(p);
+        let layer = read_layer(&path, &Theme::Buildings).expect("read");
+        let city = build_city(&layer, None, None, &BuildOptions::default()).expect("build");
+        let (meshes, _) = try_extrude_city(&city);
+        (city, meshes)
+    }
+
+    #[test]
+    fn streamed_file_is_byte_identical_to_the_in_memory_writer() {
+        for p in ["bubenec/buildings.shp", "helsinki/buildings.shp"] {
+            let (mut city, mut meshes) = bundled(p);
+            let (bytes, stats) = glb_bytes(&city, &meshes).unwrap();
+            assert_eq!(bytes, glb_bytes_in_memory(&city, &meshes), "{p}");
+            assert_eq!(stats.bytes, bytes.len());
+            assert_eq!(
+                u32::from_le_bytes(bytes[8..12].try_into().unwrap()) as usize,
+                bytes.len()
+            );
+            // Through a file as well.
+            let dir = tempfile::tempdir().unwrap();
+            let f = dir.path().join("c.glb");
+            assert_eq!(write_glb(&city, &meshes, &f).unwrap(), stats);
+            assert_eq!(std::fs::read(&f).unwrap(), bytes);
+            // Buildings whose extrusion failed (no mesh) and a mesh with vertices but no
+            // triangle: nodes without meshes, the offsets of the others move on.
+            meshes[1] = Mesh::default();
+            meshes[2].indices.clear();
+            assert_eq!(
+                glb_bytes(&city, &meshes).unwrap().0,
+                glb_bytes_in_memory(&city, &meshes),
+                "{p}"
+            );
+            // No buildings at all.
+            city.buildings.clear();
+            assert_eq!(
+                glb_bytes(&city, &[]).unwrap().0,
+                glb_bytes_in_memory(&city, &[]),
+                "{p}"
+            );
+        }
+    }
+
+    #[test]
+    fn files_over_the_limit_are_refused_before_anything_is_written() {
+        let (city, meshes) = bundled("bubenec/buildings.shp");
+        let (bytes, _) = glb_bytes(&city, &meshes).unwrap();
+        let size = bytes.len() as u64;
+        let dir = tempfile::tempdir().unwrap();
+        let f = dir.path().join("big.glb");
+        // Exactly at the limit: written.
+        assert_eq!(
+            write_glb_limited(&city, &meshes, &f, size).unwrap().bytes as u64,
+            size
+        );
+        std::fs::remove_file(&f).unwrap();
+        // One byte less: refused, naming the file and both sizes; no file left behind.
+        let e = write_glb_limited(&city, &meshes, &f, size - 1).unwrap_err();
+        assert!(
+            matches!(&e, ExportError::TooLarge { file, bytes: Some(b), limit }
+                if file == &f && *b == size && *limit == size - 1),
+            "{e:?}"
+        );
+        let msg = e.to_string();
+        assert!(
+            msg.contains("big.glb") && msg.contains(&size.to_string()),
+            "{msg}"
+        );
+        assert!(msg.contains("smaller area"), "{msg}");
+        assert!(!f.exists());
+        // A limit below the binary chunk alone: refused before the JSON is made.
+        let mut sink = Vec::new();
+        let e = write_glb_to_limited(&city, &meshes, &mut sink, 1000).unwrap_err();
+        assert!(
+            matches!(e, ExportError::TooLarge { bytes: Some(b), limit: 1000, .. } if b > 1000),
+            "{e:?}"
+        );
+        assert!(sink.is_empty());
+    }
+
+    #[test]
+    fn sizes_are_checked_not_wrapped() {
+        assert_eq!(padded(5), Some(8));
+        assert_eq!(padded(8), Some(8));
+        assert_eq!(padded(u64::MAX), None);
+        assert_eq!(GLB_MAX_BYTES, 4_294_967_295);
+    }
 }

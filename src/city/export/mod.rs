@@ -1,7 +1,7 @@
 //! Export: glTF binary (`.glb`) of the extruded meshes, and GeoJSON of the footprints with their
 //! computed heights, in the input's own coordinates.
 //!
-//! - [`gltf`]: [`write_glb`], [`glb_bytes`].
+//! - [`gltf`]: [`write_glb`], [`write_glb_to`] (streamed to any writer), [`glb_bytes`].
 //! - [`geojson`]: [`write_geojson`], [`geojson_value`].
 
 pub mod geojson;
@@ -10,7 +10,7 @@ pub mod gltf;
 use std::path::PathBuf;
 
 pub use self::geojson::{geojson_value, write_geojson};
-pub use self::gltf::{glb_bytes, write_glb, GlbStats};
+pub use self::gltf::{glb_bytes, write_glb, write_glb_to, GlbStats, GLB_MAX_BYTES};
 
 /// Why an export failed. Every variant names the file.
 #[derive(Debug, thiserror::Error)]
@@ -33,6 +33,21 @@ pub enum ExportError {
         meshes: usize,
         /// Buildings in the city.
         buildings: usize,
+    },
+    /// The `.glb` would be larger than the format allows ([`GLB_MAX_BYTES`]: its header stores
+    /// the length in 32 bits). Nothing was written.
+    #[error(
+        "{file}: the glTF binary would be {} bytes, over the format's limit of {limit} bytes \
+         (4 GiB); export a smaller area (fewer buildings) per file",
+        bytes.map_or_else(|| "more than 2^64".to_string(), |b| b.to_string())
+    )]
+    TooLarge {
+        /// The file (`<glb>` when no file is written).
+        file: PathBuf,
+        /// The size the file would have, `None` when it does not even fit in 64 bits.
+        bytes: Option<u64>,
+        /// The largest size allowed.
+        limit: u64,
     },
     /// The JSON (the glTF document or the GeoJSON) could not be serialised or written.
     #[error("{file}: writing the JSON failed: {source}")]
@@ -59,6 +74,11 @@ impl ExportError {
                 file: file.to_path_buf(),
                 meshes,
                 buildings,
+            },
+            ExportError::TooLarge { bytes, limit, .. } => ExportError::TooLarge {
+                file: file.to_path_buf(),
+                bytes,
+                limit,
             },
             ExportError::Json { source, .. } => ExportError::Json {
                 file: file.to_path_buf(),
