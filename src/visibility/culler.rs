@@ -1,5 +1,18 @@
 //! Per-frame occlusion culling: select occluders near the viewer, draw their shadows into the
 //! cull map, and test the index's nodes against it while frustum culling (seed 004 §3.2.5–3.2.8).
+//!
+//! Conservative for the drawn frame, whatever the camera: seed 004 assumes each occluder's whole
+//! wall is drawn, exactly where the f64 footprint puts it. Here
+//! - walls nearer the eye than [`near_plane_reach`] are cut off the occluders (the frame clips
+//!   them at the near plane, and what lies behind a clipped corner shows);
+//! - every shadow allows the drawn wall to lie within a [`Slack`] of its occluder: the f32
+//!   rounding of the mesh at its distance from the local origin, plus the tolerance of merged
+//!   facade runs ([`super::occluders::merge_runs`]);
+//! - every box under test is grown by the f32 rounding of its own coordinates
+//!   ([`CullMap::box_hidden`]);
+//! - buildings whose extrusion fails give no occluders.
+//!
+//! `tests/adversarial_cameras.rs` checks this on the bundled cities from adversarial eyes.
 
 use super::cullmap::{CullMap, Resolution};
 use super::occluders::{extract, BlockOccluders, OccluderOptions};
@@ -383,7 +396,7 @@ pub fn near_plane_reach(camera: &Camera) -> f64 {
 pub fn outside_disk(o: &Occluder, c: DVec2, r: f64) -> [Option<Occluder>; 2] {
     let d = o.b - o.a;
     let dd = d.dot(d);
-    if !(r > 0.0) || dd == 0.0 {
+    if r.is_nan() || r <= 0.0 || dd == 0.0 {
         return [(r <= 0.0).then_some(*o), None];
     }
     if r.is_infinite() {
@@ -406,4 +419,93 @@ pub fn outside_disk(o: &Occluder, c: DVec2, r: f64) -> [Option<Occluder>; 2] {
         })
     };
     [piece(0.0, t0.min(1.0)), piece(t1.max(0.0), 1.0)]
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use rand::{Rng, SeedableRng};
+
+    /// Every point the near plane clips from a ray through the image lies within the reach, and
+    /// the near plane's corners are at the reach (within its rounding allowance).
+    #[test]
+    fn near_plane_reach_bounds_the_clipped_points() {
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(4);
+        for _ in 0..200 {
+            let mut cam = Camera::new(
+                DVec3::new(rng.random_range(-50.0..50.0), 3.0, 1.7),
+                rng.random_range(-3.0..3.0),
+                rng.random_range(-1.5..1.5),
+            );
+            cam.near = rng.random_range(0.05..20.0);
+            cam.fov_y = rng.random_range(0.2..2.5);
+            cam.aspect = rng.random_range(0.5..3.0);
+            let reach = near_plane_reach(&cam);
+            let inv = cam.clip_from_world().inverse();
+            let mut far_corner: f64 = 0.0;
+            for k in 0..50 {
+                // NDC x, y in [-1, 1], depth 0 (the near plane) and a bit beyond.
+                let (x, y) = if k < 4 {
+                    ([-1.0, 1.0][k % 2], [-1.0, 1.0][k / 2])
+                } else {
+                    (rng.random_range(-1.0..=1.0), rng.random_range(-1.0..=1.0))
+                };
+                let p = inv * glam::DVec4::new(x, y, 0.0, 1.0);
+                let d = (p.truncate() / p.w - cam.position).length();
+                assert!(d <= reach, "{d} > {reach}");
+                if k < 4 {
+                    far_corner = far_corner.max(d);
+                }
+            }
+            assert!(far_corner > reach * (1.0 - 2e-6), "{far_corner} vs {reach}");
+        }
+    }
+
+    #[test]
+    fn outside_disk_keeps_exactly_the_far_parts() {
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(9);
+        let mut cut = 0;
+        for _ in 0..500 {
+            let o = Occluder {
+                a: DVec2::new(rng.random_range(-10.0..10.0), rng.random_range(-10.0..10.0)),
+                b: DVec2::new(rng.random_range(-10.0..10.0), rng.random_range(-10.0..10.0)),
+                height: 5.0,
+            };
+            let c = DVec2::new(rng.random_range(-10.0..10.0), rng.random_range(-10.0..10.0));
+            let r = rng.random_range(0.0..8.0);
+            let pieces: Vec<Occluder> = outside_disk(&o, c, r).into_iter().flatten().collect();
+            cut += (pieces.len() != 1 || pieces[0] != o) as usize;
+            for p in &pieces {
+                assert_eq!(p.height, o.height);
+                // Same direction (facing is kept).
+                assert!((p.b - p.a).dot(o.b - o.a) > 0.0);
+                for k in 0..=20 {
+                    let q = p.a.lerp(p.b, k as f64 / 20.0);
+                    assert!(
+                        (q - c).length() >= r * (1.0 - 1e-9),
+                        "{q} within {r} of {c}"
+                    );
+                }
+            }
+            // Points of the edge far from the disc are kept.
+            for k in 0..=50 {
+                let q = o.a.lerp(o.b, k as f64 / 50.0);
+                if (q - c).length() > r * (1.0 + 1e-6) + 1e-9 {
+                    assert!(
+                        pieces.iter().any(|p| p.distance_to(q) < 1e-9),
+                        "{q} lost from {o:?}"
+                    );
+                }
+            }
+        }
+        assert!(cut > 50, "{cut}");
+        let o = Occluder {
+            a: DVec2::ZERO,
+            b: DVec2::X,
+            height: 1.0,
+        };
+        assert_eq!(outside_disk(&o, DVec2::ZERO, f64::INFINITY), [None, None]);
+        assert_eq!(outside_disk(&o, DVec2::ZERO, f64::NAN), [None, None]);
+        assert_eq!(outside_disk(&o, DVec2::ZERO, 0.0), [Some(o), None]);
+    }
 }

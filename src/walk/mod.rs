@@ -248,10 +248,12 @@ pub fn run_walk(
         (_, None) => "none (drawing not asked for)".to_string(),
     };
     let oracle = MeshOracle::new(&scene.meshes);
+    // The oracle judges the frames at their own resolution (the renderer's, when one draws).
+    let oracle_size = renderer.map_or(params.size, |r| r.size());
     if params.oracle {
         notes.push(format!(
             "false culls counted against the {}",
-            oracle.describe(params.size.0, params.size.1)
+            oracle.describe(oracle_size.0, oracle_size.1)
         ));
     }
     let reference = reference_structure(scene);
@@ -263,7 +265,7 @@ pub fn run_walk(
         let frustum = cam.frustum();
         let truth: Option<HashSet<BlockId>> = params
             .oracle
-            .then(|| oracle.visible(cam, params.size.0, params.size.1));
+            .then(|| oracle.visible(cam, oracle_size.0, oracle_size.1));
         for index in &scene.indexes {
             let index: &dyn CityIndex = index.as_ref();
             for &mode in &modes {
