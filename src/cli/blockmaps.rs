@@ -148,7 +148,10 @@ fn print_summary(s: &serde_json::Value) -> anyhow::Result<()> {
     }
     outln!(
         "thin features: {} ({} raised parts, {} bridges, {} buildings dropped by point sampling)",
-        s["thin_features"], s["raised_parts"], s["bridges"], s["dropped_buildings"]
+        s["thin_features"],
+        s["raised_parts"],
+        s["bridges"],
+        s["dropped_buildings"]
     );
     for t in s["thin"].as_array().into_iter().flatten().take(10) {
         outln!(
