@@ -10,6 +10,18 @@
 //!    winning building gives the texel its height (its exact `height_m`, quantised to the
 //!    nearest of 256 levels; a building lower than half a level gets level 1, so that it never
 //!    vanishes as "empty") and its roof colour.
+//!
+//!    **Supersampling** (deviation, [`BuildOptions::fill_samples`], default 4×4 samples, a texel
+//!    filled when ≥ ¼ of them hit a building, by the building with most samples): one sample
+//!    per texel keeps a share of the texels equal to the share of ground the buildings cover,
+//!    but a building seen obliquely covers more of the image than its footprint (its walls),
+//!    and where buildings are narrower than a texel (the upper levels: 149 m texels at the root
+//!    of the 80k generated city) the centre-sampled map covered 106 pixels of a view where the
+//!    meshes cover 258 (coverage error 1.24 %). With 4×4 samples and a ¼ share it covers 230
+//!    (0.54 %); a ½ share (area-preserving) gives 78 (1.36 %), any sample 297 (0.35 %). The cost
+//!    on Helsinki, whose buildings are mostly wider than a texel: ε max 29.9 m instead of 26.4 m
+//!    at the top levels (texels grown by up to ¾ texel at footprint edges), PSNR min 32.9 dB
+//!    instead of 33.8 dB, coverage error max 0.35 % instead of 0.31 %.
 //! 2. **Exposed texels** (seed 000 §3.1): a texel with at least one 4-neighbour lower than
 //!    itself (outside the map counts as empty).
 //! 3. **Wall parametrisation** (seed 002 §4.3.2 "Walls Parametrization"): per slice, exposed
@@ -189,6 +201,12 @@ pub struct BuildOptions {
     pub k: u32,
     /// Smallest slice height in rows (≥ 2, seed 002 §4.3.2).
     pub min_slice_rows: u32,
+    /// Samples per texel side for the height map: 1 samples the texel centre (seed 002's
+    /// top-down render), `n > 1` takes `n × n` samples and fills the texel when at least
+    /// [`BuildOptions::fill_share`] of them hit a building.
+    pub fill_samples: u32,
+    /// Share of a texel's samples that must hit a building to fill it (with `fill_samples > 1`).
+    pub fill_share: f64,
     /// Compute ambient occlusion ([`super::ao`]); off leaves the A channels at 255 (open sky).
     pub ao: bool,
     /// How far AO looks for occluders, metres (at least one texel is always looked at).
@@ -200,6 +218,8 @@ impl Default for BuildOptions {
         Self {
             k: 64,
             min_slice_rows: 2,
+            fill_samples: 4,
+            fill_share: 0.25,
             ao: false,
             ao_radius_m: 30.0,
         }
@@ -272,7 +292,14 @@ pub fn build_map(
 
     // 1. Top-down orthographic sampling at the texel centres: the highest roof over a centre
     //    wins (the depth test of a top-down render).
-    let owner = top_down_owners(&bs, min, map.texel_m(), k);
+    let owner = top_down_owners_supersampled(
+        &bs,
+        min,
+        map.texel_m(),
+        k,
+        opts.fill_samples as usize,
+        opts.fill_share,
+    );
     let mut stats = BuildStats {
         buildings: bs.len(),
         ..BuildStats::default()
@@ -433,6 +460,78 @@ pub fn build_map(
 pub fn top_down_owners(bs: &[&SourceBuilding], min: DVec2, s: f64, k: usize) -> Vec<u32> {
     let mut owner = vec![SKY; k * k];
     let mut top = vec![f64::NEG_INFINITY; k * k];
+    scan(bs, min, s, k, &mut |t, b| {
+        if b.z1 > top[t] {
+            top[t] = b.z1;
+            owner[t] = b.id.0;
+        }
+    });
+    owner
+}
+
+/// Supersampled variant of [`top_down_owners`]: `sub × sub` samples per texel, each won by the
+/// highest roof over it; a texel is filled when at least `min_share` of its samples are, by the
+/// building that won most of them (ties: the higher roof, then the building given first).
+pub fn top_down_owners_supersampled(
+    bs: &[&SourceBuilding],
+    min: DVec2,
+    s: f64,
+    k: usize,
+    sub: usize,
+    min_share: f64,
+) -> Vec<u32> {
+    if sub <= 1 {
+        return top_down_owners(bs, min, s, k);
+    }
+    let fine = top_down_owners(bs, min, s / sub as f64, k * sub);
+    let mut order: Vec<(u32, usize)> = bs.iter().enumerate().map(|(p, b)| (b.id.0, p)).collect();
+    order.sort_unstable();
+    let z1 = |id: u32| match order.binary_search_by_key(&id, |o| o.0) {
+        Ok(q) => (order[q].1, bs[order[q].1].z1),
+        Err(_) => (usize::MAX, f64::NEG_INFINITY),
+    };
+    let need = ((min_share * (sub * sub) as f64).ceil() as usize).max(1);
+    let mut owner = vec![SKY; k * k];
+    let mut counts: Vec<(u32, usize)> = Vec::with_capacity(sub * sub);
+    for j in 0..k {
+        for i in 0..k {
+            counts.clear();
+            for b in 0..sub {
+                for a in 0..sub {
+                    let id = fine[(j * sub + b) * k * sub + i * sub + a];
+                    if id == SKY {
+                        continue;
+                    }
+                    match counts.iter_mut().find(|c| c.0 == id) {
+                        Some(c) => c.1 += 1,
+                        None => counts.push((id, 1)),
+                    }
+                }
+            }
+            let covered: usize = counts.iter().map(|c| c.1).sum();
+            if covered < need {
+                continue;
+            }
+            let best = counts.iter().copied().max_by(|x, y| {
+                let ((px, zx), (py, zy)) = (z1(x.0), z1(y.0));
+                x.1.cmp(&y.1).then(zx.total_cmp(&zy)).then(py.cmp(&px))
+            });
+            if let Some((id, _)) = best {
+                owner[j * k + i] = id;
+            }
+        }
+    }
+    owner
+}
+
+/// Calls `hit(texel, building)` for every texel centre of the grid inside each footprint.
+fn scan<'b>(
+    bs: &[&'b SourceBuilding],
+    min: DVec2,
+    s: f64,
+    k: usize,
+    hit: &mut dyn FnMut(usize, &'b SourceBuilding),
+) {
     let mut xs: Vec<f64> = Vec::new();
     for b in bs {
         // Rows whose centre y lies in the footprint's y range.
@@ -467,18 +566,13 @@ pub fn top_down_owners(bs: &[&SourceBuilding], min: DVec2, s: f64, k: usize) -> 
                         break;
                     }
                     if x >= x0 {
-                        let t = j * k + i;
-                        if b.z1 > top[t] {
-                            top[t] = b.z1;
-                            owner[t] = b.id.0;
-                        }
+                        hit(j * k + i, b);
                     }
                     i += 1;
                 }
             }
         }
     }
-    owner
 }
 
 /// Exposed texels of rows `[r0, r1)` in unfolding order: start at the first unvisited exposed
