@@ -141,7 +141,7 @@ pub fn compare_view(
     let ids = render_ids(&pairs, cam, width, height);
     let inv = cam.clip_from_world().inverse();
     let grid = BuildingGrid::new(map, source, buildings);
-    let mut scratch = Vec::new();
+    let mut scratch = super::error::Scratch::default();
     let eps = map.meta.eps_m;
     let sphere_c = map.aabb().center();
     let sphere_r = map.aabb().extent().length() * 0.5;
