@@ -173,17 +173,23 @@ impl<'a> BuildingGrid<'a> {
         if !inside_any {
             // Outside the solid: distance to the solid, the nearest of ground and prisms. The
             // prisms of the point's own cell first, then those of the cells within that bound.
-            let dist = |b: &SourceBuilding| {
-                let dh = horizontal_distance(b, xy);
+            // A prism whose box is already no nearer than the bound is skipped.
+            let dist = |b: &SourceBuilding, bound: f64| {
                 let dv = (b.z0 - p.z).max(p.z - b.z1).max(0.0);
-                (dh * dh + dv * dv).sqrt()
+                let bx = (b.min.x - xy.x).max(xy.x - b.max.x).max(0.0);
+                let by = (b.min.y - xy.y).max(xy.y - b.max.y).max(0.0);
+                if bx * bx + by * by + dv * dv >= bound * bound {
+                    return bound;
+                }
+                let dh = horizontal_distance(b, xy);
+                (dh * dh + dv * dv).sqrt().min(bound)
             };
             for &n in scratch.list.iter() {
-                bound = bound.min(dist(self.all[n as usize]));
+                bound = dist(self.all[n as usize], bound);
             }
             self.near(xy, bound, scratch);
             for &n in scratch.list.iter() {
-                bound = bound.min(dist(self.all[n as usize]));
+                bound = dist(self.all[n as usize], bound);
             }
             return bound;
         }
