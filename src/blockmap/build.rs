@@ -11,17 +11,19 @@
 //!    nearest of 256 levels; a building lower than half a level gets level 1, so that it never
 //!    vanishes as "empty") and its roof colour.
 //!
-//!    **Supersampling** (deviation, [`BuildOptions::fill_samples`], default 4×4 samples, a texel
-//!    filled when ≥ ¼ of them hit a building, by the building with most samples): one sample
-//!    per texel keeps a share of the texels equal to the share of ground the buildings cover,
-//!    but a building seen obliquely covers more of the image than its footprint (its walls),
-//!    and where buildings are narrower than a texel (the upper levels: 149 m texels at the root
-//!    of the 80k generated city) the centre-sampled map covered 106 pixels of a view where the
-//!    meshes cover 258 (coverage error 1.24 %). With 4×4 samples and a ¼ share it covers 230
-//!    (0.54 %); a ½ share (area-preserving) gives 78 (1.36 %), any sample 297 (0.35 %). The cost
-//!    on Helsinki, whose buildings are mostly wider than a texel: ε max 29.9 m instead of 26.4 m
-//!    at the top levels (texels grown by up to ¾ texel at footprint edges), PSNR min 32.9 dB
-//!    instead of 33.8 dB, coverage error max 0.35 % instead of 0.31 %.
+//!    **Supersampling** (deviation, [`BuildOptions::fill_samples`], default 4×4 samples per
+//!    texel, [`top_down_owners_supersampled`]): the building with most samples fills the texel
+//!    when at least half of them hit a building (area-preserving), or, when that building is
+//!    narrower than a texel, at least a quarter ([`BuildOptions::fill_share`]). Why: one sample
+//!    per texel keeps a share of texels equal to the share of ground the buildings cover, but a
+//!    building seen obliquely covers more of the image than its footprint (its walls), and
+//!    where buildings are narrower than a texel (the upper levels: 149 m texels at the root of
+//!    the 80k generated city) the centre-sampled root map covered 106 pixels of a view where
+//!    the meshes cover 258 (coverage error 1.24 %). Measured on that view: centre 1.24 %; 4×4
+//!    with a ½ share everywhere 1.36 %; a ¼ share everywhere 0.54 % (but Astana's wide blocks
+//!    then grow by up to ¾ texel and reach 1.07 %); the rule above 0.54 % on the 80k root,
+//!    Astana max 0.91 % (centre: 0.88 %), Helsinki max 0.29 % with ε max 25.1 m (centre: 0.31 %,
+//!    26.4 m).
 //! 2. **Exposed texels** (seed 000 §3.1): a texel with at least one 4-neighbour lower than
 //!    itself (outside the map counts as empty).
 //! 3. **Wall parametrisation** (seed 002 §4.3.2 "Walls Parametrization"): per slice, exposed
@@ -470,8 +472,9 @@ pub fn top_down_owners(bs: &[&SourceBuilding], min: DVec2, s: f64, k: usize) -> 
 }
 
 /// Supersampled variant of [`top_down_owners`]: `sub × sub` samples per texel, each won by the
-/// highest roof over it; a texel is filled when at least `min_share` of its samples are, by the
-/// building that won most of them (ties: the higher roof, then the building given first).
+/// highest roof over it; the building that won most of them (ties: the higher roof, then the
+/// building given first) fills the texel when at least half of its samples are covered, or, for
+/// a building narrower than a texel (the smaller side of its box), at least `min_share`.
 pub fn top_down_owners_supersampled(
     bs: &[&SourceBuilding],
     min: DVec2,
@@ -491,6 +494,7 @@ pub fn top_down_owners_supersampled(
         Err(_) => (usize::MAX, f64::NEG_INFINITY),
     };
     let need = ((min_share * (sub * sub) as f64).ceil() as usize).max(1);
+    let half = (sub * sub).div_ceil(2);
     let mut owner = vec![SKY; k * k];
     let mut counts: Vec<(u32, usize)> = Vec::with_capacity(sub * sub);
     for j in 0..k {
@@ -509,15 +513,20 @@ pub fn top_down_owners_supersampled(
                 }
             }
             let covered: usize = counts.iter().map(|c| c.1).sum();
-            if covered < need {
-                continue;
-            }
             let best = counts.iter().copied().max_by(|x, y| {
                 let ((px, zx), (py, zy)) = (z1(x.0), z1(y.0));
                 x.1.cmp(&y.1).then(zx.total_cmp(&zy)).then(py.cmp(&px))
             });
             if let Some((id, _)) = best {
-                owner[j * k + i] = id;
+                // A building at least a texel wide keeps the area-preserving half share; a
+                // thinner one (whose walls, seen obliquely, cover more than its footprint)
+                // fills the texel from `min_share`.
+                let (pos, _) = z1(id);
+                let thin = pos < bs.len() && (bs[pos].max - bs[pos].min).min_element() < s;
+                let need = if thin { need } else { need.max(half) };
+                if covered >= need {
+                    owner[j * k + i] = id;
+                }
             }
         }
     }
