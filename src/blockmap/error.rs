@@ -73,6 +73,14 @@ pub struct ErrorReport {
     pub thin: Vec<ThinFeature>,
 }
 
+/// Working memory of [`BuildingGrid`]'s queries: reuse one per thread.
+#[derive(Clone, Debug, Default)]
+pub struct Scratch {
+    list: Vec<u32>,
+    mark: Vec<u32>,
+    gen: u32,
+}
+
 /// Buildings per texel of a map (by footprint box), to find the prisms near a point.
 pub struct BuildingGrid<'a> {
     k: usize,
@@ -116,9 +124,19 @@ impl<'a> BuildingGrid<'a> {
         }
     }
 
-    /// Buildings whose box may lie within `r` of `p` (horizontally), each once.
-    fn near(&self, p: DVec2, r: f64, out: &mut Vec<u32>) {
-        out.clear();
+    /// Buildings whose box may lie within `r` of `p` (horizontally), each once, into
+    /// `out.list` (in cell order; a mark per building replaces sorting out the repeats).
+    fn near(&self, p: DVec2, r: f64, out: &mut Scratch) {
+        out.list.clear();
+        if out.mark.len() != self.all.len() {
+            out.mark = vec![0; self.all.len()];
+            out.gen = 0;
+        }
+        out.gen = out.gen.wrapping_add(1);
+        if out.gen == 0 {
+            out.mark.fill(0);
+            out.gen = 1;
+        }
         let lo = ((p - DVec2::splat(r) - self.min) / self.s).floor();
         let hi = ((p + DVec2::splat(r) - self.min) / self.s).floor();
         let k = self.k as f64;
@@ -129,35 +147,49 @@ impl<'a> BuildingGrid<'a> {
         let (i1, j1) = (hi.x.min(k - 1.0) as usize, hi.y.min(k - 1.0) as usize);
         for j in j0..=j1 {
             for i in i0..=i1 {
-                out.extend_from_slice(&self.cells[j * self.k + i]);
+                for &n in &self.cells[j * self.k + i] {
+                    if out.mark[n as usize] != out.gen {
+                        out.mark[n as usize] = out.gen;
+                        out.list.push(n);
+                    }
+                }
             }
         }
-        out.sort_unstable();
-        out.dedup();
     }
 
     /// Exact distance from `p` to the surface of the original solid (ground ∪ prisms).
-    pub fn surface_distance(&self, p: DVec3, scratch: &mut Vec<u32>) -> f64 {
+    pub fn surface_distance(&self, p: DVec3, scratch: &mut Scratch) -> f64 {
         let xy = p.truncate();
         // Upper bound: the ground, or the nearest way out of the prisms holding p.
         let mut inside_any = p.z < 0.0;
         let mut bound = p.z.abs();
         self.near(xy, 0.0, scratch);
-        for &n in scratch.iter() {
+        for &n in scratch.list.iter() {
             let b = self.all[n as usize];
             if p.z >= b.z0 && p.z <= b.z1 && in_polygon(b, xy) {
                 inside_any = true;
             }
         }
         if !inside_any {
-            // Outside the solid: distance to the solid, the nearest of ground and prisms.
-            let r = bound;
-            self.near(xy, r, scratch);
-            for &n in scratch.iter() {
-                let b = self.all[n as usize];
-                let dh = horizontal_distance(b, xy);
+            // Outside the solid: distance to the solid, the nearest of ground and prisms. The
+            // prisms of the point's own cell first, then those of the cells within that bound.
+            // A prism whose box is already no nearer than the bound is skipped.
+            let dist = |b: &SourceBuilding, bound: f64| {
                 let dv = (b.z0 - p.z).max(p.z - b.z1).max(0.0);
-                bound = bound.min((dh * dh + dv * dv).sqrt());
+                let bx = (b.min.x - xy.x).max(xy.x - b.max.x).max(0.0);
+                let by = (b.min.y - xy.y).max(xy.y - b.max.y).max(0.0);
+                if bx * bx + by * by + dv * dv >= bound * bound {
+                    return bound;
+                }
+                let dh = horizontal_distance(b, xy);
+                (dh * dh + dv * dv).sqrt().min(bound)
+            };
+            for &n in scratch.list.iter() {
+                bound = dist(self.all[n as usize], bound);
+            }
+            self.near(xy, bound, scratch);
+            for &n in scratch.list.iter() {
+                bound = dist(self.all[n as usize], bound);
             }
             return bound;
         }
@@ -171,7 +203,7 @@ impl<'a> BuildingGrid<'a> {
         let mut top = p.z.max(0.0);
         loop {
             let mut raised = false;
-            for &n in scratch.iter() {
+            for &n in scratch.list.iter() {
                 let b = self.all[n as usize];
                 if top >= b.z0 && top < b.z1 && in_polygon(b, xy) {
                     top = b.z1;
@@ -184,7 +216,8 @@ impl<'a> BuildingGrid<'a> {
         }
         best = best.min(top - p.z);
         self.near(xy, best, scratch);
-        let cands: Vec<&SourceBuilding> = scratch.iter().map(|&n| self.all[n as usize]).collect();
+        let cands: Vec<&SourceBuilding> =
+            scratch.list.iter().map(|&n| self.all[n as usize]).collect();
         let mut levels: Vec<f64> = vec![p.z];
         for b in &cands {
             if b.z1 > p.z && b.z1 - p.z < best {
@@ -393,7 +426,7 @@ pub fn measure(map: &BlockMap, source: &Source, buildings: &[u32]) -> ErrorRepor
             f.at = at.to_array();
         }
     };
-    let mut scratch = Vec::new();
+    let mut scratch = Scratch::default();
     let mut covers: Vec<(f64, f64)> = Vec::new();
     let mut samples = 0usize;
     // Original → map.
@@ -436,7 +469,7 @@ pub fn measure(map: &BlockMap, source: &Source, buildings: &[u32]) -> ErrorRepor
                     // one covers a height, the wall there is no surface.
                     grid.near(probe, 0.0, &mut scratch);
                     covers.clear();
-                    covers.extend(scratch.iter().filter_map(|&m| {
+                    covers.extend(scratch.list.iter().filter_map(|&m| {
                         let o = grid.all[m as usize];
                         (o.id != b.id && in_polygon(o, probe)).then_some((o.z0, o.z1))
                     }));
@@ -562,6 +595,7 @@ pub fn measure(map: &BlockMap, source: &Source, buildings: &[u32]) -> ErrorRepor
                 // Name the building nearest to the sample.
                 grid.near(c, s, &mut scratch);
                 let nearest = scratch
+                    .list
                     .iter()
                     .map(|&n| grid.all[n as usize])
                     .min_by(|a, b| horizontal_distance(a, c).total_cmp(&horizontal_distance(b, c)));
@@ -595,6 +629,6 @@ fn heights(a: f64, b: f64, step: f64) -> Vec<f64> {
 
 /// Exact distance from a point (local frame) to the original surface of the map's buildings.
 pub fn original_surface_distance(grid: &BuildingGrid, p: DVec3) -> f64 {
-    let mut scratch = Vec::new();
+    let mut scratch = Scratch::default();
     grid.surface_distance(p, &mut scratch)
 }

@@ -34,6 +34,13 @@ pub struct Args {
     /// error 1 px), spread evenly over the list.
     #[arg(long, default_value_t = 8)]
     pub check: usize,
+    /// Height-map samples per texel side: 1 samples each texel's centre; N > 1 takes N×N samples
+    /// and fills a texel when at least --fill-share of them hit a building.
+    #[arg(long, default_value_t = BuildOptions::default().fill_samples)]
+    pub fill_samples: u32,
+    /// Share of a texel's samples that must hit a building to fill it.
+    #[arg(long, default_value_t = BuildOptions::default().fill_share)]
+    pub fill_share: f64,
     /// Compute ambient occlusion (seed 002 §4.2.1), horizon-based over each map's height map.
     #[arg(long)]
     pub ao: bool,
@@ -59,6 +66,16 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         "--ao-radius {}: expected a radius > 0 in metres",
         args.ao_radius
     );
+    anyhow::ensure!(
+        (1..=8).contains(&args.fill_samples),
+        "--fill-samples {}: expected 1 to 8",
+        args.fill_samples
+    );
+    anyhow::ensure!(
+        args.fill_share > 0.0 && args.fill_share <= 1.0,
+        "--fill-share {}: expected a share in (0, 1]",
+        args.fill_share
+    );
     let stop = match (args.levels, args.leaf_blocks) {
         (Some(l), _) => Stop::Levels(l),
         (None, Some(m)) => Stop::LeafBlocks(m),
@@ -70,6 +87,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 k: args.k,
                 ao: args.ao,
                 ao_radius_m: args.ao_radius,
+                fill_samples: args.fill_samples,
+                fill_share: args.fill_share,
                 ..BuildOptions::default()
             },
             stop,
