@@ -4,7 +4,7 @@
 //! - **Coverage error** (seed 001's measure): the share of pixels where one image shows a
 //!   building and the other does not.
 //! - **The screen-space bound**: every mismatched pixel must lie within `1 px + e_px/cos²θ` of a
-//!   silhouette pixel of the mesh image or of the map image (`θ` the pixel's angle off the
+//!   silhouette pixel of the image that does not cover it (`θ` the pixel's angle off the
 //!   optical axis, BLOCKMAPS.md A.4-12; `e_px` seed 000 §3.3 with the distance to the nearest
 //!   point of the map's bounding sphere). Derivation, with `r = e_px/cos²θ` the largest image
 //!   shift of a world displacement of ε seen from at least the sphere's distance:
@@ -62,7 +62,9 @@ pub struct ViewCompare {
     pub coverage_error_of_union: f64,
     /// Mismatched pixels farther than `1 + e_px/cos²θ` from a mesh silhouette.
     pub beyond_bound: usize,
-    /// Largest distance of a mismatched pixel to the nearest mesh silhouette pixel, in units of
+    /// Largest distance of a mismatched pixel to the nearest silhouette pixel of the image that
+    /// does not cover it (the mesh image's where only the map covers it, the map image's where
+    /// only the mesh covers it), in units of
     /// its allowed distance `1 + e_px/cos²θ` (≤ 1 when the bound holds).
     pub worst_mismatch_ratio: f64,
     /// The pixel `(x, y)` of [`ViewCompare::worst_mismatch_ratio`].
@@ -223,10 +225,10 @@ pub fn compare_view(
     } else {
         10.0 * (255.0f64 * 255.0 / mse).log10()
     };
-    // Silhouette pixels of either image: covered with an uncovered 4-neighbour, or the reverse.
-    // Why either (see the module doc): a pixel the map covers and the mesh does not lies near a
-    // silhouette of the mesh image, a pixel the mesh covers and the map does not near one of the
-    // map image.
+    // Silhouette pixels of each image: covered with an uncovered 4-neighbour, or the reverse.
+    // Which one a mismatched pixel is measured against (see the module doc): a pixel the map
+    // covers and the mesh does not must lie near a silhouette of the mesh image, a pixel the
+    // mesh covers and the map does not near one of the map image.
     let silhouettes = |cov: &[bool]| -> Vec<bool> {
         (0..h)
             .flat_map(|y| (0..w).map(move |x| (x, y)))
@@ -246,10 +248,13 @@ pub fn compare_view(
             .collect()
     };
     let (mesh_sil, map_sil) = (silhouettes(&mesh_cov), silhouettes(&map_cov));
-    let sil: Vec<(i64, i64)> = (0..w * h)
-        .filter(|&k| mesh_sil[k] || map_sil[k])
-        .map(|k| ((k % w) as i64, (k / w) as i64))
-        .collect();
+    let pixels = |sil: &[bool]| -> Vec<(i64, i64)> {
+        (0..w * h)
+            .filter(|&k| sil[k])
+            .map(|k| ((k % w) as i64, (k / w) as i64))
+            .collect()
+    };
+    let (mesh_sil, map_sil) = (pixels(&mesh_sil), pixels(&map_sil));
     let fy = (0.5 * cam.fov_y).tan();
     let fx = fy * cam.aspect;
     for y in 0..h {
@@ -264,6 +269,9 @@ pub fn compare_view(
             let cos2 = 1.0 / (1.0 + nx * nx + ny * ny);
             let r = 1.0 + eps_px / cos2;
             let r2 = r * r;
+            // The map shows a building the mesh does not: a mesh silhouette is near; the
+            // mesh shows one the map does not: a map silhouette is near.
+            let sil = if map_cov[k] { &mesh_sil } else { &map_sil };
             let nearest2 = sil
                 .iter()
                 .map(|&(sx, sy)| {
