@@ -16,7 +16,7 @@
 //!   these is kept as `source:<name>`.
 //! - Vertices are quantised with `transform`: `translate` is the minimum corner of the model and
 //!   the scale a power of ten chosen from the data ([`choose_scale`]: 1 mm, finer when the
-//!   footprints have shorter edges). Vertices are shared between surfaces and buildings; none is
+//!   footprints have shorter edges, as long as the extent fits in 32-bit integers). Vertices are shared between surfaces and buildings; none is
 //!   repeated or unused.
 //! - CRS: `metadata.referenceSystem` is `https://www.opengis.net/def/crs/EPSG/0/<code>` when the
 //!   city's metric frame is a projected CRS with an EPSG code (coordinates are then that CRS's,
@@ -38,10 +38,6 @@ use super::ExportError;
 use crate::city::build::{source_name, HeightFields};
 use crate::city::{Building, City};
 
-/// The coarsest quantisation step, metres (1 mm).
-pub const COARSEST_SCALE_M: f64 = 1e-3;
-/// The finest quantisation step, metres (1 µm).
-pub const FINEST_SCALE_M: f64 = 1e-6;
 /// A footprint edge is at least this many quantisation steps long (so that no edge collapses).
 pub const STEPS_PER_SHORTEST_EDGE: f64 = 10.0;
 
@@ -94,11 +90,14 @@ pub fn local_projection(t: &MetricTransform) -> Option<String> {
     }
 }
 
-/// The quantisation step for these buildings: the coarsest power of ten between
-/// [`FINEST_SCALE_M`] and [`COARSEST_SCALE_M`] at which every footprint edge is at least
-/// [`STEPS_PER_SHORTEST_EDGE`] steps long.
+/// The quantisation step for these buildings: the coarsest of 1 mm, 0.1 mm, 10 µm and 1 µm at
+/// which every footprint edge is at least [`STEPS_PER_SHORTEST_EDGE`] steps long, but never so
+/// fine that the model's extent exceeds `i32::MAX` steps (what 32-bit readers hold).
 pub fn choose_scale(buildings: &[Building]) -> f64 {
     let mut shortest = f64::INFINITY;
+    let mut lo = [f64::INFINITY; 2];
+    let mut hi = [f64::NEG_INFINITY; 2];
+    let mut top = 0.0f64;
     for b in buildings {
         for r in rings(b) {
             for w in r.0.windows(2) {
@@ -107,11 +106,21 @@ pub fn choose_scale(buildings: &[Building]) -> f64 {
                     shortest = shortest.min(d);
                 }
             }
+            for c in &r.0 {
+                lo = [lo[0].min(c.x), lo[1].min(c.y)];
+                hi = [hi[0].max(c.x), hi[1].max(c.y)];
+            }
         }
+        top = top.max(b.height_m);
     }
-    let mut s = COARSEST_SCALE_M;
-    while s > FINEST_SCALE_M * 1.5 && shortest < STEPS_PER_SHORTEST_EDGE * s {
-        s /= 10.0;
+    let extent = (hi[0] - lo[0]).max(hi[1] - lo[1]).max(top).max(0.0);
+    const STEPS: [f64; 4] = [1e-3, 1e-4, 1e-5, 1e-6];
+    let mut s = STEPS[0];
+    for &finer in &STEPS[1..] {
+        if shortest >= STEPS_PER_SHORTEST_EDGE * s || extent / finer > i32::MAX as f64 {
+            break;
+        }
+        s = finer;
     }
     s
 }
