@@ -233,7 +233,7 @@ fn building_object(
         }
     }
     let mut values = vec![0u32, 1];
-    values.extend(std::iter::repeat(2).take(surfaces.len() - 2));
+    values.extend(std::iter::repeat_n(2, surfaces.len() - 2));
     let bottom_type = if z0 > 0.0 {
         "OuterCeilingSurface"
     } else {
