@@ -6,6 +6,7 @@ use std::time::Instant;
 
 use anyhow::Context;
 use blockwalk::city::build::{BuildError, BuildOptions, HeightFields};
+use blockwalk::city::export::cityjson::{is_cityjson_seq, write_cityjson, write_cityjson_seq};
 use blockwalk::city::export::{write_geojson, write_glb};
 use blockwalk::city::extrude::try_extrude_city;
 use blockwalk::geom::predicates::polygon_area;
@@ -24,6 +25,13 @@ pub struct Args {
     /// Write the footprints with their heights as GeoJSON (input coordinates).
     #[arg(long)]
     geojson: Option<PathBuf>,
+    /// Write the buildings as CityJSON 2.0 (LoD1 solids, LoD0 footprints); CityJSONSeq, one
+    /// building per line, when the name ends in `.jsonl` or with --cityjson-seq.
+    #[arg(long)]
+    cityjson: Option<PathBuf>,
+    /// Write --cityjson as CityJSONSeq whatever its extension.
+    #[arg(long = "cityjson-seq", requires = "cityjson")]
+    cityjson_seq: bool,
     /// Print one JSON object instead of the summary.
     #[arg(long)]
     json: bool,
@@ -92,6 +100,16 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     if let Some(out) = &args.geojson {
         write_geojson(&city, out).context("writing GeoJSON")?;
     }
+    let mut cityjson = None;
+    if let Some(out) = &args.cityjson {
+        let pb = spinner(format!("writing {}", out.display()));
+        cityjson = Some(if args.cityjson_seq || is_cityjson_seq(out) {
+            write_cityjson_seq(&city, out).context("writing CityJSONSeq")?
+        } else {
+            write_cityjson(&city, out).context("writing CityJSON")?
+        });
+        pb.finish_and_clear();
+    }
     let export_ms = t2.elapsed().as_secs_f64() * 1e3;
 
     let r = &city.report;
@@ -126,6 +144,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             "height_sources": r.height_sources,
             "notes": r.notes,
             "glb": glb,
+            "cityjson": cityjson,
             "import_ms": import_ms,
             "extrude_ms": extrude_ms,
             "export_ms": export_ms,
@@ -210,6 +229,19 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         }
         if let Some(out) = &args.geojson {
             outln!("wrote {}", out.display());
+        }
+        if let (Some(out), Some(c)) = (&args.cityjson, &cityjson) {
+            outln!(
+                "wrote {} ({} buildings, {} vertices at {} m, {} bytes)",
+                out.display(),
+                c.buildings,
+                c.vertices,
+                c.scale_m,
+                c.bytes
+            );
+            for d in c.dropped_rings.iter().take(5) {
+                outln!("  collapsed at the quantisation step: {d}");
+            }
         }
         outln!(
             "time: import {import_ms:.0} ms, extrude {extrude_ms:.0} ms, export {export_ms:.0} ms{}",

@@ -4,6 +4,7 @@
 //! - [`gltf`]: [`write_glb`], [`write_glb_to`] (streamed to any writer), [`glb_bytes`].
 //! - [`geojson`]: [`write_geojson`], [`geojson_value`].
 
+pub mod cityjson;
 pub mod geojson;
 pub mod gltf;
 

@@ -1,0 +1,202 @@
+//! Every `.glb` that the bundled data exports, checked by the Khronos glTF-Validator (npm
+//! `gltf-validator`, run by `tests/tools/validate_gltf.js` under Node): 0 errors and 0 warnings.
+//!
+//! Needs `node` and `npm ci --prefix tests/tools` (what `.ci/run` does). Without them the tests
+//! print why and pass, unless `BLOCKWALK_REQUIRE_VALIDATORS=1` (set by `.ci/run`), where they
+//! fail.
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+use blockwalk::city::export::glb_bytes;
+use blockwalk::city::extrude::try_extrude_city;
+use blockwalk::city::generate::{generate_city, write_city, GenerateParams};
+use blockwalk::city::City;
+use blockwalk::scene::CitySource;
+use serde_json::Value;
+
+const REQUIRE: &str = "BLOCKWALK_REQUIRE_VALIDATORS";
+
+fn tools() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/tools")
+}
+
+/// `Some(node)` when node and the validator are installed; otherwise prints why and gives
+/// `None`, or panics when [`REQUIRE`] is set.
+fn validator_or_skip(test: &str) -> Option<String> {
+    let node = std::env::var("BLOCKWALK_NODE").unwrap_or_else(|_| "node".into());
+    let why = match Command::new(&node).arg("--version").output() {
+        Err(e) => Some(format!("`{node}` cannot be run ({e})")),
+        Ok(o) if !o.status.success() => Some(format!("`{node} --version` failed")),
+        Ok(_) if !tools().join("node_modules/gltf-validator").is_dir() => Some(format!(
+            "the validator is not installed (run `npm ci --prefix {}`)",
+            tools().display()
+        )),
+        Ok(_) => None,
+    };
+    match why {
+        None => Some(node),
+        Some(why) if std::env::var(REQUIRE).is_ok_and(|v| v == "1") => {
+            panic!("{test}: {why}, and {REQUIRE}=1")
+        }
+        Some(why) => {
+            eprintln!("{test}: skipped: {why} ({REQUIRE}=1 makes this a failure)");
+            None
+        }
+    }
+}
+
+/// The validator's JSON report on one file.
+fn validate(node: &str, file: &Path) -> Value {
+    let out = Command::new(node)
+        .arg(tools().join("validate_gltf.js"))
+        .arg(file)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}: {}",
+        file.display(),
+        String::from_utf8_lossy(&out.stderr)
+    );
+    serde_json::from_slice(&out.stdout).unwrap()
+}
+
+fn counts(report: &Value) -> [u64; 4] {
+    let i = &report["issues"];
+    ["numErrors", "numWarnings", "numInfos", "numHints"].map(|k| i[k].as_u64().unwrap())
+}
+
+fn load(buildings: &Path, streets: Option<&str>) -> City {
+    let source = CitySource::parse(buildings, streets.map(Into::into), None, &[], 0).unwrap();
+    source.load(&Default::default(), &mut |_| {}).unwrap().city
+}
+
+fn glb_of(city: &City) -> Vec<u8> {
+    let (meshes, errors) = try_extrude_city(city);
+    assert!(errors.is_empty(), "{}: {errors:?}", city.name);
+    glb_bytes(city, &meshes).unwrap().0
+}
+
+/// The messages of a report, for failure output.
+fn messages(report: &Value) -> Vec<String> {
+    report["issues"]["messages"]
+        .as_array()
+        .map(|m| {
+            m.iter()
+                .take(20)
+                .map(|x| format!("{} {} {}", x["code"], x["pointer"], x["message"]))
+                .collect()
+        })
+        .unwrap_or_default()
+}
+
+#[test]
+fn every_bundled_export_is_valid_gltf() {
+    let Some(node) = validator_or_skip("every_bundled_export_is_valid_gltf") else {
+        return;
+    };
+    let dir = tempfile::tempdir().unwrap();
+    let gen_dir = dir.path().join("generated");
+    let g = generate_city(&GenerateParams {
+        buildings: 500,
+        seed: 5,
+        ..Default::default()
+    })
+    .unwrap();
+    write_city(&g, &gen_dir).unwrap();
+    let cities = [
+        (
+            "bubenec",
+            load(
+                Path::new("data/bubenec/buildings.shp"),
+                Some("data/bubenec/streets.shp"),
+            ),
+        ),
+        (
+            "bubenec_utm33n",
+            load(Path::new("data/bubenec_utm33n/buildings.shp"), None),
+        ),
+        (
+            "helsinki",
+            load(Path::new("data/helsinki/buildings.shp"), None),
+        ),
+        (
+            "helsinki_building_parts",
+            load(Path::new("data/helsinki/building_parts.shp"), None),
+        ),
+        ("generated", load(&gen_dir.join("buildings.shp"), None)),
+    ];
+    for (name, city) in &cities {
+        let file = dir.path().join(format!("{name}.glb"));
+        std::fs::write(&file, glb_of(city)).unwrap();
+        let report = validate(&node, &file);
+        let [e, w, i, h] = counts(&report);
+        println!("{name}.glb: {e} errors, {w} warnings, {i} infos, {h} hints");
+        assert_eq!((e, w), (0, 0), "{name}.glb: {:#?}", messages(&report));
+        // The validator read the whole asset: every building's mesh is there.
+        let meshes = report["info"]["drawCallCount"].as_u64().unwrap();
+        let expected = city.buildings.len() as u64;
+        assert!(
+            meshes > 0 && meshes <= expected,
+            "{name}: {meshes} draw calls for {expected} buildings"
+        );
+    }
+}
+
+/// Rewrites a `.glb`'s JSON chunk (the binary chunk kept as it is).
+fn with_json(glb: &[u8], edit: impl FnOnce(&mut Value)) -> Vec<u8> {
+    let u32_at = |o: usize| u32::from_le_bytes(glb[o..o + 4].try_into().unwrap()) as usize;
+    let json_len = u32_at(12);
+    let mut doc: Value = serde_json::from_slice(&glb[20..20 + json_len]).unwrap();
+    edit(&mut doc);
+    let mut json = serde_json::to_vec(&doc).unwrap();
+    while json.len() % 4 != 0 {
+        json.push(b' ');
+    }
+    let bin = &glb[20 + json_len..];
+    let total = 12 + 8 + json.len() + bin.len();
+    let mut out = Vec::with_capacity(total);
+    out.extend_from_slice(&glb[0..8]);
+    out.extend_from_slice(&(total as u32).to_le_bytes());
+    out.extend_from_slice(&(json.len() as u32).to_le_bytes());
+    out.extend_from_slice(b"JSON");
+    out.extend_from_slice(&json);
+    out.extend_from_slice(bin);
+    out
+}
+
+#[test]
+fn the_validator_is_not_vacuous() {
+    let Some(node) = validator_or_skip("the_validator_is_not_vacuous") else {
+        return;
+    };
+    let city = load(Path::new("data/helsinki/buildings.shp"), None);
+    let glb = glb_of(&city);
+    // A POSITION accessor whose declared maximum is not the data's: an error the validator
+    // must report (the specification requires exact bounds).
+    let bad = with_json(&glb, |doc| {
+        let accessors = doc["accessors"].as_array_mut().unwrap();
+        let pos = accessors
+            .iter_mut()
+            .find(|a| a.get("max").is_some())
+            .unwrap();
+        let x = pos["max"][0].as_f64().unwrap();
+        pos["max"][0] = serde_json::json!(x + 1.0);
+    });
+    let dir = tempfile::tempdir().unwrap();
+    let good_file = dir.path().join("good.glb");
+    let bad_file = dir.path().join("bad.glb");
+    std::fs::write(&good_file, &glb).unwrap();
+    std::fs::write(&bad_file, bad).unwrap();
+    assert_eq!(counts(&validate(&node, &good_file))[..2], [0, 0]);
+    let report = validate(&node, &bad_file);
+    assert!(counts(&report)[0] > 0, "{:#?}", messages(&report));
+    assert!(
+        messages(&report)
+            .iter()
+            .any(|m| m.contains("ACCESSOR_MAX_MISMATCH")),
+        "{:#?}",
+        messages(&report)
+    );
+}
