@@ -172,11 +172,14 @@ impl Scene {
                 })?
             }
         };
-        let meshes = match meshes {
-            Some(m) => m,
+        // Which buildings have a mesh, when the scene extrudes them itself (the occlusion
+        // culler must know: an undrawn building casts no shadow).
+        let (meshes, drawn) = match meshes {
+            Some(m) => (m, None),
             None => {
                 progress("extruding buildings");
-                block_meshes(&city, &layout)
+                let (m, drawn) = block_meshes_drawn(&city, &layout);
+                (m, Some(drawn))
             }
         };
         progress("laying out the ground");
@@ -197,11 +200,13 @@ impl Scene {
         let occlusion = match opts.occlusion {
             Some(o) => {
                 progress("extracting occluders");
-                Some(OcclusionCuller::new(&city, &layout, o).map_err(|source| {
-                    SceneError::Occlusion {
-                        city: city.name.clone(),
-                        source,
-                    }
+                let culler = match &drawn {
+                    Some(d) => OcclusionCuller::with_drawn(&city, &layout, d, o),
+                    None => OcclusionCuller::new(&city, &layout, o),
+                };
+                Some(culler.map_err(|source| SceneError::Occlusion {
+                    city: city.name.clone(),
+                    source,
                 })?)
             }
             None => None,
@@ -266,8 +271,18 @@ impl Scene {
 /// One mesh per block: its buildings extruded (in parallel) and merged, in block order.
 /// Buildings in no block are left out (none are when the layout assigns every building).
 pub fn block_meshes(city: &City, layout: &BlockLayout) -> Vec<(BlockId, Mesh)> {
+    block_meshes_drawn(city, layout).0
+}
+
+/// As [`block_meshes`], with whether each building (by id) has a mesh: a building whose
+/// extrusion failed is drawn as nothing.
+pub fn block_meshes_drawn(city: &City, layout: &BlockLayout) -> (Vec<(BlockId, Mesh)>, Vec<bool>) {
     let mut per_building: Vec<Option<Mesh>> = extrude_city(city).into_iter().map(Some).collect();
-    layout
+    let drawn = per_building
+        .iter()
+        .map(|m| m.as_ref().is_some_and(|m| !m.indices.is_empty()))
+        .collect();
+    let meshes = layout
         .blocks
         .iter()
         .map(|block| {
@@ -279,7 +294,8 @@ pub fn block_meshes(city: &City, layout: &BlockLayout) -> Vec<(BlockId, Mesh)> {
             }
             (block.id, m)
         })
-        .collect()
+        .collect();
+    (meshes, drawn)
 }
 
 /// The ground layers of a city: the ground of its street blocks (outskirts groups have no
@@ -292,4 +308,34 @@ pub fn ground_layers(city: &City, layout: &BlockLayout) -> Mesh {
         .map(|b| b.polygon.clone())
         .collect();
     crate::city::appearance::ground_mesh(&city.frame, &city.streets, &blocks)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::city::extrude::try_extrude_building;
+
+    /// The scene's own extrusion tells the culler which buildings are drawn: the mask must be
+    /// exactly "the extrusion succeeded" (as `occluders::extract` finds it by extruding again),
+    /// here on a generated city where one footprint is made to fail.
+    #[test]
+    fn drawn_mask_is_the_extrusion_outcome() {
+        let source =
+            CitySource::parse(std::path::Path::new("synthetic:3x2"), None, None, &[], 5).unwrap();
+        let mut loaded = source.load(&Default::default(), &mut |_| {}).unwrap();
+        let layout = detect(&loaded.city, &BlockOptions::default()).unwrap();
+        // A NaN vertex makes spade refuse the footprint: that building is drawn as nothing.
+        let bad = &mut loaded.city.buildings[3].footprint;
+        bad.exterior_mut(|r| r.0[1].x = f64::NAN);
+        let (_, drawn) = block_meshes_drawn(&loaded.city, &layout);
+        let truth: Vec<bool> = loaded
+            .city
+            .buildings
+            .iter()
+            .map(|b| try_extrude_building(b, &loaded.city.frame).is_ok())
+            .collect();
+        assert_eq!(drawn, truth);
+        assert!(!drawn[3], "the broken footprint must count as not drawn");
+        assert!(drawn.iter().filter(|d| **d).count() > 100);
+    }
 }

@@ -15,7 +15,7 @@
 //! `tests/adversarial_cameras.rs` checks this on the bundled cities from adversarial eyes.
 
 use super::cullmap::{CullMap, Resolution};
-use super::occluders::{extract, BlockOccluders, OccluderOptions};
+use super::occluders::{extract, extract_drawn, BlockOccluders, OccluderOptions};
 use super::shadow::{Occluder, OccluderShadow, Slack};
 use super::VisibilityError;
 use crate::blocks::{BlockId, BlockLayout};
@@ -115,12 +115,37 @@ pub struct OcclusionCuller {
 impl OcclusionCuller {
     /// Extracts every block's occluders and allocates the cull map over the city's plan-view
     /// bounds (buildings and block outlines, local frame).
+    ///
+    /// Every building is extruded to learn which ones are drawn; a caller that has extruded
+    /// them already passes the answer to [`Self::with_drawn`].
     pub fn new(
         city: &City,
         layout: &BlockLayout,
         opts: CullerOptions,
     ) -> Result<Self, VisibilityError> {
         let blocks = extract(city, layout, &opts.occluders);
+        Self::from_occluders(city, layout, blocks, opts)
+    }
+
+    /// As [`Self::new`], with `drawn[i]` saying whether building `i` has a mesh (see
+    /// [`extract_drawn`]): no building is extruded again.
+    pub fn with_drawn(
+        city: &City,
+        layout: &BlockLayout,
+        drawn: &[bool],
+        opts: CullerOptions,
+    ) -> Result<Self, VisibilityError> {
+        let blocks = extract_drawn(city, layout, &opts.occluders, drawn);
+        Self::from_occluders(city, layout, blocks, opts)
+    }
+
+    /// The culler over extracted occluders; the cull map covers the city's plan-view bounds.
+    fn from_occluders(
+        city: &City,
+        layout: &BlockLayout,
+        blocks: Vec<BlockOccluders>,
+        opts: CullerOptions,
+    ) -> Result<Self, VisibilityError> {
         let mut bounds = Aabb3::EMPTY;
         for b in &blocks {
             bounds = bounds.union(b.aabb);
