@@ -1,4 +1,5 @@
-//! Occlusion culling from adversarial cameras on the bundled real cities (Bubeneč, Helsinki):
+//! Occlusion culling from adversarial cameras on the bundled real cities (Bubeneč, Helsinki) and
+//! one more (a synthetic grid, or any city given in `$BLOCKWALK_ADVERSARIAL_CITY`):
 //! eyes at 0.05–3× `near` from corners and walls, at wall-top height, on wall planes, 1 mm above
 //! roofs, looking along walls, straight down and up, `near` ∈ {0.1, 0.5, 2, 10} m
 //! ([`blockwalk::visibility::adversarial`]). No block the supersampled oracle sees may be
@@ -56,12 +57,16 @@ type Key = (Structure, u32, u64);
 
 fn run_city(name: &str, footprints: &str, streets: &str, seed: u64) {
     let source = CitySource::parse(&data(footprints), Some(data(streets)), None, &[], 0).unwrap();
+    run_source(name, &source, seed);
+}
+
+fn run_source(name: &str, source: &CitySource, seed: u64) {
     let opts = SceneOptions {
         blocks: BlockOptions::default(),
         structures: Structure::ALL.to_vec(),
         occlusion: None,
     };
-    let scene = Scene::load(&source, &opts, &mut |_| {}).unwrap();
+    let scene = Scene::load(source, &opts, &mut |_| {}).unwrap();
     let refs: Vec<(BlockId, &Mesh)> = scene.meshes.iter().map(|(id, m)| (*id, m)).collect();
     let base = OcclusionCuller::new(&scene.city, &scene.layout, CullerOptions::default()).unwrap();
     let cullers: Vec<OcclusionCuller> = RESOLUTIONS
@@ -211,4 +216,18 @@ fn helsinki_adversarial_cameras_never_cull_a_visible_block() {
         "helsinki/streets_blockclass.shp",
         12,
     );
+}
+
+/// A city none of the above was tuned on: `$BLOCKWALK_ADVERSARIAL_CITY` (any city the command
+/// line takes: a footprint file, a generated city's folder, `synthetic:COLSxROWS`) with
+/// `$BLOCKWALK_ADVERSARIAL_STREETS` when set, e.g. Astana from `../shared/data/astana`; else a
+/// synthetic grid with its own seed.
+#[test]
+fn another_city_adversarial_cameras_never_cull_a_visible_block() {
+    let city = std::env::var_os("BLOCKWALK_ADVERSARIAL_CITY")
+        .map(PathBuf::from)
+        .unwrap_or_else(|| PathBuf::from("synthetic:7x5"));
+    let streets = std::env::var_os("BLOCKWALK_ADVERSARIAL_STREETS").map(PathBuf::from);
+    let source = CitySource::parse(&city, streets, None, &[], 29).unwrap();
+    run_source(&city.display().to_string(), &source, 13);
 }
