@@ -2,7 +2,9 @@
 
 use super::common::{load_scene, spinner, CityArgs};
 use anyhow::{bail, Context};
-use blockwalk::index::bench::{random_views, run_cull_bench, CullBenchParams, CullBenchReport};
+use blockwalk::index::bench::{
+    random_views, run_cull_bench, CullBenchParams, CullBenchReport, StructureReport,
+};
 use blockwalk::index::{synthetic::block_grid, BlockBounds, Structure};
 use blockwalk::scene::{Scene, SceneOptions};
 use blockwalk::visibility::CullerOptions;
@@ -247,10 +249,10 @@ fn print_summary(name: &str, r: &CullBenchReport) -> anyhow::Result<()> {
         "triangles",
         "f.culls"
     );
-    for s in &r.structures {
+    let row = |name: &dyn std::fmt::Display, s: &StructureReport, note: &str| {
         outln!(
-            "{:<9} {:>9.2} {:>7} {:>10.1} {:>10.1} {:>10.1} {:>10.1} {:>9.1} {:>12.0} {:>7}",
-            s.name,
+            "{:<9} {:>9.2} {:>7} {:>10.1} {:>10.1} {:>10.1} {:>10.1} {:>9.1} {:>12.0} {:>7}{note}",
+            name.to_string(),
             s.build_ms,
             s.nodes,
             s.cull_us_median,
@@ -261,21 +263,17 @@ fn print_summary(name: &str, r: &CullBenchReport) -> anyhow::Result<()> {
             s.triangles_accepted_mean,
             s.false_culls
         );
+        Ok::<(), anyhow::Error>(())
+    };
+    for s in &r.structures {
+        row(&s.name, s, "")?;
     }
     if let Some(s) = &r.bqr_box_leaves {
-        outln!(
-            "{:<9} {:>9.2} {:>7} {:>10.1} {:>10.1} {:>10.1} {:>10.1} {:>9.1} {:>12.0} {:>7}   (bqr with box-only leaves: each block's sphere replaced by its box's)",
-            "bqr-box",
-            s.build_ms,
-            s.nodes,
-            s.cull_us_median,
-            s.cull_us_p95,
-            s.nodes_visited_mean,
-            s.plane_tests_mean,
-            s.blocks_accepted_mean,
-            s.triangles_accepted_mean,
-            s.false_culls
-        );
+        row(
+            &"bqr-box",
+            s,
+            "   (bqr with box-only leaves: each block's sphere replaced by its box's)",
+        )?;
     }
     if let Some(x) = r.bqr_over_vamsplit() {
         outln!(
