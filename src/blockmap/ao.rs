@@ -48,16 +48,7 @@ pub struct AoStats {
 
 /// Height of texel `(i, j)` in metres above `zmin`; 0 for empty texels and outside the map.
 fn height_at(map: &BlockMap, i: i64, j: i64) -> f64 {
-    let k = map.k() as i64;
-    if i < 0 || j < 0 || i >= k || j >= k {
-        return 0.0;
-    }
-    let c = map.height_code(i as u32, j as u32);
-    if c == 0 {
-        0.0
-    } else {
-        map.code_height_m(c) - map.meta.zmin
-    }
+    map.texel_height_m(i, j).map_or(0.0, |h| h - map.meta.zmin)
 }
 
 /// Largest `tan α` of the horizon seen from `(x, y)` (texel units) at height `z0` (metres) along

@@ -342,18 +342,7 @@ pub fn map_surface_distance(map: &BlockMap, p: DVec3) -> f64 {
     let s = map.texel_m();
     let m = map.meta.min;
     let (fx, fy) = ((p.x - m[0]) / s, (p.y - m[1]) / s);
-    let hof = |i: i64, j: i64| -> f64 {
-        if i < 0 || j < 0 || i >= k || j >= k {
-            0.0
-        } else {
-            let c = map.height_code(i as u32, j as u32);
-            if c == 0 {
-                0.0
-            } else {
-                map.code_height_m(c)
-            }
-        }
-    };
+    let hof = |i: i64, j: i64| -> f64 { map.texel_height_m(i, j).unwrap_or(0.0) };
     let (ci, cj) = (fx.floor() as i64, fy.floor() as i64);
     let inside = p.z <= hof(ci, cj);
     let cell_dxy = |i: i64, j: i64| -> f64 {
@@ -541,18 +530,7 @@ pub fn measure(map: &BlockMap, source: &Source, buildings: &[u32]) -> ErrorRepor
     // Map → original.
     let k = map.k() as i64;
     let m = map.meta.min;
-    let hof = |i: i64, j: i64| -> f64 {
-        if i < 0 || j < 0 || i >= k || j >= k {
-            0.0
-        } else {
-            let c = map.height_code(i as u32, j as u32);
-            if c == 0 {
-                0.0
-            } else {
-                map.code_height_m(c)
-            }
-        }
-    };
+    let hof = |i: i64, j: i64| -> f64 { map.texel_height_m(i, j).unwrap_or(0.0) };
     let mut m2o: f64 = 0.0;
     for j in 0..k {
         for i in 0..k {

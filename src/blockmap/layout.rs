@@ -189,6 +189,19 @@ impl BlockMap {
     pub fn code_height_m(&self, code: u8) -> f64 {
         self.meta.zmin + code as f64 / 255.0 * (self.meta.zmax - self.meta.zmin)
     }
+    /// Height (local z, metres) of the column at texel `(i, j)`; `None` for an empty texel
+    /// (code 0) and outside the map.
+    #[inline]
+    pub fn texel_height_m(&self, i: i64, j: i64) -> Option<f64> {
+        let k = i64::from(self.meta.k);
+        if i < 0 || j < 0 || i >= k || j >= k {
+            return None;
+        }
+        match self.height_code(i as u32, j as u32) {
+            0 => None,
+            c => Some(self.code_height_m(c)),
+        }
+    }
     /// Wall column offset of texel `(i, j)` (0 = none).
     #[inline]
     pub fn wall_offset(&self, i: u32, j: u32) -> u8 {
