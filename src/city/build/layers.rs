@@ -73,17 +73,7 @@ pub(crate) fn build_streets(
     let name = &layer.name;
     let mut out = Vec::new();
     let mut excluded = 0usize;
-    let mut refused: Vec<(String, String)> = layer
-        .report
-        .refused
-        .iter()
-        .map(|r| {
-            (
-                format!("{name}:{}", r.fid),
-                format!("importer: {}", r.reason),
-            )
-        })
-        .collect();
+    let mut refused = importer_refusals(layer);
     for f in &layer.features {
         let id = format!("{name}:{}", f.fid);
         if opts
@@ -147,17 +137,7 @@ pub(crate) fn build_parcels(
 ) -> Vec<Parcel> {
     let name = &layer.name;
     let mut out = Vec::new();
-    let mut refused: Vec<(String, String)> = layer
-        .report
-        .refused
-        .iter()
-        .map(|r| {
-            (
-                format!("{name}:{}", r.fid),
-                format!("importer: {}", r.reason),
-            )
-        })
-        .collect();
+    let mut refused = importer_refusals(layer);
     let mut repaired = 0usize;
     for f in &layer.features {
         let id = format!("{name}:{}", f.fid);
@@ -205,4 +185,20 @@ pub(crate) fn build_parcels(
     ));
     report.parcel_layer_unusable = unusable(layer, out.len(), 0, &refused, "parcel");
     out
+}
+
+/// The features the importer refused, as `(layer:fid, "importer: reason")`, the start of a
+/// layer's refusal list.
+fn importer_refusals(layer: &Layer) -> Vec<(String, String)> {
+    layer
+        .report
+        .refused
+        .iter()
+        .map(|r| {
+            (
+                format!("{}:{}", layer.name, r.fid),
+                format!("importer: {}", r.reason),
+            )
+        })
+        .collect()
 }
