@@ -82,6 +82,8 @@ impl FrameRenderer for GpuFrameRenderer {
             seconds: frame.timings.best_s(),
             gpu_time: frame.timings.gpu_s.is_some(),
             image: if want_image { frame.to_image() } else { None },
+            passes: Vec::new(),
+            far_pixels: None,
         })
     }
 }

@@ -114,6 +114,10 @@ pub struct DrawnFrame {
     pub gpu_time: bool,
     /// The image, when asked for.
     pub image: Option<image::RgbaImage>,
+    /// Seconds per pass (`"meshes"`, `"far"`, …) when the renderer measures passes apart.
+    pub passes: Vec<(&'static str, f64)>,
+    /// Pixels the far field covered, when far-field maps were drawn.
+    pub far_pixels: Option<u64>,
 }
 
 /// Draws frames of the blocks a culler kept.
@@ -132,6 +136,25 @@ pub trait FrameRenderer {
         visible: &[BlockId],
         want_image: bool,
     ) -> Result<DrawnFrame, DrawError>;
+    /// Draws `visible` as meshes and the far-field maps `far` (indices into the maps the
+    /// renderer was built with, see `blockmap`), composited by depth. Renderers without a far
+    /// field draw the meshes alone when `far` is empty and refuse otherwise.
+    ///
+    /// # Errors
+    /// As [`FrameRenderer::draw`]; a renderer without far field given maps to draw.
+    fn draw_with_far(
+        &self,
+        camera: &Camera,
+        visible: &[BlockId],
+        far: &[usize],
+        want_image: bool,
+    ) -> Result<DrawnFrame, DrawError> {
+        if far.is_empty() {
+            self.draw(camera, visible, want_image)
+        } else {
+            Err(format!("{}: draws no far field", self.describe()).into())
+        }
+    }
 }
 
 /// The CPU fallback: the oracle's shaded z-buffer image of the listed blocks, wall time.
@@ -194,6 +217,8 @@ impl FrameRenderer for CpuFrameRenderer<'_> {
             seconds: t0.elapsed().as_secs_f64(),
             gpu_time: false,
             image: want_image.then_some(img),
+            passes: Vec::new(),
+            far_pixels: None,
         })
     }
 }
