@@ -580,3 +580,77 @@ fn the_screen_space_check_catches_a_missing_building() {
         .sum();
     assert!(beyond > 0, "an emptied map must break the bound");
 }
+
+#[test]
+fn buildings_the_map_does_not_hold_are_reported_as_vanished() {
+    // Independent truth: a building none of whose nearby texels (its box grown by its own
+    // height, so no map prism lies nearer than the ground below its roof) is filled has
+    // vanished from the map, whatever its error; it must be reported with its id.
+    let (city, layout) = real_city("helsinki/buildings.shp", "helsinki/streets_blockclass.shp");
+    let meshes = extrude_city(&city);
+    let source = Source::new(&city, &layout, &meshes).unwrap();
+    let bounds = block_bounds(&city, &layout);
+    let tree = BqrTree::build(&bounds, &BqrParams::default()).unwrap();
+    let maps = build_tree(
+        &source,
+        &layout,
+        &tree,
+        &TreeOptions {
+            build: BuildOptions::default(),
+            stop: Stop::Levels(2),
+        },
+        &|_, _| {},
+    )
+    .unwrap();
+    let mut vanished_truth = 0;
+    let mut reported_ok = 0;
+    for m in &maps.maps {
+        let s = m.map.texel_m();
+        let o = m.map.meta.min;
+        let reported: std::collections::HashSet<u32> = m
+            .error
+            .thin
+            .iter()
+            .filter(|t| t.kind == blockwalk::blockmap::ThinKind::Vanished)
+            .map(|t| t.building)
+            .collect();
+        for &b in &m.buildings {
+            let sb = source.buildings[b as usize].as_ref().unwrap();
+            let grow = sb.z1;
+            let idx = |v: f64, o: f64| ((v - o) / s).floor() as i64;
+            let (i0, i1) = (idx(sb.min.x - grow, o[0]), idx(sb.max.x + grow, o[0]));
+            let (j0, j1) = (idx(sb.min.y - grow, o[1]), idx(sb.max.y + grow, o[1]));
+            let empty = (j0..=j1)
+                .all(|j| (i0..=i1).all(|i| m.map.texel_height_m(i, j).unwrap_or(0.0) == 0.0));
+            if empty {
+                vanished_truth += 1;
+                assert!(
+                    reported.contains(&b),
+                    "node {}: building {b} ({}) vanished but is not reported",
+                    m.key,
+                    sb.source_id
+                );
+            }
+        }
+        // Every report points at a place where the map holds nothing under the roof.
+        for t in m
+            .error
+            .thin
+            .iter()
+            .filter(|t| t.kind == blockwalk::blockmap::ThinKind::Vanished)
+        {
+            let (i, j) = (
+                ((t.at[0] - o[0]) / s).floor() as i64,
+                ((t.at[1] - o[1]) / s).floor() as i64,
+            );
+            assert_eq!(m.map.texel_height_m(i, j).unwrap_or(0.0), 0.0, "{t:?}");
+            reported_ok += 1;
+        }
+    }
+    assert!(
+        vanished_truth > 0,
+        "no building vanished: the check is vacuous"
+    );
+    assert!(reported_ok >= vanished_truth);
+    eprintln!("{vanished_truth} vanished buildings found by brute force, {reported_ok} reports");
+}

@@ -15,7 +15,9 @@
 //!
 //! A sample farther than the ½ voxel diagonal is a feature the 2.5D grid cannot hold: a building
 //! narrower than a texel that vanished or swelled, a courtyard or street narrower than a texel
-//! that was filled, or a raised part. These are reported with building ids, never hidden.
+//! that was filled, or a raised part. A roof sample whose nearest map surface is the ground
+//! below marks a building (part) the map does not hold at all, whatever its error. These are
+//! reported with building ids, never hidden.
 
 use super::build::{Source, SourceBuilding};
 use super::layout::BlockMap;
@@ -33,6 +35,11 @@ pub enum ThinKind {
     FilledGap,
     /// A raised part (`min_height` > 0) or a bridge: filled down to the ground by the map.
     RaisedPart,
+    /// (Part of) a building the map does not hold: the nearest map surface to a roof sample is
+    /// the ground below it, so the error there is the building's height, reported even when
+    /// that is under the ½ voxel diagonal (a low building between texel centres vanishes, and
+    /// a viewer can miss it).
+    Vanished,
 }
 
 /// A feature whose error exceeds the ½ voxel diagonal.
@@ -430,6 +437,23 @@ pub fn measure(map: &BlockMap, source: &Source, buildings: &[u32]) -> ErrorRepor
         let mut worst: f64 = 0.0;
         let mut worst_at = b.min;
         let mut raised_worst: f64 = 0.0;
+        let mut vanished: Option<(f64, DVec2)> = None;
+        // A roof point (at `z1`) with no prism over it whose nearest map surface is the
+        // ground: nothing of the map stands there (a roof inside a taller prism is covered,
+        // not gone).
+        let gone = |xy: DVec2, d: f64, v: &mut Option<(f64, DVec2)>| {
+            let (ti, tj) = (
+                ((xy.x - map.meta.min[0]) / s).floor() as i64,
+                ((xy.y - map.meta.min[1]) / s).floor() as i64,
+            );
+            if b.z1 > 0.0
+                && map.texel_height_m(ti, tj).is_none()
+                && d >= b.z1 * (1.0 - 1e-9)
+                && v.is_none_or(|v| d > v.0)
+            {
+                *v = Some((d, xy));
+            }
+        };
         let check =
             |p: DVec3, raised: bool, worst: &mut f64, worst_at: &mut DVec2, rw: &mut f64| {
                 let d = map_surface_distance(map, p);
@@ -475,6 +499,9 @@ pub fn measure(map: &BlockMap, source: &Source, buildings: &[u32]) -> ErrorRepor
                             &mut raised_worst,
                         );
                         o2m = o2m.max(d);
+                        if z == b.z1 {
+                            gone(xy, d, &mut vanished);
+                        }
                     }
                 }
             }
@@ -500,6 +527,7 @@ pub fn measure(map: &BlockMap, source: &Source, buildings: &[u32]) -> ErrorRepor
                     &mut raised_worst,
                 );
                 o2m = o2m.max(d);
+                gone(xy, d, &mut vanished);
                 if b.z0 > 0.0 {
                     samples += 2;
                     let d1 = check(
@@ -525,6 +553,9 @@ pub fn measure(map: &BlockMap, source: &Source, buildings: &[u32]) -> ErrorRepor
         }
         if raised_worst > tol {
             note(ThinKind::RaisedPart, b, raised_worst, (b.min + b.max) * 0.5);
+        }
+        if let Some((d, at)) = vanished {
+            note(ThinKind::Vanished, b, d, at);
         }
     }
     // Map → original.

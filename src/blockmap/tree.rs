@@ -28,6 +28,9 @@ pub enum Stop {
     Competitive,
 }
 
+/// Coverage error a checked view should stay under (seed 001 §4, Fig. 4: 0.01).
+pub const COVERAGE_TARGET: f64 = 0.01;
+
 /// Bytes of a block's meshes per triangle, as the mesh renderer stores them: three unshared
 /// vertices of position + normal (24 B each) and three u32 indices.
 pub const MESH_BYTES_PER_TRIANGLE: usize = 3 * 24 + 3 * 4;
@@ -300,9 +303,27 @@ pub fn build_city_maps(
             .par_iter()
             .map(|m| {
                 let cam = super::compare::random_views(&m.map, 1, m.key, h)[0];
+                // Buildings the map reports: thin features and buildings no texel holds.
+                let mut thin: Vec<u32> = m
+                    .error
+                    .thin
+                    .iter()
+                    .map(|t| t.building)
+                    .chain(m.stats.dropped_buildings.iter().map(|b| b.0))
+                    .collect();
+                thin.sort_unstable();
+                thin.dedup();
                 (
                     m.key,
-                    super::compare::compare_view(&m.map, &source, &m.buildings, &cam, w, h),
+                    super::compare::compare_view_with_thin(
+                        &m.map,
+                        &source,
+                        &m.buildings,
+                        &thin,
+                        &cam,
+                        w,
+                        h,
+                    ),
                 )
             })
             .collect();
@@ -388,6 +409,16 @@ impl CityMaps {
             .iter()
             .map(|(_, c)| c.coverage_error)
             .fold(0.0, f64::max);
+        let mut covs: Vec<f64> = self.checks.iter().map(|(_, c)| c.coverage_error).collect();
+        covs.sort_by(f64::total_cmp);
+        let cov_mean = covs.iter().sum::<f64>() / covs.len().max(1) as f64;
+        // Nearest-rank 95th percentile.
+        let cov_p95 = if covs.is_empty() {
+            0.0
+        } else {
+            covs[((0.95 * covs.len() as f64).ceil() as usize).clamp(1, covs.len()) - 1]
+        };
+        let over_target = covs.iter().filter(|c| **c > COVERAGE_TARGET).count();
         let psnr_min = self
             .checks
             .iter()
@@ -426,9 +457,16 @@ impl CityMaps {
             "raised_parts": maps.maps.iter().map(|m| m.error.raised_parts).sum::<usize>(),
             "bridges": maps.maps.iter().map(|m| m.error.bridges).sum::<usize>(),
             "dropped_buildings": maps.maps.iter().map(|m| m.stats.dropped_buildings.len()).sum::<usize>(),
+            "dropped": maps.maps.iter().flat_map(|m| m.stats.dropped_buildings.iter().map(move |b| serde_json::json!({"node": m.key, "level": m.level, "building": b.0}))).collect::<Vec<_>>(),
             "levels": levels,
             "checks": self.checks.iter().map(|(k, c)| serde_json::json!({"node": k, "view": c})).collect::<Vec<_>>(),
             "coverage_error_max": cov_max,
+            "coverage_error_mean": cov_mean,
+            "coverage_error_p95": cov_p95,
+            "coverage_over_target": over_target,
+            "coverage_target": COVERAGE_TARGET,
+            "bound_subpixel_pixels": self.checks.iter().map(|(_, c)| c.beyond_bound_subpixel).sum::<usize>(),
+            "bound_thin_pixels": self.checks.iter().map(|(_, c)| c.beyond_bound_thin).sum::<usize>(),
             "psnr_min_db": if psnr_min.is_finite() { serde_json::json!(psnr_min) } else { serde_json::Value::Null },
             "ao": ao,
         })

@@ -195,10 +195,16 @@ fn print_summary(s: &serde_json::Value) -> anyhow::Result<()> {
     let checks = s["checks"].as_array().map(|a| a.len()).unwrap_or(0);
     if checks > 0 {
         outln!(
-            "checked {} maps against the meshes: coverage error max {:.4}, bound violations {}, PSNR min {} dB",
+            "checked {} maps against the meshes (one view each): coverage error mean {:.2} %, p95 {:.2} %, max {:.2} % ({} above {:.0} %); bound violations {} (apart: {} pixels of sub-pixel features, {} of reported thin or vanished buildings); PSNR min {} dB",
             checks,
-            s["coverage_error_max"].as_f64().unwrap_or(0.0),
+            100.0 * s["coverage_error_mean"].as_f64().unwrap_or(0.0),
+            100.0 * s["coverage_error_p95"].as_f64().unwrap_or(0.0),
+            100.0 * s["coverage_error_max"].as_f64().unwrap_or(0.0),
+            s["coverage_over_target"],
+            100.0 * s["coverage_target"].as_f64().unwrap_or(0.0),
             s["bound_violations"],
+            s["bound_subpixel_pixels"],
+            s["bound_thin_pixels"],
             s["psnr_min_db"]
         );
     }
