@@ -6,7 +6,9 @@
 //!   C.3); the shader reads them with integer `textureLoad`s (`textureSample` is not allowed in
 //!   the non-uniform loop).
 //! - **Draw**: one instanced draw of 36 vertices per page that has selected maps, one instance per
-//!   map, in the order `far` lists them within a page. Each instance rasterises its box's **back
+//!   map, in the order `far` lists them within a page (so two maps of different pages at exactly
+//!   the same depth may resolve otherwise than [`crate::blockmap::cast_image`]'s "first listed
+//!   wins"; only exact depth ties between maps of different K or of more than 256 maps). Each instance rasterises its box's **back
 //!   faces**, clipped at the near plane only, so that the eye inside a box works and a box past
 //!   the far plane still draws; the fragment walks the height field from the near plane
 //!   ([`crate::blockmap::image`] gives the rays and the depth, `blockmap.wgsl` the walk, the same
