@@ -23,15 +23,14 @@ use std::path::PathBuf;
 fn meets_box(ray: &TexRay<f64>, k: f64) -> bool {
     let hi = [k, k, 1.0];
     let (mut t0, mut t1) = (0.0f64, f64::INFINITY);
-    for a in 0..3 {
-        let (o, d) = (ray.o[a], ray.d[a]);
+    for ((&o, &d), &hi) in ray.o.iter().zip(&ray.d).zip(&hi) {
         if d == 0.0 {
-            if o < 0.0 || o > hi[a] {
+            if o < 0.0 || o > hi {
                 return false;
             }
             continue;
         }
-        let (ta, tb) = ((0.0 - o) / d, (hi[a] - o) / d);
+        let (ta, tb) = ((0.0 - o) / d, (hi - o) / d);
         t0 = t0.max(ta.min(tb));
         t1 = t1.min(ta.max(tb));
     }
