@@ -138,6 +138,26 @@ impl GpuFrameRenderer {
         far: &[usize],
         with_depth: bool,
     ) -> Result<HybridFrame, RenderError> {
+        self.hybrid(
+            camera,
+            visible,
+            far,
+            FarReadback {
+                color: true,
+                depth: with_depth,
+            },
+        )
+    }
+
+    /// [`Self::draw_hybrid`] reading back what `read` asks for (without the colour, `rgba` is
+    /// the mesh pass's image, not the composite).
+    fn hybrid(
+        &self,
+        camera: &Camera,
+        visible: &[BlockId],
+        far: &[usize],
+        read: FarReadback,
+    ) -> Result<HybridFrame, RenderError> {
         let far_renderer = match (&self.far, far.first()) {
             (Some(r), _) => Some(r),
             (None, None) => None,
@@ -165,10 +185,7 @@ impl GpuFrameRenderer {
             far,
             self.renderer.color_texture(),
             self.renderer.depth_texture(),
-            FarReadback {
-                color: true,
-                depth: with_depth,
-            },
+            read,
         )?;
         let gpu_time = meshes.timings.gpu_s.is_some() && pass.gpu_s.is_some();
         let (mesh_s, far_s) = if gpu_time {
@@ -239,7 +256,15 @@ impl FrameRenderer for GpuFrameRenderer {
         if self.far.is_none() && far.is_empty() {
             return self.draw(camera, visible, want_image);
         }
-        let f = self.draw_hybrid(camera, visible, far, false)?;
+        let f = self.hybrid(
+            camera,
+            visible,
+            far,
+            FarReadback {
+                color: want_image,
+                depth: false,
+            },
+        )?;
         Ok(DrawnFrame {
             seconds: f.passes.iter().map(|p| p.1).sum(),
             gpu_time: f.gpu_time,
