@@ -654,3 +654,52 @@ fn buildings_the_map_does_not_hold_are_reported_as_vanished() {
     assert!(reported_ok >= vanished_truth);
     eprintln!("{vanished_truth} vanished buildings found by brute force, {reported_ok} reports");
 }
+
+#[test]
+fn the_blockmaps_command_prints_the_figures_and_writes_the_lists() {
+    let out = std::env::temp_dir().join(format!("blockwalk-blockmaps-cli-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&out);
+    let o = std::process::Command::new(env!("CARGO_BIN_EXE_blockwalk"))
+        .args(["blockmaps"])
+        .arg(data("bubenec_utm33n/buildings.shp"))
+        .arg("--streets")
+        .arg(data("bubenec_utm33n/streets.shp"))
+        .args(["--check", "100", "--json", "-o"])
+        .arg(&out)
+        .output()
+        .expect("run blockwalk");
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let s: serde_json::Value = serde_json::from_slice(&o.stdout).expect("one JSON object");
+    for key in [
+        "maps",
+        "bytes",
+        "build_s",
+        "eps_declared_max",
+        "eps_measured_max",
+        "bound_violations",
+        "thin_features",
+        "thin_by_kind",
+        "coverage_error_max",
+        "coverage_error_p95",
+        "coverage_over_target",
+    ] {
+        assert!(s.get(key).is_some_and(|v| !v.is_null()), "{key} missing: {s}");
+    }
+    // The lists stay in the file the summary names, complete.
+    assert!(s.get("thin").is_none());
+    let full: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(s["details"].as_str().unwrap()).unwrap())
+            .unwrap();
+    assert_eq!(full["thin"].as_array().unwrap().len(), s["thin_features"]);
+    let by_kind: u64 = s["thin_by_kind"]
+        .as_object()
+        .unwrap()
+        .values()
+        .map(|v| v.as_u64().unwrap())
+        .sum();
+    assert_eq!(Some(by_kind), s["thin_features"].as_u64());
+    // Every map checked (`--check` above the map count): one check per map.
+    assert_eq!(full["checks"].as_array().unwrap().len(), s["maps"]);
+    assert_eq!(s["bound_violations"], 0);
+    let _ = std::fs::remove_dir_all(&out);
+}

@@ -403,6 +403,12 @@ impl CityMaps {
                 })
             })
             .collect();
+        let mut thin_by_kind: std::collections::BTreeMap<String, usize> = Default::default();
+        for t in &thin {
+            *thin_by_kind
+                .entry(t["kind"].as_str().unwrap_or("").to_string())
+                .or_default() += 1;
+        }
         let fmax = |g: &dyn Fn(&NodeMap) -> f64| maps.maps.iter().map(g).fold(0.0, f64::max);
         let cov_max = self
             .checks
@@ -453,6 +459,7 @@ impl CityMaps {
             "eps_measured_max": fmax(&|m| m.error.measured_m),
             "bound_violations": self.bound_violations(),
             "thin_features": thin.len(),
+            "thin_by_kind": thin_by_kind,
             "thin": thin,
             "raised_parts": maps.maps.iter().map(|m| m.error.raised_parts).sum::<usize>(),
             "bridges": maps.maps.iter().map(|m| m.error.bridges).sum::<usize>(),

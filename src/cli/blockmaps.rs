@@ -129,14 +129,23 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     std::fs::write(&path, serde_json::to_string_pretty(&summary)?)
         .with_context(|| format!("writing {}", path.display()))?;
     if args.json {
-        outln!("{}", serde_json::to_string(&summary)?);
+        // The per-feature and per-check lists (148,098 thin features on Astana) stay in the
+        // file; stdout gets the figures and where the lists are.
+        let mut short = summary.clone();
+        if let Some(o) = short.as_object_mut() {
+            for key in ["thin", "dropped", "checks"] {
+                o.remove(key);
+            }
+            o.insert("details".into(), serde_json::json!(path.display().to_string()));
+        }
+        outln!("{}", serde_json::to_string(&short)?);
     } else {
-        print_summary(&summary)?;
+        print_summary(&summary, &path)?;
     }
     Ok(())
 }
 
-fn print_summary(s: &serde_json::Value) -> anyhow::Result<()> {
+fn print_summary(s: &serde_json::Value, path: &std::path::Path) -> anyhow::Result<()> {
     outln!(
         "{}: {} BlockMaps at K = {} ({} KiB each), {:.1} MiB, {:.2} MiB per km² over {:.2} km², built in {:.1} s",
         s["city"].as_str().unwrap_or(""),
@@ -166,11 +175,20 @@ fn print_summary(s: &serde_json::Value) -> anyhow::Result<()> {
         );
     }
     outln!(
-        "thin features: {} ({} raised parts, {} bridges, {} buildings dropped by point sampling)",
+        "thin features: {} ({}; {} raised parts, {} bridges, {} buildings no texel holds); all of them in {}",
         s["thin_features"],
+        s["thin_by_kind"]
+            .as_object()
+            .map(|o| o
+                .iter()
+                .map(|(k, v)| format!("{v} {}", k.replace('_', " ")))
+                .collect::<Vec<_>>()
+                .join(", "))
+            .unwrap_or_default(),
         s["raised_parts"],
         s["bridges"],
-        s["dropped_buildings"]
+        s["dropped_buildings"],
+        path.display()
     );
     for t in s["thin"].as_array().into_iter().flatten().take(10) {
         outln!(
