@@ -683,7 +683,10 @@ fn the_blockmaps_command_prints_the_figures_and_writes_the_lists() {
         "coverage_error_p95",
         "coverage_over_target",
     ] {
-        assert!(s.get(key).is_some_and(|v| !v.is_null()), "{key} missing: {s}");
+        assert!(
+            s.get(key).is_some_and(|v| !v.is_null()),
+            "{key} missing: {s}"
+        );
     }
     // The lists stay in the file the summary names, complete.
     assert!(s.get("thin").is_none());

@@ -136,7 +136,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             for key in ["thin", "dropped", "checks"] {
                 o.remove(key);
             }
-            o.insert("details".into(), serde_json::json!(path.display().to_string()));
+            o.insert(
+                "details".into(),
+                serde_json::json!(path.display().to_string()),
+            );
         }
         outln!("{}", serde_json::to_string(&short)?);
     } else {

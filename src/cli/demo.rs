@@ -1,5 +1,6 @@
 //! `blockwalk demo`: the whole pipeline on the bundled real data (Bubeneč, Prague and Helsinki
-//! centre), step by step, through the same commands a user runs.
+//! centre), step by step, through the same commands a user runs; `--astana` runs it end to end
+//! on Astana (32,056 buildings, 10,176 streets), which is not in the repository.
 
 use std::path::{Path, PathBuf};
 
@@ -23,6 +24,12 @@ pub struct Args {
     /// Fewer views and frames, for a quick look.
     #[arg(long)]
     pub quick: bool,
+    /// Run the pipeline end to end on Astana (32,056 buildings, 10,176 streets) instead of the
+    /// bundled data: import, blocks, extrusion, `.glb` and CityJSON, BlockMaps, occlusion, and
+    /// the rendered walk. The data is too big for the repository: DIR, or by default the first
+    /// `../shared/data/astana` or `shared/data/astana` found from the working directory upwards.
+    #[arg(long, num_args = 0..=1, default_missing_value = "auto", value_name = "DIR")]
+    pub astana: Option<PathBuf>,
 }
 
 /// One step of the demo: a heading and the command line that runs it.
@@ -97,7 +104,152 @@ fn find_data(given: Option<&Path>) -> anyhow::Result<PathBuf> {
         })
 }
 
+/// True when `d` holds the Astana layers the demo reads.
+fn has_astana(d: &Path) -> bool {
+    d.join("buildings.shp").is_file() && d.join("streets_blockclass.shp").is_file()
+}
+
+/// The Astana folder: `given`, or for `auto` the first `../shared/data/astana` or
+/// `shared/data/astana` from the working directory upwards.
+fn find_astana(given: &Path) -> anyhow::Result<PathBuf> {
+    if given != Path::new("auto") {
+        anyhow::ensure!(
+            has_astana(given),
+            "{}: the Astana data is not there (expected buildings.shp and streets_blockclass.shp)",
+            given.display()
+        );
+        return Ok(given.to_path_buf());
+    }
+    let mut looked = Vec::new();
+    if let Ok(cwd) = std::env::current_dir() {
+        for dir in cwd.ancestors() {
+            for rel in ["../shared/data/astana", "shared/data/astana"] {
+                let c = dir.join(rel);
+                if has_astana(&c) {
+                    return Ok(c);
+                }
+                looked.push(c.display().to_string());
+            }
+        }
+    }
+    anyhow::bail!(
+        "the Astana data (buildings.shp, streets_blockclass.shp) is not in the repository (too \
+         big) and was not found beside it; looked in: {}; pass --astana DIR",
+        looked.join(", ")
+    )
+}
+
+/// The Astana steps.
+fn astana_steps(d: &Path, out: &Path, args: &Args) -> Vec<Step> {
+    let o = |name: &str| out.join(name);
+    let (fp, st) = (d.join("buildings.shp"), d.join("streets_blockclass.shp"));
+    let (glb, cj, blocks, png, maps, plot, walk) = (
+        o("astana.glb"),
+        o("astana.city.jsonl"),
+        o("astana_blocks.geojson"),
+        o("astana_blocks.png"),
+        o("astana_maps"),
+        o("astana_occlusion.png"),
+        o("astana_walk"),
+    );
+    let frames = if args.quick { 40 } else { args.frames }.to_string();
+    let views = if args.quick { "40" } else { "200" };
+    vec![
+        step(
+            "Astana (32,056 buildings): import, repair, extrude, export .glb and CityJSONSeq",
+            &[
+                "import",
+                p(&fp),
+                "--streets",
+                p(&st),
+                "-o",
+                p(&glb),
+                "--cityjson",
+                p(&cj),
+            ],
+        ),
+        step(
+            "Astana: urban blocks from the street layer",
+            &[
+                "blocks",
+                p(&fp),
+                "--streets",
+                p(&st),
+                "-o",
+                p(&blocks),
+                "--png",
+                p(&png),
+            ],
+        ),
+        step(
+            "Astana: BlockMaps for the block quadtree, with their measured error",
+            &["blockmaps", p(&fp), "--streets", p(&st), "-o", p(&maps)],
+        ),
+        step(
+            "Astana: occlusion culling with the cull map (checked against the visibility oracle)",
+            &[
+                "occlusion-bench",
+                p(&fp),
+                "--streets",
+                p(&st),
+                "--views",
+                views,
+                "--resolution",
+                "256",
+                "--plot",
+                p(&plot),
+            ],
+        ),
+        step(
+            "Astana: the paper's camera route, BqR-tree and VAMSplit R-tree, rendered",
+            &[
+                "walk",
+                p(&fp),
+                "--streets",
+                p(&st),
+                "--route",
+                "paper",
+                "--structures",
+                "vamsplit,bqr",
+                "--frames",
+                &frames,
+                "--render",
+                "--size",
+                &args.size,
+                "--image-every",
+                "15",
+                "--out",
+                p(&walk),
+            ],
+        ),
+    ]
+}
+
+/// Runs the steps in order, each echoed with its command line.
+fn run_steps(steps: &[Step]) -> anyhow::Result<f64> {
+    let started = std::time::Instant::now();
+    for (i, s) in steps.iter().enumerate() {
+        outln!("\n== {}/{} {}", i + 1, steps.len(), s.title);
+        outln!("   $ {}", s.argv.join(" "));
+        super::run_argv(&s.argv)?;
+    }
+    Ok(started.elapsed().as_secs_f64())
+}
+
 pub fn run(args: Args) -> anyhow::Result<()> {
+    if let Some(dir) = &args.astana {
+        let d = find_astana(dir)?;
+        std::fs::create_dir_all(&args.out)
+            .map_err(|e| anyhow::anyhow!("{}: {e}", args.out.display()))?;
+        let steps = astana_steps(&d, &args.out, &args);
+        let s = run_steps(&steps)?;
+        outln!(
+            "\nAstana done in {s:.1} s; open {} (the walk report), and the maps and models in {}",
+            args.out.join("astana_walk/report.html").display(),
+            args.out.display()
+        );
+        return Ok(());
+    }
     let data = find_data(args.data.as_deref())?;
     let d = &data;
     std::fs::create_dir_all(&args.out)
@@ -225,15 +377,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             ],
         ),
     ];
-    let started = std::time::Instant::now();
-    for (i, s) in steps.iter().enumerate() {
-        outln!("\n== {}/{} {}", i + 1, steps.len(), s.title);
-        outln!("   $ {}", s.argv.join(" "));
-        super::run_argv(&s.argv)?;
-    }
+    let s = run_steps(&steps)?;
     outln!(
-        "\ndemo done in {:.1} s; open {} (the walk report), and the maps and .glb files in {}",
-        started.elapsed().as_secs_f64(),
+        "\ndemo done in {s:.1} s; open {} (the walk report), and the maps and .glb files in {}",
         hel_walk.join("report.html").display(),
         args.out.display()
     );
