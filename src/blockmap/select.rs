@@ -155,8 +155,13 @@ pub struct Selector {
     loose: Vec<usize>,
     bounds: Vec<BlockBounds>,
     opts: SelectOptions,
-    previous: Vec<bool>,
+    /// Last frame's decision per node: [`UNDECIDED`], [`AS_MAP`] or [`REFINED`].
+    previous: Vec<u8>,
 }
+
+const UNDECIDED: u8 = 0;
+const AS_MAP: u8 = 1;
+const REFINED: u8 = 2;
 
 /// Projected error in pixels of `eps_m` metres seen from `camera` on an image `height_px` high,
 /// at the distance of the nearest point of the sphere `(center, radius)` (at least `near`).
@@ -280,7 +285,7 @@ impl Selector {
             loose,
             bounds: bounds.to_vec(),
             opts,
-            previous: vec![false; n],
+            previous: vec![UNDECIDED; n],
         })
     }
 
@@ -296,7 +301,7 @@ impl Selector {
 
     /// Forgets the previous frame: the next selection is made without hysteresis.
     pub fn reset(&mut self) {
-        self.previous.iter_mut().for_each(|p| *p = false);
+        self.previous.iter_mut().for_each(|p| *p = UNDECIDED);
     }
 
     /// Number of map nodes.
@@ -321,18 +326,47 @@ impl Selector {
     }
 
     /// Selects the far field for `camera` on an image `height_px` pixels high, pruning with
-    /// `cull` (the occlusion culler's map for this camera) when given, and remembers the maps
-    /// drawn for the next frame's hysteresis.
+    /// `cull` (the occlusion culler's map for this camera) when given, and remembers the
+    /// decisions for the next frame's hysteresis.
     pub fn select(&mut self, camera: &Camera, height_px: u32, cull: Option<&CullMap>) -> Selection {
+        let (sel, decided) = self.run(camera, height_px, cull, false);
+        self.previous = decided;
+        sel
+    }
+
+    /// The selection for `camera` with the previous frame's decisions kept wherever a node was
+    /// decided then (drawn as its map, or refined), the rule deciding only nodes the previous
+    /// frame did not reach; the state is left unchanged. Drawn beside [`Selector::select`]'s
+    /// result for the same camera, the two frames differ only by what the selection changed:
+    /// the walk's popping measure.
+    pub fn select_frozen(
+        &self,
+        camera: &Camera,
+        height_px: u32,
+        cull: Option<&CullMap>,
+    ) -> Selection {
+        self.run(camera, height_px, cull, true).0
+    }
+
+    fn run(
+        &self,
+        camera: &Camera,
+        height_px: u32,
+        cull: Option<&CullMap>,
+        frozen: bool,
+    ) -> (Selection, Vec<u8>) {
         let mut out = Selection::default();
         let frustum = camera.frustum();
-        let mut drawn = vec![false; self.nodes.len()];
+        let mut decided = vec![UNDECIDED; self.nodes.len()];
         let eye = camera.position;
         let mut stack: Vec<usize> = Vec::new();
         let mut roots = self.roots.clone();
         self.order(&mut roots, eye);
         stack.extend(roots.iter().rev());
         let hidden = |b: &Aabb3| cull.is_some_and(|m| m.box_hidden(b));
+        let mesh_ok = |b: &BlockBounds| {
+            frustum.test_aabb_sphere(&b.aabb, &b.sphere) != Containment::Outside && !hidden(&b.aabb)
+        };
         while let Some(i) = stack.pop() {
             let n = &self.nodes[i];
             out.stats.nodes_visited += 1;
@@ -346,28 +380,27 @@ impl Selector {
             }
             let e = projected_error_px(n.eps_m, n.center, n.radius, camera, height_px);
             let tau = self.opts.tau_px;
-            let limit = if self.previous[i] {
-                tau * (1.0 + self.opts.hysteresis.max(0.0))
-            } else {
-                tau
+            let as_map = match (frozen, self.previous[i]) {
+                (true, AS_MAP) => true,
+                (true, REFINED) => false,
+                (_, AS_MAP) => e <= tau * (1.0 + self.opts.hysteresis.max(0.0)),
+                _ => e <= tau,
             };
-            if e <= limit {
+            if as_map {
                 if e > tau {
                     out.stats.held_by_hysteresis += 1;
                 }
-                drawn[i] = true;
+                decided[i] = AS_MAP;
                 out.maps.push(i);
                 out.stats.maps += 1;
                 out.stats.map_blocks += n.blocks as u64;
                 continue;
             }
+            decided[i] = REFINED;
             for &s in &n.own {
                 out.stats.blocks_tested += 1;
-                let b = &self.bounds[s];
-                if frustum.test_aabb_sphere(&b.aabb, &b.sphere) != Containment::Outside
-                    && !hidden(&b.aabb)
-                {
-                    out.meshes.push(b.id);
+                if mesh_ok(&self.bounds[s]) {
+                    out.meshes.push(self.bounds[s].id);
                 }
             }
             let mut kids = n.children.clone();
@@ -377,16 +410,12 @@ impl Selector {
         // Blocks in no map: meshes, tested one by one.
         for &s in &self.loose {
             out.stats.blocks_tested += 1;
-            let b = &self.bounds[s];
-            if frustum.test_aabb_sphere(&b.aabb, &b.sphere) != Containment::Outside
-                && !hidden(&b.aabb)
-            {
-                out.meshes.push(b.id);
+            if mesh_ok(&self.bounds[s]) {
+                out.meshes.push(self.bounds[s].id);
             }
         }
         out.stats.mesh_blocks = out.meshes.len() as u64;
-        self.previous = drawn;
-        out
+        (out, decided)
     }
 
     /// Nearest first (ties by key, so the order is deterministic).
