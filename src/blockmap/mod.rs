@@ -15,6 +15,8 @@
 //! - [`select`]: which nodes a frame draws as maps and which blocks as meshes (seed 000 §4–5).
 //! - [`compare`]: ray-cast image against the oracle's mesh image: coverage error, the projected
 //!   bound at silhouettes, 3D point error, colour PSNR.
+//! - [`image`]: images of maps as the GPU draws them ([`cast_image`]), and the CPU fallback of
+//!   hybrid frames ([`CpuHybridRenderer`]: meshes near, maps far, composited by depth).
 //! - [`colors`]: the one definition of colours and light used by all of the above.
 //! - [`ao`]: optional ambient occlusion, horizon-based over the height map (seed 002 §4.2.1).
 
@@ -24,6 +26,7 @@ pub mod cast;
 pub mod colors;
 pub mod compare;
 pub mod error;
+pub mod image;
 pub mod layout;
 pub mod select;
 pub mod tree;
@@ -31,6 +34,7 @@ pub mod tree;
 pub use build::{build_map, BuildOptions, BuildStats, Source};
 pub use cast::{cast_f32, cast_f64, Cast, CastOptions, Face, Hit, TexRay};
 pub use error::{measure, ErrorReport, ThinFeature, ThinKind};
+pub use image::{cast_image, CpuHybridRenderer, FrameRays, MapImage, MapXform};
 pub use layout::{BlockMap, BlockMapMeta};
 pub use select::{
     projected_error_px, SelectError, SelectOptions, SelectStats, Selection, Selector,

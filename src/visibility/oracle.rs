@@ -441,6 +441,19 @@ pub fn shade_with_ground(
     width: u32,
     height: u32,
 ) -> image::RgbaImage {
+    shade_with_ground_depth(blocks, ground, camera, width, height).0
+}
+
+/// As [`shade_with_ground`], also returning the depth buffer (row-major from the top-left,
+/// `z/w` in `[0, 1]`, 1.0 where only sky is): what the GPU mesh pass leaves in its depth target,
+/// for compositing a later pass (the far field) by depth.
+pub fn shade_with_ground_depth(
+    blocks: &[(BlockId, &Mesh)],
+    ground: &Mesh,
+    camera: &Camera,
+    width: u32,
+    height: u32,
+) -> (image::RgbaImage, Vec<f32>) {
     let plane = appearance::ground_plane(appearance::GROUND_PLANE_HALF_M);
     let mut layers: Vec<Layer<'_>> = vec![(GROUND_ID, true, &plane), (GROUND_ID, true, ground)];
     layers.extend(block_layers(blocks));
@@ -453,7 +466,7 @@ pub fn shade_with_ground(
             *px = image::Rgba([r, g, b, 255]);
         }
     }
-    img
+    (img, buf.depth)
 }
 
 /// A closed box mesh (12 triangles, outward normals) in the local frame: a test and fallback
