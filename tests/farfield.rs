@@ -167,3 +167,168 @@ fn hysteresis_stops_flicker_on_an_oscillating_camera() {
     );
     assert_eq!(run(0.25), 0, "with hysteresis the root stays a map");
 }
+
+mod helsinki {
+    use blockwalk::blockmap::{CityMapsOptions, MapTree, SelectOptions, Selector};
+    use blockwalk::index::Structure;
+    use blockwalk::route::{RouteChoice, RouteContext};
+    use blockwalk::scene::{CitySource, Scene, SceneOptions};
+    use blockwalk::visibility::{CullerOptions, MeshOracle, VisibilityOracle};
+    use blockwalk::walk::{run_walk_with_far, Drawing, FarField, OcclusionMode, WalkParams};
+    use std::collections::HashSet;
+    use std::path::PathBuf;
+
+    fn data(rel: &str) -> PathBuf {
+        PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+            .join("data")
+            .join(rel)
+    }
+
+    fn scene() -> Scene {
+        let source = CitySource::parse(
+            &data("helsinki/buildings.shp"),
+            Some(data("helsinki/streets_blockclass.shp")),
+            None,
+            &[],
+            0,
+        )
+        .unwrap();
+        let opts = SceneOptions {
+            structures: vec![Structure::Bqr],
+            occlusion: Some(CullerOptions::default()),
+            ..SceneOptions::default()
+        };
+        Scene::load(&source, &opts, &mut |_| {}).unwrap()
+    }
+
+    fn maps(scene: &Scene) -> MapTree {
+        let opts = CityMapsOptions {
+            checks: 0,
+            ..CityMapsOptions::default()
+        };
+        let m = scene.blockmaps(&opts, &|_, _| {}).unwrap().maps;
+        assert!(
+            m.invariant_violations().is_empty(),
+            "{:?}",
+            m.invariant_violations()
+        );
+        m
+    }
+
+    fn route(scene: &Scene, choice: RouteChoice, aspect: f64) -> blockwalk::route::CameraRoute {
+        let ctx = RouteContext {
+            city: &scene.name,
+            bounds: scene.city_bounds(),
+            street_edges: &scene.layout.street_edges,
+            buildings: &scene.city.buildings,
+            frame: &scene.city.frame,
+            aspect,
+        };
+        choice.resolve(&ctx).unwrap().0
+    }
+
+    /// One walk over Helsinki's bundled data (building the maps is the slow part): a short
+    /// hybrid orbit with the CPU fallback (JSON keys, coverage error ≤ 1 % at τ = 1), the
+    /// selection with the occlusion culler's cull map against the oracle, and the leave-out
+    /// decision on a street-level walk.
+    #[test]
+    fn hybrid_walks_on_helsinki() {
+        let scene = scene();
+        let maps = maps(&scene);
+        assert!(maps.maps.len() > 3, "{} maps", maps.maps.len());
+        let size = (160u32, 90u32);
+
+        // Conservative against the oracle: every block the oracle sees is drawn, as a mesh or
+        // inside a drawn map, with the cull map pruning nodes.
+        let culler = scene.occlusion.as_ref().unwrap();
+        let oracle = MeshOracle::new(&scene.meshes);
+        let mut sel = Selector::new(&maps, &scene.bounds, SelectOptions::default()).unwrap();
+        let mut checked = 0;
+        let mut hidden = 0;
+        for choice in [RouteChoice::Paper, RouteChoice::Orbit, RouteChoice::Street] {
+            let r = route(&scene, choice, size.0 as f64 / size.1 as f64);
+            for cam in r.sample(24) {
+                let cmap = culler.cull_map_for(&cam);
+                let s = sel.select(&cam, size.1, Some(&cmap));
+                hidden += s.stats.nodes_hidden;
+                let mut drawn: HashSet<_> = s.meshes.iter().copied().collect();
+                for &m in &s.maps {
+                    drawn.extend(maps.maps[m].blocks.iter().copied());
+                }
+                for b in oracle.visible(&cam, size.0, size.1) {
+                    assert!(drawn.contains(&b), "block {} seen but not drawn", b.0);
+                    checked += 1;
+                }
+            }
+        }
+        assert!(checked > 100, "{checked} visible blocks checked");
+        eprintln!("cull map hid {hidden} map nodes");
+
+        // A short hybrid orbit, CPU fallback, with the reference.
+        let params = WalkParams {
+            route: route(&scene, RouteChoice::Orbit, size.0 as f64 / size.1 as f64),
+            frames: 6,
+            occlusion: OcclusionMode::Auto,
+            image_every: 0,
+            oracle: false,
+            size,
+        };
+        let far = FarField {
+            reference: true,
+            ..FarField::new(&maps)
+        };
+        let rec = run_walk_with_far(
+            &scene,
+            &params,
+            Drawing::CpuFallback {
+                reason: "test".into(),
+            },
+            Some(far),
+            &mut |_, _| {},
+        )
+        .unwrap();
+        let j = blockwalk::report::walk::json(&rec);
+        eprintln!("{}", serde_json::to_string_pretty(&j["far"]).unwrap());
+        for key in [
+            "coverage_error_max",
+            "psnr_min",
+            "silhouette_px_max",
+            "far_nodes",
+            "frame_time_ratio_vs_mesh",
+            "popping_px_max",
+        ] {
+            assert!(j.get(key).is_some(), "JSON lacks {key}");
+        }
+        assert_eq!(j["far_used"], true);
+        assert!(j["far_nodes"].as_f64().unwrap() > 0.0, "no far node drawn");
+        assert!(j["frame_time_ratio_vs_mesh"].as_f64().unwrap() > 0.0);
+        let cov = j["coverage_error_max"].as_f64().unwrap();
+        assert!(cov <= 0.01, "coverage error {cov}");
+        assert!(j["occlusion_decision"].is_object());
+        assert_eq!(rec.far.len(), 6 * 2, "a hybrid frame per frame and mode");
+
+        // Street level at a large image: nothing qualifies at τ = 1, the walk says so.
+        let params = WalkParams {
+            route: route(&scene, RouteChoice::Street, 16.0 / 9.0),
+            frames: 12,
+            occlusion: OcclusionMode::Off,
+            image_every: 0,
+            oracle: false,
+            size: (1920, 1080),
+        };
+        let far = FarField {
+            select: SelectOptions {
+                tau_px: 0.25,
+                ..SelectOptions::default()
+            },
+            ..FarField::new(&maps)
+        };
+        let rec =
+            run_walk_with_far(&scene, &params, Drawing::Off, Some(far), &mut |_, _| {}).unwrap();
+        let d = rec.far_decision.clone().unwrap();
+        assert!(!d.used, "{d:?}");
+        assert!(d.reason.as_deref().unwrap().contains("no node qualifies"));
+        assert!(rec.far.is_empty());
+        assert!(rec.notes.iter().any(|n| n.contains("far field left out")));
+    }
+}

@@ -239,8 +239,12 @@ fn cpu_hybrid<'a>(
     maps: &'a crate::blockmap::MapTree,
     size: (u32, u32),
 ) -> Result<Box<dyn FrameRenderer + 'a>, String> {
-    let _ = (scene, maps, size);
-    Err("no CPU hybrid renderer in this build".into())
+    Ok(Box::new(crate::blockmap::CpuHybridRenderer::new(
+        &scene.meshes,
+        &scene.ground,
+        maps.maps.iter().map(|m| &m.map).collect(),
+        size,
+    )))
 }
 
 /// As [`run_walk`], with a far field: for every frame and culling mode, the reference
