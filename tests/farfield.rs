@@ -332,3 +332,64 @@ mod helsinki {
         assert!(rec.notes.iter().any(|n| n.contains("far field left out")));
     }
 }
+
+/// Broken hierarchies are named, not drawn: a child ε above its parent's, a child block missing
+/// from its parent, two siblings sharing a block.
+#[test]
+fn broken_trees_are_refused_with_the_node() {
+    use blockwalk::blockmap::{SelectError, TreeViolation};
+    let bounds = block_grid(64, 9);
+    let good = skeleton(&bounds, Stop::LeafBlocks(2));
+    assert!(good.invariant_violations().is_empty());
+    // A grandchild of the root, so that its parent does not hold every block.
+    let child = good
+        .maps
+        .iter()
+        .position(|m| m.parent.is_some_and(|p| good.maps[p].parent.is_some()))
+        .unwrap();
+    let parent = good.maps[child].parent.unwrap();
+
+    let mut t = good.clone();
+    t.maps[child].map.meta.eps_m = t.maps[parent].map.meta.eps_m * 2.0;
+    let v = t.invariant_violations();
+    assert!(
+        matches!(v[0], TreeViolation::EpsGrowsDownward { parent: p, child: c, .. }
+            if p == good.maps[parent].key && c == good.maps[child].key),
+        "{v:?}"
+    );
+
+    // A block of the parent's sibling subtree moved into the child: not in the parent.
+    let mut t = good.clone();
+    let stranger = bounds
+        .iter()
+        .map(|b| b.id)
+        .find(|b| !t.maps[parent].blocks.contains(b))
+        .unwrap();
+    t.maps[child].blocks.push(stranger);
+    assert!(t.invariant_violations().iter().any(
+        |e| matches!(e, TreeViolation::NotInParent { what: "block", id, .. } if *id == stranger.0)
+    ));
+    assert!(matches!(
+        Selector::new(&t, &bounds, SelectOptions::default()),
+        Err(SelectError::NotInParent { block, .. }) | Err(SelectError::Shared { block, .. })
+            if block == stranger.0
+    ));
+
+    // Two siblings holding one block.
+    let kids: Vec<usize> = (0..good.maps.len())
+        .filter(|&i| good.maps[i].parent == Some(parent))
+        .collect();
+    if kids.len() >= 2 {
+        let mut t = good.clone();
+        let b = t.maps[kids[0]].blocks[0];
+        t.maps[kids[1]].blocks.push(b);
+        assert!(t
+            .invariant_violations()
+            .iter()
+            .any(|e| matches!(e, TreeViolation::SharedBlock { block, .. } if *block == b.0)));
+        assert!(matches!(
+            Selector::new(&t, &bounds, SelectOptions::default()),
+            Err(SelectError::Shared { block, .. }) if block == b.0
+        ));
+    }
+}

@@ -276,3 +276,49 @@ pub fn far_json(
         "passes_s": passes.iter().map(|(n, s, c)| (n.clone(), serde_json::json!(s / *c as f64))).collect::<serde_json::Map<_, _>>(),
     })
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use image::{Rgba, RgbaImage};
+
+    /// A 20×10 frame on a grey background with a red square `[x0, x0 + 4) × [2, 6)`.
+    fn frame(x0: u32, colour: [u8; 3]) -> RgbaImage {
+        let mut img = RgbaImage::from_pixel(20, 10, Rgba([90, 90, 90, 255]));
+        for y in 2..6 {
+            for x in x0..x0 + 4 {
+                img.put_pixel(x, y, Rgba([colour[0], colour[1], colour[2], 255]));
+            }
+        }
+        img
+    }
+
+    #[test]
+    fn identical_frames_have_no_error() {
+        let bg = RgbaImage::from_pixel(20, 10, Rgba([90, 90, 90, 255]));
+        let e = image_error(&frame(5, [200, 0, 0]), &frame(5, [200, 0, 0]), &bg);
+        assert_eq!(e.coverage_error, 0.0);
+        assert!(e.psnr_db.is_infinite());
+        assert_eq!(e.silhouette_px, 0.0);
+    }
+
+    #[test]
+    fn a_shifted_square_mismatches_next_to_the_silhouette() {
+        let bg = RgbaImage::from_pixel(20, 10, Rgba([90, 90, 90, 255]));
+        // Shifted by 3 px: columns 5–7 only in the mesh, 9–11 only in the hybrid (8 in both).
+        let e = image_error(&frame(5, [200, 0, 0]), &frame(8, [200, 0, 0]), &bg);
+        assert!((e.coverage_error - 24.0 / 200.0).abs() < 1e-12, "{e:?}");
+        // Column 11 is 2 px from the mesh silhouette (column 9, just right of the square);
+        // column 5 lies on it.
+        assert!((e.silhouette_px - 2.0).abs() < 1e-12, "{e:?}");
+        assert!(e.psnr_db.is_finite());
+        // A colour change alone is no coverage error, but lowers the PSNR.
+        let c = image_error(&frame(5, [200, 0, 0]), &frame(5, [190, 0, 0]), &bg);
+        assert_eq!(c.coverage_error, 0.0);
+        assert!(c.psnr_db < 60.0 && c.psnr_db > 20.0, "{c:?}");
+        assert_eq!(
+            changed_pixels(&frame(5, [200, 0, 0]), &frame(5, [190, 0, 0])),
+            16
+        );
+    }
+}
