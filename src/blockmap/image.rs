@@ -28,7 +28,7 @@
 
 use super::cast::{cast_f32, surface, CastOptions, Hit, TexRay};
 use super::colors;
-use super::layout::BlockMap;
+use super::layout::{BlockMap, BlockMapMeta};
 use crate::blocks::BlockId;
 use crate::city::Mesh;
 use crate::geom::Camera;
@@ -106,21 +106,26 @@ pub struct MapXform {
 }
 
 /// The `f64` values behind a [`MapXform`].
-fn xform64(map: &BlockMap, camera: &Camera) -> [DVec3; 4] {
-    let s = map.texel_m();
-    let hz = map.meta.zmax - map.meta.zmin;
+fn xform64(meta: &BlockMapMeta, camera: &Camera) -> [DVec3; 4] {
+    let s = meta.side / meta.k as f64;
+    let hz = meta.zmax - meta.zmin;
     let inv = DVec3::new(1.0 / s, 1.0 / s, 1.0 / hz);
     let f = camera.forward();
     let u = camera.up();
     let r = f.cross(u);
-    let min = DVec3::new(map.meta.min[0], map.meta.min[1], map.meta.zmin);
+    let min = DVec3::new(meta.min[0], meta.min[1], meta.zmin);
     [r * inv, u * inv, f * inv, (camera.position - min) * inv]
 }
 
 impl MapXform {
     /// The constants of `map` seen from `camera`.
     pub fn new(map: &BlockMap, camera: &Camera) -> Self {
-        let [ax, ay, af, b] = xform64(map, camera).map(|v| v.as_vec3().to_array());
+        Self::from_meta(&map.meta, camera)
+    }
+
+    /// The constants of the map with box and quantisation `meta` seen from `camera`.
+    pub fn from_meta(meta: &BlockMapMeta, camera: &Camera) -> Self {
+        let [ax, ay, af, b] = xform64(meta, camera).map(|v| v.as_vec3().to_array());
         Self { ax, ay, af, b }
     }
 
@@ -149,7 +154,7 @@ pub fn twin_ray(
     let ty = 1.0 / p.y_axis.y;
     let vx = (x as f64 + 0.5) * (2.0 * tx / width.max(1) as f64) - tx;
     let vy = (y as f64 + 0.5) * (-2.0 * ty / height.max(1) as f64) + ty;
-    let [ax, ay, af, b] = xform64(map, camera);
+    let [ax, ay, af, b] = xform64(&map.meta, camera);
     let d = ax * vx + ay * vy + af;
     let o = b + d * camera.near;
     TexRay {

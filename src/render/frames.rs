@@ -1,22 +1,61 @@
-//! The wgpu renderer as the walk's [`FrameRenderer`].
+//! The wgpu renderer as the walk's [`FrameRenderer`]: block meshes, and with
+//! [`GpuFrameRenderer::with_far_field`] the ray-cast BlockMaps of the far field composited with
+//! them by depth.
 
+use super::blockmap::{BlockMapRenderer, FarReadback};
 use super::{Gpu, MeshRenderer, RenderError, RenderOptions};
+use crate::blockmap::BlockMap;
 use crate::blocks::BlockId;
 use crate::city::Mesh;
 use crate::geom::Camera;
 use crate::visibility::{DrawError, DrawnFrame, FrameRenderer};
 
-/// A headless GPU renderer of a scene's block meshes, uploaded once.
+/// A headless GPU renderer of a scene's block meshes (and far-field maps), uploaded once.
 pub struct GpuFrameRenderer {
     gpu: Gpu,
     renderer: MeshRenderer,
+    far: Option<BlockMapRenderer>,
 }
 
 impl std::fmt::Debug for GpuFrameRenderer {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.debug_struct("GpuFrameRenderer")
             .field("gpu", &self.gpu)
+            .field("far", &self.far)
             .finish()
+    }
+}
+
+/// A frame of meshes and far-field maps with everything the tests and tools look at.
+#[derive(Clone, Debug)]
+pub struct HybridFrame {
+    /// Width, pixels.
+    pub width: u32,
+    /// Height, pixels.
+    pub height: u32,
+    /// RGBA bytes, rows top to bottom.
+    pub rgba: Vec<u8>,
+    /// The depth buffer, when asked for.
+    pub depth: Option<Vec<f32>>,
+    /// Per pixel, the index of the map drawn there ([`super::NO_MAP`] where meshes, ground or sky
+    /// won).
+    pub map_ids: Vec<u32>,
+    /// Pixels a map won.
+    pub far_pixels: u64,
+    /// Seconds per pass, `"meshes"` then `"far"` (GPU time when [`HybridFrame::gpu_time`]).
+    pub passes: Vec<(&'static str, f64)>,
+    /// True when the passes' seconds come from GPU timestamps.
+    pub gpu_time: bool,
+    /// Maps drawn and draw calls of the far pass.
+    pub far_maps: u32,
+    /// Draw calls of the far pass.
+    pub far_draws: u32,
+}
+
+impl HybridFrame {
+    /// The image.
+    pub fn to_image(&self) -> Option<image::RgbaImage> {
+        image::RgbaImage::from_raw(self.width, self.height, self.rgba.clone())
     }
 }
 
@@ -32,7 +71,19 @@ impl GpuFrameRenderer {
         ground: &Mesh,
         size: (u32, u32),
     ) -> Result<Self, RenderError> {
-        let gpu = Gpu::new_headless()?;
+        Self::with_gpu(Gpu::new_headless()?, meshes, ground, size)
+    }
+
+    /// As [`Self::new`] on a device made elsewhere.
+    ///
+    /// # Errors
+    /// Meshes the renderer refuses.
+    pub fn with_gpu(
+        gpu: Gpu,
+        meshes: &[(BlockId, Mesh)],
+        ground: &Mesh,
+        size: (u32, u32),
+    ) -> Result<Self, RenderError> {
         let refs: Vec<(BlockId, &Mesh)> = meshes.iter().map(|(b, m)| (*b, m)).collect();
         let renderer = MeshRenderer::with_ground(
             &gpu,
@@ -43,12 +94,100 @@ impl GpuFrameRenderer {
                 height: size.1,
             },
         )?;
-        Ok(Self { gpu, renderer })
+        Ok(Self {
+            gpu,
+            renderer,
+            far: None,
+        })
+    }
+
+    /// The same renderer with the far-field `maps` uploaded ([`BlockMapRenderer`]), which
+    /// [`FrameRenderer::draw_with_far`]'s `far` indexes.
+    ///
+    /// # Errors
+    /// [`RenderError::BadBlockMap`] naming a map that is not valid.
+    pub fn with_far_field(self, maps: &[&BlockMap]) -> Result<Self, RenderError> {
+        let o = self.renderer.options();
+        let far = BlockMapRenderer::new(&self.gpu, maps, (o.width, o.height))?;
+        Ok(Self {
+            far: Some(far),
+            ..self
+        })
     }
 
     /// The device.
     pub fn gpu(&self) -> &Gpu {
         &self.gpu
+    }
+
+    /// The far-field renderer, when maps were given.
+    pub fn far_field(&self) -> Option<&BlockMapRenderer> {
+        self.far.as_ref()
+    }
+
+    /// Draws `visible` as meshes, then the maps `far` in a second pass on the same colour and
+    /// depth targets; reads back the image, the map ids and, when `with_depth`, the depth.
+    ///
+    /// # Errors
+    /// [`RenderError::NoSuchMap`] for a map index that was not uploaded (all of them without
+    /// [`Self::with_far_field`]); GPU failures.
+    pub fn draw_hybrid(
+        &self,
+        camera: &Camera,
+        visible: &[BlockId],
+        far: &[usize],
+        with_depth: bool,
+    ) -> Result<HybridFrame, RenderError> {
+        let far_renderer = match (&self.far, far.first()) {
+            (Some(r), _) => Some(r),
+            (None, None) => None,
+            (None, Some(&index)) => return Err(RenderError::NoSuchMap { index, maps: 0 }),
+        };
+        let meshes = self.renderer.draw(&self.gpu, camera, visible)?;
+        let o = self.renderer.options();
+        let Some(fr) = far_renderer else {
+            return Ok(HybridFrame {
+                width: o.width,
+                height: o.height,
+                rgba: meshes.rgba,
+                depth: None,
+                map_ids: vec![super::NO_MAP; (o.width * o.height) as usize],
+                far_pixels: 0,
+                passes: vec![("meshes", meshes.timings.best_s()), ("far", 0.0)],
+                gpu_time: meshes.timings.gpu_s.is_some(),
+                far_maps: 0,
+                far_draws: 0,
+            });
+        };
+        let pass = fr.draw(
+            &self.gpu,
+            camera,
+            far,
+            self.renderer.color_texture(),
+            self.renderer.depth_texture(),
+            FarReadback {
+                color: true,
+                depth: with_depth,
+            },
+        )?;
+        let gpu_time = meshes.timings.gpu_s.is_some() && pass.gpu_s.is_some();
+        let (mesh_s, far_s) = if gpu_time {
+            (meshes.timings.best_s(), pass.gpu_s.unwrap_or(pass.wall_s))
+        } else {
+            (meshes.timings.wall_s, pass.wall_s)
+        };
+        Ok(HybridFrame {
+            width: o.width,
+            height: o.height,
+            rgba: pass.rgba.unwrap_or(meshes.rgba),
+            depth: pass.depth,
+            map_ids: pass.map_ids,
+            far_pixels: pass.far_pixels,
+            passes: vec![("meshes", mesh_s), ("far", far_s)],
+            gpu_time,
+            far_maps: pass.maps,
+            far_draws: pass.draws,
+        })
     }
 }
 
@@ -56,7 +195,7 @@ impl FrameRenderer for GpuFrameRenderer {
     fn describe(&self) -> String {
         let o = self.renderer.options();
         format!(
-            "GPU: {}{}, {}x{}",
+            "GPU: {}{}, {}x{}{}",
             self.gpu.adapter_name(),
             if self.gpu.timestamps {
                 ", GPU timestamps"
@@ -64,7 +203,11 @@ impl FrameRenderer for GpuFrameRenderer {
                 ", wall time (no timestamp queries)"
             },
             o.width,
-            o.height
+            o.height,
+            match &self.far {
+                Some(f) => format!(", {} far-field maps in {} pages", f.maps(), f.pages()),
+                None => String::new(),
+            }
         )
     }
     fn size(&self) -> (u32, u32) {
@@ -84,6 +227,25 @@ impl FrameRenderer for GpuFrameRenderer {
             image: if want_image { frame.to_image() } else { None },
             passes: Vec::new(),
             far_pixels: None,
+        })
+    }
+    fn draw_with_far(
+        &self,
+        camera: &Camera,
+        visible: &[BlockId],
+        far: &[usize],
+        want_image: bool,
+    ) -> Result<DrawnFrame, DrawError> {
+        if self.far.is_none() && far.is_empty() {
+            return self.draw(camera, visible, want_image);
+        }
+        let f = self.draw_hybrid(camera, visible, far, false)?;
+        Ok(DrawnFrame {
+            seconds: f.passes.iter().map(|p| p.1).sum(),
+            gpu_time: f.gpu_time,
+            image: if want_image { f.to_image() } else { None },
+            passes: f.passes,
+            far_pixels: Some(f.far_pixels),
         })
     }
 }

@@ -763,7 +763,11 @@ impl MeshRenderer {
 }
 
 /// Maps `buffer` (holding `what`) for reading, waits, copies its bytes out and unmaps it.
-fn map_read(gpu: &Gpu, buffer: &wgpu::Buffer, what: Readback) -> Result<Vec<u8>, RenderError> {
+pub(super) fn map_read(
+    gpu: &Gpu,
+    buffer: &wgpu::Buffer,
+    what: Readback,
+) -> Result<Vec<u8>, RenderError> {
     let (tx, rx) = std::sync::mpsc::channel();
     buffer.map_async(wgpu::MapMode::Read, .., move |r| {
         let _ = tx.send(r);
@@ -783,7 +787,7 @@ fn map_read(gpu: &Gpu, buffer: &wgpu::Buffer, what: Readback) -> Result<Vec<u8>,
 }
 
 /// Seconds between the two timestamps in `read`.
-fn read_timestamps(gpu: &Gpu, read: &wgpu::Buffer) -> Result<f64, RenderError> {
+pub(super) fn read_timestamps(gpu: &Gpu, read: &wgpu::Buffer) -> Result<f64, RenderError> {
     let bytes = map_read(gpu, read, Readback::Timestamps)?;
     let stamp = |i: usize| -> Result<u64, RenderError> {
         bytes

@@ -3,6 +3,8 @@
 //! - [`Gpu`]: adapter and device, created apart from the renderers so that tests and tools can
 //!   bring their own (`Gpu::new_headless`, or [`Gpu::from_parts`]).
 //! - [`GpuFrameRenderer`]: the walk's [`crate::visibility::FrameRenderer`] on a headless device.
+//! - [`BlockMapRenderer`]: the far field, BlockMaps ray-cast on the GPU into the mesh pass's
+//!   targets (`blockmap.wgsl`; the CPU reference is [`crate::blockmap::image`]).
 //! - [`MeshRenderer`]: uploads the block meshes once, then draws the blocks a culler lists, lit
 //!   (the procedural appearance of [`crate::city::appearance`], mirrored in `mesh.wgsl`: facades
 //!   with windows, roofs, ground plane, streets and blocks' ground; sun + ambient; sky) or as flat
@@ -18,12 +20,14 @@
 //! projection, or sample the depth texture. Pixels no block covers keep depth 1.0 and the sky
 //! colour; the ground plane writes its depth too.
 
+mod blockmap;
 mod frames;
 mod mesh;
 #[cfg(feature = "window")]
 pub mod window;
 
-pub use frames::GpuFrameRenderer;
+pub use blockmap::{BlockMapRenderer, FarPass, FarReadback, NO_MAP};
+pub use frames::{GpuFrameRenderer, HybridFrame};
 pub use mesh::{Frame, FrameTimings, MeshRenderer, RenderOptions, Shading};
 
 use crate::blocks::BlockId;
@@ -141,6 +145,22 @@ pub enum RenderError {
         /// The adapter's `max_texture_dimension_2d`.
         limit: u32,
     },
+    /// A BlockMap given to the far-field renderer is not valid.
+    #[error("render: far-field map {index}: {what}")]
+    BadBlockMap {
+        /// Index of the map in the list given.
+        index: usize,
+        /// What is wrong.
+        what: String,
+    },
+    /// A far-field map index that the renderer does not hold.
+    #[error("render: far-field map {index} does not exist ({maps} maps uploaded)")]
+    NoSuchMap {
+        /// The index asked for (or the length of a list longer than the maps).
+        index: usize,
+        /// Maps the renderer holds.
+        maps: usize,
+    },
     /// A block id does not fit the id encoding (24 bits, less the ground's id).
     #[error("render: block id {id} is too large (limit {limit})")]
     BlockIdTooLarge {
@@ -215,6 +235,8 @@ pub enum Readback {
     Frame,
     /// The render pass's timestamp queries.
     Timestamps,
+    /// The far-field pass's map ids, colour and depth.
+    FarField,
 }
 
 impl std::fmt::Display for Readback {
@@ -222,6 +244,7 @@ impl std::fmt::Display for Readback {
         f.write_str(match self {
             Readback::Frame => "frame",
             Readback::Timestamps => "timestamps",
+            Readback::FarField => "far-field images",
         })
     }
 }

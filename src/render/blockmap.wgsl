@@ -1,0 +1,300 @@
+// Ray-cast BlockMaps (seed 000 §3.2, seed 002 §4.2.2): one instance per selected map; each
+// rasterises its box's back faces, and every fragment walks the map's height field with the grid
+// walk of `blockmap::cast` (Amanatides–Woo in 2D), operation for operation as `cast_f32` does it,
+// shades the hit as `blockmap::cast::surface` + `blockmap::colors::lit`, and writes its depth.
+//
+// The rays and the depth are those of `blockmap::image` (see its module doc): the view direction
+// of the pixel centre `(px·sx + cx, py·sy + cy, −1)`, mapped to texture space per map with
+// `d = ax·vx + ay·vy + af`, `o = b + d·near` (the ray starts on the near plane), and the depth
+// `max((rn − r·D)/D, 0)` of the view depth `D = near + t`.
+//
+// `AMBIENT` and `SUN` are prepended by `render/blockmap.rs` from the Rust values.
+
+struct Frame {
+    // The box proxies' clip_from_world (local frame).
+    clip_from_world: mat4x4<f32>,
+    // x: sx, y: cx, z: sy, w: cy.
+    pix: vec4<f32>,
+    // x: near, y: r, z: rn.
+    depth: vec4<f32>,
+};
+
+struct Inst {
+    // xyz: the camera's right, up and forward vectors in texture units; the eye in texture space.
+    ax: vec4<f32>,
+    ay: vec4<f32>,
+    af: vec4<f32>,
+    b: vec4<f32>,
+    // The proxy box (local frame, slightly enlarged: the walk tests the exact box).
+    box_min: vec4<f32>,
+    box_max: vec4<f32>,
+    // x: array layer, y: K, z: slices, w: the map's index (written to the map-id target).
+    info: vec4<u32>,
+};
+
+@group(0) @binding(0) var<uniform> f: Frame;
+@group(0) @binding(1) var<storage, read> instances: array<Inst>;
+@group(1) @binding(0) var maps: texture_2d_array<u32>;
+
+// Back faces of the unit cube (corner bits: x = 1, y = 2, z = 4), outward counter-clockwise.
+const CUBE: array<u32, 36> = array<u32, 36>(
+    0u, 4u, 6u, 0u, 6u, 2u, 1u, 3u, 7u, 1u, 7u, 5u, 0u, 1u, 5u, 0u, 5u, 4u,
+    2u, 6u, 7u, 2u, 7u, 3u, 0u, 2u, 3u, 0u, 3u, 1u, 4u, 5u, 7u, 4u, 7u, 6u,
+);
+
+struct VsOut {
+    @builtin(position) clip: vec4<f32>,
+    @location(0) @interpolate(flat) inst: u32,
+};
+
+@vertex
+fn vs_main(@builtin(vertex_index) vi: u32, @builtin(instance_index) ii: u32) -> VsOut {
+    let m = instances[ii];
+    let c = CUBE[vi];
+    let p = vec3<f32>(
+        select(m.box_min.x, m.box_max.x, (c & 1u) != 0u),
+        select(m.box_min.y, m.box_max.y, (c & 2u) != 0u),
+        select(m.box_min.z, m.box_max.z, (c & 4u) != 0u),
+    );
+    var out: VsOut;
+    var clip = f.clip_from_world * vec4<f32>(p, 1.0);
+    // Clip at the near plane only (z' = w − near is affine in the vertex, 0 ≤ z' ≤ w ⇔ view
+    // depth ≥ near): a box reaching past the far plane still gets its fragments; the depth that
+    // counts is the hit's, written below.
+    clip.z = clip.w - f.depth.x;
+    out.clip = clip;
+    out.inst = ii;
+    return out;
+}
+
+const BIG: f32 = 3.0e38;
+const MISS: u32 = 0u;
+const ROOF: u32 = 1u;
+const WALL: u32 = 2u;
+// Faces (blockmap::cast::Face).
+const WEST: u32 = 0u;
+const EAST: u32 = 1u;
+const SOUTH: u32 = 2u;
+const NORTH: u32 = 3u;
+const INSIDE: u32 = 4u;
+
+struct Hit {
+    kind: u32,
+    i: i32,
+    j: i32,
+    face: u32,
+    t: f32,
+};
+
+fn texel(layer: i32, u: i32, v: i32) -> vec4<u32> {
+    return textureLoad(maps, vec2<i32>(u, v), layer, 0);
+}
+
+fn sgn(v: f32) -> i32 {
+    if v > 0.0 {
+        return 1;
+    } else if v < 0.0 {
+        return -1;
+    }
+    return 0;
+}
+
+// blockmap::cast start_cell's `next`.
+fn next_line(c: i32, s: i32, o: f32, d: f32) -> f32 {
+    if s > 0 {
+        return (f32(c + 1) - o) / d;
+    } else if s < 0 {
+        return (f32(c) - o) / d;
+    }
+    return BIG;
+}
+
+// blockmap::cast::cast_generic without the tie margins and the distance-map leap.
+fn walk_map(o: vec3<f32>, d: vec3<f32>, k: i32, layer: i32) -> Hit {
+    var h: Hit;
+    h.kind = MISS;
+    let kt = f32(k);
+    let hi = vec3<f32>(kt, kt, 1.0);
+    var t_near = -BIG;
+    var t_far = BIG;
+    var entry_axis = 3u;
+    for (var a = 0u; a < 3u; a++) {
+        let oa = o[a];
+        let da = d[a];
+        if da == 0.0 {
+            if oa < 0.0 || oa > hi[a] {
+                return h;
+            }
+            continue;
+        }
+        let ta = (0.0 - oa) / da;
+        let tb = (hi[a] - oa) / da;
+        var lo = tb;
+        var up = ta;
+        if ta < tb {
+            lo = ta;
+            up = tb;
+        }
+        if lo > t_near {
+            t_near = lo;
+            entry_axis = a;
+        }
+        t_far = min(t_far, up);
+    }
+    let t0 = max(t_near, 0.0);
+    let t1 = t_far;
+    if t0 >= t1 {
+        return h;
+    }
+    let eye_inside = t_near <= 0.0;
+    let sx = sgn(d.x);
+    let sy = sgn(d.y);
+    var tdx = BIG;
+    if sx != 0 {
+        tdx = 1.0 / abs(d.x);
+    }
+    var tdy = BIG;
+    if sy != 0 {
+        tdy = 1.0 / abs(d.y);
+    }
+    let px = o.x + t0 * d.x;
+    let py = o.y + t0 * d.y;
+    var i = clamp(i32(floor(px)), 0, k - 1);
+    var j = clamp(i32(floor(py)), 0, k - 1);
+    var tmx = next_line(i, sx, o.x, d.x);
+    var tmy = next_line(j, sy, o.y, d.y);
+    var face = INSIDE;
+    if !eye_inside {
+        if entry_axis == 0u {
+            face = select(EAST, WEST, sx > 0);
+        } else if entry_axis == 1u {
+            face = select(NORTH, SOUTH, sy > 0);
+        }
+    }
+    let entered_top = !eye_inside && entry_axis == 2u && d.z < 0.0;
+    var t_in = t0;
+    for (var it = 0; it < 2 * k; it++) {
+        let t_out = min(min(tmx, tmy), t1);
+        let za = o.z + t_in * d.z;
+        let zb = o.z + t_out * d.z;
+        let code = texel(layer, i, j).x;
+        let hh = f32(code) / 255.0;
+        if code > 0u {
+            if za <= hh {
+                h.i = i;
+                h.j = j;
+                h.t = t_in;
+                if it == 0 && entered_top {
+                    h.kind = ROOF;
+                } else {
+                    h.kind = WALL;
+                    h.face = face;
+                }
+                return h;
+            }
+            if zb <= hh {
+                h.kind = ROOF;
+                h.i = i;
+                h.j = j;
+                h.t = t_in + (za - hh) / (-d.z);
+                return h;
+            }
+        }
+        if t_out >= t1 {
+            return h;
+        }
+        if tmx < tmy {
+            i += sx;
+            t_in = tmx;
+            tmx = tmx + tdx;
+            face = select(EAST, WEST, sx > 0);
+        } else {
+            j += sy;
+            t_in = tmy;
+            tmy = tmy + tdy;
+            face = select(NORTH, SOUTH, sy > 0);
+        }
+        if i < 0 || i >= k || j < 0 || j >= k {
+            return h;
+        }
+    }
+    return h;
+}
+
+// blockmap::layout::decode_unit.
+fn decode_unit(b: u32) -> f32 {
+    return clamp((f32(b) - 128.0) / 127.0, -1.0, 1.0);
+}
+
+fn face_normal(face: u32) -> vec3<f32> {
+    switch face {
+        case 0u: { return vec3<f32>(-1.0, 0.0, 0.0); }
+        case 1u: { return vec3<f32>(1.0, 0.0, 0.0); }
+        case 2u: { return vec3<f32>(0.0, -1.0, 0.0); }
+        case 3u: { return vec3<f32>(0.0, 1.0, 0.0); }
+        default: { return vec3<f32>(0.0, 0.0, 1.0); }
+    }
+}
+
+struct FsOut {
+    @location(0) color: vec4<f32>,
+    @location(1) map: u32,
+    @builtin(frag_depth) depth: f32,
+};
+
+@fragment
+fn fs_main(in: VsOut) -> FsOut {
+    let m = instances[in.inst];
+    let layer = i32(m.info.x);
+    let k = i32(m.info.y);
+    let slices = i32(m.info.z);
+    let vx = in.clip.x * f.pix.x + f.pix.y;
+    let vy = in.clip.y * f.pix.z + f.pix.w;
+    let near = f.depth.x;
+    let d = m.ax.xyz * vx + m.ay.xyz * vy + m.af.xyz;
+    let o = m.b.xyz + d * near;
+    let h = walk_map(o, d, k, layer);
+    if h.kind == MISS {
+        discard;
+    }
+    let dv = near + h.t;
+    let depth = max((f.depth.z - f.depth.y * dv) / dv, 0.0);
+    if !(depth < 1.0) {
+        discard;
+    }
+    // blockmap::cast::surface.
+    let shape = texel(layer, h.i, h.j);
+    var base = texel(layer, k + h.i, h.j).xyz;
+    var n: vec3<f32>;
+    if h.kind == ROOF {
+        let x = decode_unit(shape.z);
+        let y = decode_unit(shape.w);
+        n = vec3<f32>(x, y, sqrt(max(1.0 - x * x - y * y, 0.0)));
+    } else if shape.y == 0u || h.face == INSIDE {
+        n = face_normal(h.face);
+    } else {
+        let u = 2 * k + i32(shape.y) - 1;
+        let z = o.z + h.t * d.z;
+        let rows = k / slices;
+        let colour_rows = rows - 1;
+        let row = clamp(i32(floor(z * f32(colour_rows))), 0, colour_rows - 1);
+        let slice = h.j * slices / k;
+        base = texel(layer, u, slice * rows + row).xyz;
+        let nb = texel(layer, u, slice * rows + rows - 1);
+        let raw = vec3<f32>(decode_unit(nb.x), decode_unit(nb.y), decode_unit(nb.z));
+        let rcp = 1.0 / length(raw);
+        if rcp > 0.0 && rcp < BIG {
+            n = raw * rcp;
+        } else {
+            n = face_normal(h.face);
+        }
+    }
+    // blockmap::colors::lit = appearance::shade of the byte colour.
+    let light = AMBIENT + (1.0 - AMBIENT) * max(dot(n, SUN), 0.0);
+    let c = min(vec3<f32>(base) / 255.0 * light, vec3<f32>(1.0));
+    var out: FsOut;
+    out.color = vec4<f32>(c, 1.0);
+    out.map = m.info.w;
+    out.depth = depth;
+    return out;
+}
