@@ -147,7 +147,12 @@ pub fn gpu_renderer(
         .map_err(|e| e.to_string())?;
     match far {
         None => Ok(Box::new(r)),
-        Some(_) => Err("the GPU renderer draws no far field in this build".into()),
+        Some(m) => {
+            let maps: Vec<&blockwalk::blockmap::BlockMap> = m.maps.iter().map(|n| &n.map).collect();
+            Ok(Box::new(
+                r.with_far_field(&maps).map_err(|e| e.to_string())?,
+            ))
+        }
     }
 }
 

@@ -15,7 +15,7 @@
 //!   screen because, and only because, the selection changed.
 
 use super::CullMode;
-use crate::blockmap::compare::{nearest_distance, psnr_db, silhouette_pixels};
+use crate::blockmap::compare::{psnr_db, silhouette_pixels};
 use crate::blockmap::{MapTree, SelectOptions, SelectStats, Selection};
 use serde::Serialize;
 
@@ -162,12 +162,20 @@ pub fn image_error(
     let mc = coverage(mesh, background);
     let hc = coverage(hybrid, background);
     let sil = silhouette_pixels(&mc, w, h);
+    let mut mask = vec![false; w * h];
+    for &(x, y) in &sil {
+        mask[y as usize * w + x as usize] = true;
+    }
     let mut mismatched = 0usize;
     let mut worst: f64 = 0.0;
     for k in 0..w * h {
         if mc[k] != hc[k] {
             mismatched += 1;
-            worst = worst.max(nearest_distance(&sil, (k % w) as i64, (k / w) as i64));
+            let (x, y) = ((k % w) as i64, (k / w) as i64);
+            // No silhouette at all (an empty mesh frame): the frame's diagonal.
+            let d = nearest_in_mask(&mask, w, h, x, y)
+                .unwrap_or_else(|| ((w * w + h * h) as f64).sqrt());
+            worst = worst.max(d);
         }
     }
     let se: f64 = mesh
@@ -188,6 +196,45 @@ pub fn image_error(
         silhouette_px: worst,
         popping_px: 0,
     }
+}
+
+/// Distance from `(x, y)` to the nearest set pixel of `mask` (`w × h`), searching square rings
+/// of growing radius (the first hit at ring `r` bounds the answer by `r·√2`, so rings up to
+/// that bound are searched too); none when the mask is empty. The same distance as
+/// [`crate::blockmap::compare::nearest_distance`] over the mask's pixels, in time proportional to the answer's square
+/// instead of the silhouette's length.
+pub fn nearest_in_mask(mask: &[bool], w: usize, h: usize, x: i64, y: i64) -> Option<f64> {
+    let (wi, hi) = (w as i64, h as i64);
+    let rmax = wi.max(hi);
+    let mut best2: Option<i64> = None;
+    for r in 0..=rmax {
+        if let Some(b) = best2 {
+            if r * r > b {
+                break;
+            }
+        }
+        let mut visit = |px: i64, py: i64| {
+            if px >= 0 && py >= 0 && px < wi && py < hi && mask[(py * wi + px) as usize] {
+                let d2 = (px - x) * (px - x) + (py - y) * (py - y);
+                if best2.is_none_or(|b| d2 < b) {
+                    best2 = Some(d2);
+                }
+            }
+        };
+        if r == 0 {
+            visit(x, y);
+            continue;
+        }
+        for d in -r..=r {
+            visit(x + d, y - r);
+            visit(x + d, y + r);
+        }
+        for d in -r + 1..r {
+            visit(x - r, y + d);
+            visit(x + r, y + d);
+        }
+    }
+    best2.map(|b| (b as f64).sqrt())
 }
 
 /// True when two selections draw the same maps and meshes.
@@ -280,6 +327,7 @@ pub fn far_json(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::blockmap::compare::nearest_distance;
     use image::{Rgba, RgbaImage};
 
     /// A 20×10 frame on a grey background with a red square `[x0, x0 + 4) × [2, 6)`.
@@ -291,6 +339,28 @@ mod tests {
             }
         }
         img
+    }
+
+    #[test]
+    fn ring_search_equals_brute_force() {
+        use rand::{Rng, SeedableRng};
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(4);
+        for _ in 0..200 {
+            let (w, h) = (rng.random_range(1..30usize), rng.random_range(1..30usize));
+            let fill = rng.random_range(0.0..0.2);
+            let mask: Vec<bool> = (0..w * h).map(|_| rng.random_bool(fill)).collect();
+            let list: Vec<(i64, i64)> = (0..w * h)
+                .filter(|&k| mask[k])
+                .map(|k| ((k % w) as i64, (k / w) as i64))
+                .collect();
+            let (x, y) = (rng.random_range(0..w) as i64, rng.random_range(0..h) as i64);
+            let fast = nearest_in_mask(&mask, w, h, x, y);
+            if list.is_empty() {
+                assert_eq!(fast, None);
+            } else {
+                assert_eq!(fast, Some(nearest_distance(&list, x, y)));
+            }
+        }
     }
 
     #[test]
