@@ -9,14 +9,31 @@
 //!   coverage differs between the mesh-only and the hybrid frame (seed 001's measure);
 //! - **colour PSNR** (RGB, dB) of the hybrid frame against the mesh-only frame;
 //! - **silhouette distance**: the largest distance, in pixels, of a coverage-mismatched pixel
-//!   from a silhouette pixel of the mesh-only frame's coverage (BLOCKMAPS.md D.3-2);
-//! - **popping**: pixels whose colour differs between the hybrid frame and the same camera drawn
-//!   with the previous frame's decisions kept ([`Selector::select_frozen`]): what changes on
-//!   screen because, and only because, the selection changed.
+//!   from a silhouette pixel of the frame that does not cover it (a pixel only the hybrid covers:
+//!   the mesh frame's; only the mesh covers: the hybrid frame's), the form of BLOCKMAPS.md D.3-2
+//!   that `blockmap::compare` derives (≤ 1 px + τ/cos²θ where the bound holds);
+//! - **popping**: between the hybrid frame and the same camera drawn with the previous frame's
+//!   decisions kept ([`crate::blockmap::Selector::select_frozen`]), so that only what the
+//!   selection changed differs: pixels whose coverage changes (`popping_px`, the geometric pop)
+//!   and pixels whose colour changes at all (`popping_colour_px`; a map's colours differ a little
+//!   from the meshes' nearly everywhere, so this counts every pixel of a switched node).
 
 use super::CullMode;
 use crate::blockmap::compare::{psnr_db, silhouette_pixels};
 use crate::blockmap::{MapTree, SelectOptions, SelectStats, Selection};
+
+/// Pixels whose coverage differs between two frames of one camera (`background`: no block).
+pub fn coverage_changed(
+    a: &image::RgbaImage,
+    b: &image::RgbaImage,
+    background: &image::RgbaImage,
+) -> u64 {
+    coverage(a, background)
+        .iter()
+        .zip(coverage(b, background))
+        .filter(|(p, q)| **p != *q)
+        .count() as u64
+}
 use serde::Serialize;
 
 /// Whether a walk draws a far field.
@@ -105,8 +122,10 @@ pub struct ImageError {
     /// Largest distance of a coverage-mismatched pixel from a mesh silhouette, pixels (0 when
     /// nothing mismatches).
     pub silhouette_px: f64,
-    /// Pixels that changed only because the selection changed.
+    /// Pixels whose coverage changed only because the selection changed.
     pub popping_px: u64,
+    /// Pixels whose colour changed only because the selection changed.
+    pub popping_colour_px: u64,
 }
 
 /// Whether the far field ran, and why not.
@@ -161,20 +180,26 @@ pub fn image_error(
     let (w, h) = (mesh.width() as usize, mesh.height() as usize);
     let mc = coverage(mesh, background);
     let hc = coverage(hybrid, background);
-    let sil = silhouette_pixels(&mc, w, h);
-    let mut mask = vec![false; w * h];
-    for &(x, y) in &sil {
-        mask[y as usize * w + x as usize] = true;
-    }
+    let mask = |cov: &[bool]| {
+        let mut m = vec![false; w * h];
+        for (x, y) in silhouette_pixels(cov, w, h) {
+            m[y as usize * w + x as usize] = true;
+        }
+        m
+    };
+    let (mesh_sil, hybrid_sil) = (mask(&mc), mask(&hc));
     let mut mismatched = 0usize;
     let mut worst: f64 = 0.0;
     for k in 0..w * h {
         if mc[k] != hc[k] {
             mismatched += 1;
             let (x, y) = ((k % w) as i64, (k / w) as i64);
-            // No silhouette at all (an empty mesh frame): the frame's diagonal.
-            let d = nearest_in_mask(&mask, w, h, x, y)
-                .unwrap_or_else(|| ((w * w + h * h) as f64).sqrt());
+            // As `blockmap::compare` derives the bound: a pixel only the hybrid covers lies
+            // near a silhouette of the mesh frame, one only the mesh covers near a silhouette
+            // of the hybrid frame. No silhouette at all: the frame's diagonal.
+            let sil = if hc[k] { &mesh_sil } else { &hybrid_sil };
+            let d =
+                nearest_in_mask(sil, w, h, x, y).unwrap_or_else(|| ((w * w + h * h) as f64).sqrt());
             worst = worst.max(d);
         }
     }
@@ -195,6 +220,7 @@ pub fn image_error(
         psnr_db: psnr_db(se, 3 * w * h),
         silhouette_px: worst,
         popping_px: 0,
+        popping_colour_px: 0,
     }
 }
 
@@ -312,6 +338,7 @@ pub fn far_json(
         "silhouette_px_max": fold_max(&|i| i.silhouette_px),
         "popping_px_max": fold_max(&|i| i.popping_px as f64),
         "popping_px_mean": mean(&mut imgs.iter().map(|i| i.popping_px as f64)),
+        "popping_colour_px_max": fold_max(&|i| i.popping_colour_px as f64),
         "far_nodes": mean(&mut sel.iter().map(|r| r.far_nodes as f64)),
         "far_pixels": mean(&mut sel.iter().filter_map(|r| r.far_pixels.map(|p| p as f64))),
         "mesh_triangles": mean(&mut sel.iter().map(|r| r.mesh_triangles as f64)),

@@ -624,7 +624,8 @@ fn far_frame(
             match r.draw_with_far(x.camera, &fr.meshes, &fr.maps, true) {
                 Ok(d) => {
                     if let Some(img) = d.image {
-                        err.popping_px = changed_pixels(&img, hyb);
+                        err.popping_colour_px = changed_pixels(&img, hyb);
+                        err.popping_px = far::coverage_changed(&img, hyb, &bg);
                     }
                 }
                 Err(e) => notes.push(format!("frame {f}: drawing the popping frame failed: {e}")),

@@ -37,7 +37,7 @@ pub fn frames_csv(record: &WalkRecord) -> String {
 }
 
 /// The header of [`far_csv`].
-pub const FAR_HEADER: &str = "frame,mode,select_s,render_s,frame_s,mesh_frame_s,mesh_blocks,mesh_triangles,far_nodes,far_blocks,far_pixels,nodes_visited,coverage_error,psnr_db,silhouette_px,popping_px";
+pub const FAR_HEADER: &str = "frame,mode,select_s,render_s,frame_s,mesh_frame_s,mesh_blocks,mesh_triangles,far_nodes,far_blocks,far_pixels,nodes_visited,coverage_error,psnr_db,silhouette_px,popping_px,popping_colour_px";
 
 /// The hybrid frames as CSV (empty cells for values not measured).
 pub fn far_csv(record: &WalkRecord) -> String {
@@ -48,7 +48,7 @@ pub fn far_csv(record: &WalkRecord) -> String {
         let i = r.image.as_ref();
         let _ = writeln!(
             s,
-            "{},{},{:.9},{},{:.9},{:.9},{},{},{},{},{},{},{},{},{},{}",
+            "{},{},{:.9},{},{:.9},{:.9},{},{},{},{},{},{},{},{},{},{},{}",
             r.frame,
             r.mode,
             r.select_s,
@@ -65,6 +65,8 @@ pub fn far_csv(record: &WalkRecord) -> String {
             opt(i.map(|i| i.psnr_db)),
             opt(i.map(|i| i.silhouette_px)),
             i.map(|i| i.popping_px.to_string()).unwrap_or_default(),
+            i.map(|i| i.popping_colour_px.to_string())
+                .unwrap_or_default(),
         );
     }
     s
