@@ -279,7 +279,7 @@ pub fn same_selection(a: &Selection, b: &Selection) -> bool {
 /// The figures of the hybrid frames in one JSON object: `coverage_error_max`, `psnr_min`,
 /// `silhouette_px_max`, `popping_px_max`, `far_nodes` (mean per frame), `mesh_triangles` (mean),
 /// `frame_time_ratio_vs_mesh` (mean hybrid frame time over mean mesh-only frame time, same
-/// frames, in the last culling mode), per mode figures, and the decision.
+/// frames, in the last culling mode; null when the frames were not drawn), and the decision.
 pub fn far_json(
     records: &[FarRecord],
     decision: &FarDecision,
@@ -300,8 +300,10 @@ pub fn far_json(
         .collect();
     let hyb = mean(&mut sel.iter().map(|r| r.frame_s));
     let mesh = mean(&mut sel.iter().map(|r| r.mesh_frame_s));
+    // Only drawn frames compare times (without drawing, both are selection or culling alone).
+    let drawn = !sel.is_empty() && sel.iter().all(|r| r.render_s.is_some());
     let ratio = match (hyb, mesh) {
-        (Some(a), Some(b)) if b > 0.0 => Some(a / b),
+        (Some(a), Some(b)) if b > 0.0 && drawn => Some(a / b),
         _ => None,
     };
     let imgs: Vec<&ImageError> = sel.iter().filter_map(|r| r.image.as_ref()).collect();
