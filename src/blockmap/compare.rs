@@ -254,42 +254,15 @@ pub fn compare_view_with_thin(
         }
     }
     out.mean_steps = steps as f64 / (w * h) as f64;
-    let mse = se / (3 * w * h) as f64;
-    out.psnr_db = if mse == 0.0 {
-        f64::INFINITY
-    } else {
-        10.0 * (255.0f64 * 255.0 / mse).log10()
-    };
+    out.psnr_db = psnr_db(se, 3 * w * h);
     // Silhouette pixels of each image: covered with an uncovered 4-neighbour, or the reverse.
     // Which one a mismatched pixel is measured against (see the module doc): a pixel the map
     // covers and the mesh does not must lie near a silhouette of the mesh image, a pixel the
     // mesh covers and the map does not near one of the map image.
-    let silhouettes = |cov: &[bool]| -> Vec<bool> {
-        (0..h)
-            .flat_map(|y| (0..w).map(move |x| (x, y)))
-            .map(|(x, y)| {
-                let c = cov[y * w + x];
-                [(-1i64, 0i64), (1, 0), (0, -1), (0, 1)]
-                    .iter()
-                    .any(|(dx, dy)| {
-                        let (nx, ny) = (x as i64 + dx, y as i64 + dy);
-                        nx >= 0
-                            && ny >= 0
-                            && (nx as usize) < w
-                            && (ny as usize) < h
-                            && cov[ny as usize * w + nx as usize] != c
-                    })
-            })
-            .collect()
-    };
-    let (mesh_sil, map_sil) = (silhouettes(&mesh_cov), silhouettes(&map_cov));
-    let pixels = |sil: &[bool]| -> Vec<(i64, i64)> {
-        (0..w * h)
-            .filter(|&k| sil[k])
-            .map(|k| ((k % w) as i64, (k / w) as i64))
-            .collect()
-    };
-    let (mesh_sil, map_sil) = (pixels(&mesh_sil), pixels(&map_sil));
+    let (mesh_sil, map_sil) = (
+        silhouette_pixels(&mesh_cov, w, h),
+        silhouette_pixels(&map_cov, w, h),
+    );
     let fy = (0.5 * cam.fov_y).tan();
     let fx = fy * cam.aspect;
     let mut fine_ids: Option<crate::visibility::oracle::IdBuffer> = None;
@@ -308,18 +281,13 @@ pub fn compare_view_with_thin(
             // The map shows a building the mesh does not: a mesh silhouette is near; the
             // mesh shows one the map does not: a map silhouette is near.
             let sil = if map_cov[k] { &mesh_sil } else { &map_sil };
-            let nearest2 = sil
-                .iter()
-                .map(|&(sx, sy)| {
-                    let (dx, dy) = ((sx - x as i64) as f64, (sy - y as i64) as f64);
-                    dx * dx + dy * dy
-                })
-                .fold(f64::INFINITY, f64::min);
+            let nearest = nearest_distance(sil, x as i64, y as i64);
+            let nearest2 = nearest * nearest;
             // A feature smaller than a pixel can fall between the pixel centres of one image
             // and be caught by a centre in the other: the bound is about the images, not their
             // samples, so a pixel beyond it gets a second look at quarter-pixel spacing for
             // coverage of the other image within `r`.
-            let mut ratio = nearest2.sqrt() / r;
+            let mut ratio = nearest / r;
             if nearest2 > r2 {
                 let found = if map_cov[k] {
                     let fine = fine_ids
@@ -339,14 +307,7 @@ pub fn compare_view_with_thin(
             }
             if ratio > 1.0 {
                 let own = !map_cov[k] && thin.contains(&ids.ids[k]) && {
-                    let near_own = mesh_sil
-                        .iter()
-                        .map(|&(sx, sy)| {
-                            let (dx, dy) = ((sx - x as i64) as f64, (sy - y as i64) as f64);
-                            dx * dx + dy * dy
-                        })
-                        .fold(f64::INFINITY, f64::min);
-                    near_own <= r2
+                    nearest_distance(&mesh_sil, x as i64, y as i64) <= r
                 };
                 if own {
                     out.beyond_bound_thin += 1;
@@ -364,6 +325,50 @@ pub fn compare_view_with_thin(
         .count();
     out.coverage_error_of_union = out.mismatched as f64 / union.max(1) as f64;
     out
+}
+
+/// Colour PSNR in dB of a summed squared error `se` over `samples` 8-bit samples (infinite when
+/// identical).
+pub fn psnr_db(se: f64, samples: usize) -> f64 {
+    let mse = se / samples.max(1) as f64;
+    if mse == 0.0 {
+        f64::INFINITY
+    } else {
+        10.0 * (255.0f64 * 255.0 / mse).log10()
+    }
+}
+
+/// Silhouette pixels `(x, y)` of a coverage mask `w × h` (row-major): covered with an uncovered
+/// 4-neighbour, or the reverse.
+pub fn silhouette_pixels(cov: &[bool], w: usize, h: usize) -> Vec<(i64, i64)> {
+    (0..h)
+        .flat_map(|y| (0..w).map(move |x| (x, y)))
+        .filter(|&(x, y)| {
+            let c = cov[y * w + x];
+            [(-1i64, 0i64), (1, 0), (0, -1), (0, 1)]
+                .iter()
+                .any(|(dx, dy)| {
+                    let (nx, ny) = (x as i64 + dx, y as i64 + dy);
+                    nx >= 0
+                        && ny >= 0
+                        && (nx as usize) < w
+                        && (ny as usize) < h
+                        && cov[ny as usize * w + nx as usize] != c
+                })
+        })
+        .map(|(x, y)| (x as i64, y as i64))
+        .collect()
+}
+
+/// Distance in pixels from `(x, y)` to the nearest of `sil` (infinite when `sil` is empty).
+pub fn nearest_distance(sil: &[(i64, i64)], x: i64, y: i64) -> f64 {
+    sil.iter()
+        .map(|&(sx, sy)| {
+            let (dx, dy) = ((sx - x) as f64, (sy - y) as f64);
+            dx * dx + dy * dy
+        })
+        .fold(f64::INFINITY, f64::min)
+        .sqrt()
 }
 
 /// Sub-samples per pixel side of the second look at pixels beyond the bound.

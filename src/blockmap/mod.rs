@@ -12,6 +12,7 @@
 //! - [`cast`]: the reference caster (2D Amanatides–Woo walk, seed 002 §4.2.2) in f32 as the
 //!   shader runs it, with an f64 twin that names ties; optional distance-map leaps.
 //! - [`tree`]: maps for the BqR-tree's nodes (whole blocks per node).
+//! - [`select`]: which nodes a frame draws as maps and which blocks as meshes (seed 000 §4–5).
 //! - [`compare`]: ray-cast image against the oracle's mesh image: coverage error, the projected
 //!   bound at silhouettes, 3D point error, colour PSNR.
 //! - [`image`]: images of maps as the GPU draws them ([`cast_image`]), and the CPU fallback of
@@ -27,6 +28,7 @@ pub mod compare;
 pub mod error;
 pub mod image;
 pub mod layout;
+pub mod select;
 pub mod tree;
 
 pub use build::{build_map, BuildOptions, BuildStats, Source};
@@ -34,8 +36,12 @@ pub use cast::{cast_f32, cast_f64, Cast, CastOptions, Face, Hit, TexRay};
 pub use error::{measure, ErrorReport, ThinFeature, ThinKind};
 pub use image::{cast_image, CpuHybridRenderer, FrameRays, MapImage, MapXform};
 pub use layout::{BlockMap, BlockMapMeta};
+pub use select::{
+    projected_error_px, SelectError, SelectOptions, SelectStats, Selection, Selector,
+};
 pub use tree::{
-    build_city_maps, build_tree, CityMaps, CityMapsOptions, MapTree, NodeMap, Stop, TreeOptions,
+    build_city_maps, build_tree, skeleton_tree, CityMaps, CityMapsOptions, MapTree, NodeMap, Stop,
+    TreeOptions, TreeViolation,
 };
 
 use std::path::PathBuf;

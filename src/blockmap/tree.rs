@@ -195,41 +195,242 @@ pub fn build_tree(
     Ok(MapTree { maps })
 }
 
-impl MapTree {
-    /// Checks the hierarchy's invariants (BLOCKMAPS.md B.3): a parent's box holds its
-    /// children's footprints, its ε is ≥ theirs, and its blocks include theirs.
-    ///
-    /// # Panics
-    /// On a broken invariant, with the node keys.
-    pub fn check_invariants(&self) {
-        for m in &self.maps {
-            let Some(p) = m.parent else { continue };
-            let pm = &self.maps[p];
-            assert!(
-                pm.map.meta.eps_m >= m.map.meta.eps_m,
-                "ε of node {} < child {}",
-                pm.key,
-                m.key
-            );
-            let (a, b) = (pm.map.aabb(), m.map.aabb());
-            let slack = 1e-6 * (1.0 + a.extent().max_element());
-            // The child's square may stick out of the parent's over streets; its buildings may not.
-            for &bi in &m.buildings {
-                assert!(
-                    pm.buildings.contains(&bi),
-                    "building {bi} of node {} missing from parent {}",
-                    m.key,
-                    pm.key
-                );
-            }
-            assert!(
-                a.max.z + slack >= b.max.z,
-                "parent {} lower than child {}",
-                pm.key,
-                m.key
-            );
+/// The hierarchy [`build_tree`] would build over `tree`, with empty maps whose declared ε is half
+/// their voxel diagonal (seed 000 §3.3) made monotone upward: what selection sees of a map tree
+/// (boxes, ε, blocks), built in milliseconds. For selection tests and for timing selection
+/// apart from construction; nothing here is drawable.
+///
+/// # Errors
+/// [`BlockMapError::BadParameter`] when `k` is not 32, 64 or 128.
+pub fn skeleton_tree(tree: &BqrTree, k: u32, stop: Stop) -> Result<MapTree, BlockMapError> {
+    let sel = select_nodes(tree, k, stop);
+    let mut maps = Vec::with_capacity(sel.len());
+    for (n, level, parent) in sel {
+        let v = tree.node(n).expect("selected nodes exist");
+        let b = v.aabb;
+        let side = (b.max.x - b.min.x).max(b.max.y - b.min.y).max(1e-3);
+        let zmax = b.max.z.max(1.0);
+        let mut map = BlockMap::empty(k, glam::DVec3::new(b.min.x, b.min.y, 0.0), side, zmax)?;
+        map.meta.eps_m = map.half_voxel_diagonal();
+        map.meta.node_key = v.key;
+        let blocks: Vec<BlockId> = tree.blocks()[v.blocks.clone()]
+            .iter()
+            .map(|b| b.id)
+            .collect();
+        maps.push(NodeMap {
+            node: n,
+            key: v.key,
+            level,
+            parent,
+            blocks,
+            buildings: Vec::new(),
+            map,
+            stats: BuildStats::default(),
+            error: ErrorReport::default(),
+        });
+    }
+    for i in (0..maps.len()).rev() {
+        if let Some(p) = maps[i].parent {
+            let e = maps[i].map.meta.eps_m;
+            let pe = &mut maps[p].map.meta.eps_m;
+            *pe = pe.max(e);
         }
     }
+    Ok(MapTree { maps })
+}
+
+/// A broken invariant of the map hierarchy (BLOCKMAPS.md B.3, D.2), naming the nodes.
+#[derive(Clone, Debug, PartialEq, Serialize, thiserror::Error)]
+#[serde(tag = "kind", rename_all = "snake_case")]
+pub enum TreeViolation {
+    /// A parent's declared ε is below a child's (ε must not grow downward).
+    #[error("ε of node {parent} ({parent_eps_m} m) < ε of its child {child} ({child_eps_m} m)")]
+    EpsGrowsDownward {
+        /// Parent key.
+        parent: u64,
+        /// Child key.
+        child: u64,
+        /// Parent ε, metres.
+        parent_eps_m: f64,
+        /// Child ε, metres.
+        child_eps_m: f64,
+    },
+    /// A child's block (or building) is not in its parent.
+    #[error("{what} {id} of node {child} is not in its parent {parent}")]
+    NotInParent {
+        /// Parent key.
+        parent: u64,
+        /// Child key.
+        child: u64,
+        /// `block` or `building`.
+        what: &'static str,
+        /// Its id.
+        id: u32,
+    },
+    /// Two children of one parent hold the same block.
+    #[error("block {block} is in both children {a} and {b} of one parent")]
+    SharedBlock {
+        /// One child key.
+        a: u64,
+        /// The other.
+        b: u64,
+        /// The block.
+        block: u32,
+    },
+    /// A child's content (its box's top, or a non-empty texel) lies outside its parent's box.
+    #[error("node {child} reaches outside its parent {parent}'s box: {what}")]
+    OutsideParent {
+        /// Parent key.
+        parent: u64,
+        /// Child key.
+        child: u64,
+        /// Which part.
+        what: String,
+    },
+    /// A parent slot that does not precede its child.
+    #[error("map {index} names parent slot {parent}, which does not come before it")]
+    BadParent {
+        /// The map's slot.
+        index: usize,
+        /// The parent slot.
+        parent: usize,
+    },
+}
+
+impl MapTree {
+    /// The hierarchy's broken invariants (BLOCKMAPS.md B.3), none when it is sound: every
+    /// parent precedes its children; a parent's ε ≥ its children's; a child's blocks and
+    /// buildings are its parent's, and siblings share no block; a child's box is no higher than
+    /// its parent's and every non-empty texel of the child lies inside the parent's box (up to
+    /// one texel of either map). A child's square may stick out of its parent's over streets:
+    /// its content may not.
+    pub fn invariant_violations(&self) -> Vec<TreeViolation> {
+        let mut out = Vec::new();
+        let mut siblings: std::collections::HashMap<(usize, BlockId), u64> =
+            std::collections::HashMap::new();
+        for (i, m) in self.maps.iter().enumerate() {
+            let Some(p) = m.parent else { continue };
+            if p >= i {
+                out.push(TreeViolation::BadParent {
+                    index: i,
+                    parent: p,
+                });
+                continue;
+            }
+            let pm = &self.maps[p];
+            if pm.map.meta.eps_m < m.map.meta.eps_m {
+                out.push(TreeViolation::EpsGrowsDownward {
+                    parent: pm.key,
+                    child: m.key,
+                    parent_eps_m: pm.map.meta.eps_m,
+                    child_eps_m: m.map.meta.eps_m,
+                });
+            }
+            let pb: std::collections::HashSet<BlockId> = pm.blocks.iter().copied().collect();
+            for b in &m.blocks {
+                if !pb.contains(b) {
+                    out.push(TreeViolation::NotInParent {
+                        parent: pm.key,
+                        child: m.key,
+                        what: "block",
+                        id: b.0,
+                    });
+                }
+                if let Some(&other) = siblings.get(&(p, *b)) {
+                    out.push(TreeViolation::SharedBlock {
+                        a: other,
+                        b: m.key,
+                        block: b.0,
+                    });
+                } else {
+                    siblings.insert((p, *b), m.key);
+                }
+            }
+            let pbuild: std::collections::HashSet<u32> = pm.buildings.iter().copied().collect();
+            for &bi in &m.buildings {
+                if !pbuild.contains(&bi) {
+                    out.push(TreeViolation::NotInParent {
+                        parent: pm.key,
+                        child: m.key,
+                        what: "building",
+                        id: bi,
+                    });
+                }
+            }
+            let (a, b) = (pm.map.aabb(), m.map.aabb());
+            let slack = 1e-6 * (1.0 + a.extent().max_element());
+            if a.max.z + slack < b.max.z {
+                out.push(TreeViolation::OutsideParent {
+                    parent: pm.key,
+                    child: m.key,
+                    what: format!("top {} m above the parent's {} m", b.max.z, a.max.z),
+                });
+            }
+            if let Some(c) = occupied_box(&m.map) {
+                let pad = pm.map.texel_m() + m.map.texel_m() + slack;
+                if c.min.x < a.min.x - pad
+                    || c.min.y < a.min.y - pad
+                    || c.max.x > a.max.x + pad
+                    || c.max.y > a.max.y + pad
+                {
+                    out.push(TreeViolation::OutsideParent {
+                        parent: pm.key,
+                        child: m.key,
+                        what: format!(
+                            "non-empty texels over x {:.2}..{:.2}, y {:.2}..{:.2} m; parent box x {:.2}..{:.2}, y {:.2}..{:.2} m",
+                            c.min.x, c.max.x, c.min.y, c.max.y, a.min.x, a.max.x, a.min.y, a.max.y
+                        ),
+                    });
+                }
+            }
+        }
+        out
+    }
+
+    /// Checks the hierarchy's invariants ([`MapTree::invariant_violations`]).
+    ///
+    /// # Panics
+    /// On a broken invariant, listing them all.
+    pub fn check_invariants(&self) {
+        let v = self.invariant_violations();
+        assert!(
+            v.is_empty(),
+            "map tree invariants broken:\n{}",
+            v.iter()
+                .map(|e| e.to_string())
+                .collect::<Vec<_>>()
+                .join("\n")
+        );
+    }
+}
+
+/// The plan-view box of a map's non-empty texels (height code > 0), none when all are empty.
+fn occupied_box(map: &BlockMap) -> Option<crate::geom::Aabb3> {
+    let k = map.k();
+    let s = map.texel_m();
+    let (mut i0, mut i1, mut j0, mut j1) = (u32::MAX, 0u32, u32::MAX, 0u32);
+    for j in 0..k {
+        for i in 0..k {
+            if map.height_code(i, j) > 0 {
+                i0 = i0.min(i);
+                i1 = i1.max(i);
+                j0 = j0.min(j);
+                j1 = j1.max(j);
+            }
+        }
+    }
+    if i0 == u32::MAX {
+        return None;
+    }
+    let m = map.meta.min;
+    Some(crate::geom::Aabb3::new(
+        glam::DVec3::new(m[0] + i0 as f64 * s, m[1] + j0 as f64 * s, m[2]),
+        glam::DVec3::new(
+            m[0] + (i1 + 1) as f64 * s,
+            m[1] + (j1 + 1) as f64 * s,
+            map.meta.zmax,
+        ),
+    ))
 }
 
 /// Options of [`build_city_maps`].
@@ -291,7 +492,12 @@ pub fn build_city_maps(
     let t0 = std::time::Instant::now();
     let maps = build_tree(&source, layout, &tree, &opts.tree, progress)?;
     let build_s = t0.elapsed().as_secs_f64();
-    maps.check_invariants();
+    if let Some(v) = maps.invariant_violations().first() {
+        return Err(BlockMapError::BadParameter(format!(
+            "the map tree of {} breaks an invariant: {v}",
+            city.name
+        )));
+    }
     let mut checks = Vec::new();
     if opts.checks > 0 && !maps.maps.is_empty() {
         let n = opts.checks.min(maps.maps.len());

@@ -38,6 +38,7 @@ mod blocks;
 mod common;
 mod cull_bench;
 mod demo;
+mod farfield_sweep;
 mod generate;
 mod import;
 mod occlusion_bench;
@@ -68,6 +69,8 @@ enum Command {
     OcclusionBench(occlusion_bench::Args),
     /// Walk a camera route through the city with every structure; report and render.
     Walk(walk::Args),
+    /// Far-field error against run time: τ × K × routes, hybrid against mesh-only frames.
+    FarfieldSweep(farfield_sweep::Args),
     /// The main job on the bundled real data.
     Demo(demo::Args),
     /// Fly through the city in a window (feature `window`).
@@ -118,6 +121,7 @@ fn dispatch(command: Command) -> anyhow::Result<()> {
         Command::CullBench(a) => cull_bench::run(a),
         Command::OcclusionBench(a) => occlusion_bench::run(a),
         Command::Walk(a) => walk::run(a),
+        Command::FarfieldSweep(a) => farfield_sweep::run(a),
         Command::Demo(a) => demo::run(a),
         Command::View(a) => view::run(a),
     }

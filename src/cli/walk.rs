@@ -2,12 +2,15 @@
 
 use super::common::{load_scene, CityArgs, Size};
 use anyhow::Context;
+use blockwalk::blockmap::{MapTree, SelectOptions};
 use blockwalk::index::Structure;
 use blockwalk::report;
 use blockwalk::route::{RouteChoice, RouteContext};
 use blockwalk::scene::{Scene, SceneOptions};
 use blockwalk::visibility::{CullerOptions, FrameRenderer};
-use blockwalk::walk::{run_walk, Drawing, OcclusionMode, WalkParams, WalkRecord};
+use blockwalk::walk::{
+    run_walk_with_far, Drawing, FarField, FarMode, OcclusionMode, WalkParams, WalkRecord,
+};
 use indicatif::{ProgressBar, ProgressStyle};
 use std::path::PathBuf;
 
@@ -61,6 +64,57 @@ pub struct Args {
     /// Print one JSON object instead of the human summary.
     #[arg(long)]
     pub json: bool,
+    /// Far field: `blockmaps` draws far nodes of the block quadtree as BlockMaps (seed 000
+    /// §4–5) beside the mesh-only frames, `none` draws meshes only.
+    #[arg(long, value_enum, default_value_t = FarMode::None)]
+    pub far: FarMode,
+    /// Largest projected error of a drawn BlockMap, pixels (τ).
+    #[arg(long, default_value_t = 1.0)]
+    pub tau: f64,
+    /// BlockMap height-map side K (32, 64 or 128).
+    #[arg(long, default_value_t = 64)]
+    pub k: u32,
+    /// Hysteresis h: a map stays a map until its error exceeds τ·(1 + h).
+    #[arg(long, default_value_t = blockwalk::blockmap::select::DEFAULT_HYSTERESIS)]
+    pub hysteresis: f64,
+    /// Compare every hybrid frame with the mesh-only frame of the same camera (coverage error,
+    /// PSNR, silhouette distance, popping); needs `--render`.
+    #[arg(long)]
+    pub reference: bool,
+    /// Draw the far field even where the scene does not need it (no node qualifies, or meshes
+    /// draw faster).
+    #[arg(long)]
+    pub keep_far: bool,
+}
+
+/// The BlockMaps of `scene` at `k` (seed 000 §4's competitive stop), with a spinner.
+pub fn build_far_maps(scene: &Scene, k: u32, quiet: bool) -> anyhow::Result<MapTree> {
+    use blockwalk::blockmap::{BuildOptions, CityMapsOptions, Stop, TreeOptions};
+    let opts = CityMapsOptions {
+        tree: TreeOptions {
+            build: BuildOptions {
+                k,
+                ..BuildOptions::default()
+            },
+            stop: Stop::Competitive,
+        },
+        checks: 0,
+        ..CityMapsOptions::default()
+    };
+    let pb = super::common::spinner(format!(
+        "building the BlockMaps of {} (K = {k})",
+        scene.name
+    ));
+    if quiet {
+        pb.set_draw_target(indicatif::ProgressDrawTarget::hidden());
+    }
+    let maps = scene
+        .blockmaps(&opts, &|done, total| {
+            pb.set_message(format!("BlockMaps {done}/{total}"))
+        })
+        .with_context(|| format!("building the BlockMaps of {}", scene.name))?;
+    pb.finish_and_clear();
+    Ok(maps.maps)
 }
 
 /// The route `choice` over `scene` at `size`, and the frames a route file asks for.
@@ -82,18 +136,33 @@ pub fn resolve_route(
         .with_context(|| format!("making the {choice} route over {}", scene.name))
 }
 
-/// A GPU renderer for the scene, or why there is none.
+/// A GPU renderer for the scene (drawing the far field `far` when given), or why there is none.
 #[cfg(feature = "render")]
-fn gpu_renderer(scene: &Scene, size: Size) -> Result<Box<dyn FrameRenderer>, String> {
-    match blockwalk::render::GpuFrameRenderer::new(&scene.meshes, &scene.ground, size.pair()) {
-        Ok(r) => Ok(Box::new(r)),
-        Err(e) => Err(e.to_string()),
+pub fn gpu_renderer(
+    scene: &Scene,
+    size: Size,
+    far: Option<&MapTree>,
+) -> Result<Box<dyn FrameRenderer>, String> {
+    let r = blockwalk::render::GpuFrameRenderer::new(&scene.meshes, &scene.ground, size.pair())
+        .map_err(|e| e.to_string())?;
+    match far {
+        None => Ok(Box::new(r)),
+        Some(m) => {
+            let maps: Vec<&blockwalk::blockmap::BlockMap> = m.maps.iter().map(|n| &n.map).collect();
+            Ok(Box::new(
+                r.with_far_field(&maps).map_err(|e| e.to_string())?,
+            ))
+        }
     }
 }
 
 /// Without the `render` feature there is no GPU renderer.
 #[cfg(not(feature = "render"))]
-fn gpu_renderer(_scene: &Scene, _size: Size) -> Result<Box<dyn FrameRenderer>, String> {
+pub fn gpu_renderer(
+    _scene: &Scene,
+    _size: Size,
+    _far: Option<&MapTree>,
+) -> Result<Box<dyn FrameRenderer>, String> {
     Err("built without the `render` feature".into())
 }
 
@@ -123,7 +192,37 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         oracle: args.oracle,
         size: args.size.pair(),
     };
-    let gpu = args.render.then(|| gpu_renderer(&scene, args.size));
+    anyhow::ensure!(
+        args.tau.is_finite() && args.tau > 0.0,
+        "--tau {}: expected a positive number of pixels",
+        args.tau
+    );
+    anyhow::ensure!(
+        args.hysteresis.is_finite() && args.hysteresis >= 0.0,
+        "--hysteresis {}: expected a number ≥ 0",
+        args.hysteresis
+    );
+    anyhow::ensure!(
+        !args.reference || args.render,
+        "--reference compares drawn frames: add --render"
+    );
+    let maps = match args.far {
+        FarMode::None => None,
+        FarMode::Blockmaps => Some(build_far_maps(&scene, args.k, args.json)?),
+    };
+    let far = maps.as_ref().map(|m| FarField {
+        maps: m,
+        select: SelectOptions {
+            tau_px: args.tau,
+            hysteresis: args.hysteresis,
+        },
+        reference: args.reference,
+        leave_out: !args.keep_far,
+        probe_frames: 8,
+    });
+    let gpu = args
+        .render
+        .then(|| gpu_renderer(&scene, args.size, maps.as_ref()));
     let drawing = match &gpu {
         None => Drawing::Off,
         Some(Ok(r)) => Drawing::With(r.as_ref()),
@@ -140,7 +239,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     if args.json {
         bar.set_draw_target(indicatif::ProgressDrawTarget::hidden());
     }
-    let record = run_walk(&scene, &params, drawing, &mut |done, _| {
+    let record = run_walk_with_far(&scene, &params, drawing, far, &mut |done, _| {
         bar.set_position(done as u64)
     })?;
     bar.finish_and_clear();
@@ -172,6 +271,26 @@ fn print_summary(record: &WalkRecord, out: &std::path::Path) -> anyhow::Result<(
         "{}",
         report::walk::markdown::summary_markdown(&record.summary)
     );
+    if let (Some(d), Some(o)) = (&record.far_decision, &record.far_options) {
+        let f = blockwalk::walk::far_json(&record.far, d, o);
+        let g = |k: &str| {
+            f[k].as_f64()
+                .map(|v| format!("{v:.4}"))
+                .unwrap_or("–".into())
+        };
+        outln!(
+            "far field (τ = {} px): {}; far nodes {} per frame, mesh triangles {}, frame time hybrid/mesh {}, coverage error max {}, PSNR min {} dB, silhouette max {} px, popping max {} px",
+            o.tau_px,
+            if d.used { "drawn" } else { "left out" },
+            g("far_nodes"),
+            g("mesh_triangles"),
+            g("frame_time_ratio_vs_mesh"),
+            g("coverage_error_max"),
+            g("psnr_min"),
+            g("silhouette_px_max"),
+            g("popping_px_max"),
+        );
+    }
     for n in &record.notes {
         outln!("note: {n}");
     }

@@ -6,8 +6,13 @@
 //! culling time plus, when drawing, the time of drawing the blocks the structure kept (GPU time
 //! from timestamp queries when the renderer has them, else wall time).
 
+mod far;
 mod summary;
 
+pub use far::{
+    changed_pixels, coverage, far_json, image_error, FarDecision, FarField, FarMode, FarRecord,
+    ImageError, OcclusionDecision,
+};
 pub use summary::{summarise, SummaryRow};
 
 use crate::blocks::BlockId;
@@ -138,6 +143,14 @@ pub struct WalkRecord {
     pub notes: Vec<String>,
     /// Wall time of the whole walk, seconds.
     pub total_s: f64,
+    /// Hybrid frames (near meshes + far maps), when a far field was given and used.
+    pub far: Vec<FarRecord>,
+    /// Whether the far field ran (none when no far field was given).
+    pub far_decision: Option<FarDecision>,
+    /// The far field's selection settings, when one was given.
+    pub far_options: Option<crate::blockmap::SelectOptions>,
+    /// Whether occlusion culling saved time on this route (both modes walked).
+    pub occlusion_decision: Option<OcclusionDecision>,
 }
 
 impl WalkRecord {
@@ -184,6 +197,15 @@ pub enum WalkError {
     /// No frames to walk.
     #[error("{0}: a walk needs at least one frame")]
     NoFrames(String),
+    /// The far field's maps do not fit the scene.
+    #[error("{city}: the far field's maps do not fit the scene")]
+    Far {
+        /// City name.
+        city: String,
+        /// What is wrong.
+        #[source]
+        source: crate::blockmap::SelectError,
+    },
 }
 
 /// The structure ratios and images refer to: the BqR-tree when present, else the first.
@@ -205,6 +227,41 @@ pub fn run_walk(
     scene: &Scene,
     params: &WalkParams,
     drawing: Drawing<'_>,
+    progress: &mut dyn FnMut(usize, usize),
+) -> Result<WalkRecord, WalkError> {
+    run_walk_with_far(scene, params, drawing, None, progress)
+}
+
+/// The CPU hybrid renderer (meshes by the oracle's z-buffer, maps by the reference caster) for
+/// the CPU fallback, or why there is none.
+fn cpu_hybrid<'a>(
+    scene: &'a Scene,
+    maps: &'a crate::blockmap::MapTree,
+    size: (u32, u32),
+) -> Result<Box<dyn FrameRenderer + 'a>, String> {
+    Ok(Box::new(crate::blockmap::CpuHybridRenderer::new(
+        &scene.meshes,
+        &scene.ground,
+        maps.maps.iter().map(|m| &m.map).collect(),
+        size,
+    )))
+}
+
+/// As [`run_walk`], with a far field: for every frame and culling mode, the reference
+/// structure's frame is also drawn as a hybrid frame, near meshes plus far BlockMaps chosen by
+/// [`crate::blockmap::Selector`] (the renderer of `drawing` must have been built with
+/// `far.maps`; the CPU fallback builds its own), recorded in [`WalkRecord::far`]. With
+/// [`FarField::leave_out`] the far field is left out when no node qualifies along the route or
+/// when hybrid frames, timed on the GPU, are no faster than mesh-only ones over the first
+/// frames; [`WalkRecord::far_decision`] says which.
+///
+/// # Errors
+/// As [`run_walk`]; a far field whose maps do not fit the scene's blocks.
+pub fn run_walk_with_far(
+    scene: &Scene,
+    params: &WalkParams,
+    drawing: Drawing<'_>,
+    far: Option<FarField<'_>>,
     progress: &mut dyn FnMut(usize, usize),
 ) -> Result<WalkRecord, WalkError> {
     let started = Instant::now();
@@ -247,6 +304,73 @@ pub fn run_walk(
         (_, Some(r)) => r.describe(),
         (_, None) => "none (drawing not asked for)".to_string(),
     };
+    // The far field: selectors (one per mode: each keeps its own previous frame), the hybrid
+    // renderer, and the decision whether the scene needs it at all.
+    let cpu_far = match (&far, &drawing) {
+        (Some(f), Drawing::CpuFallback { .. }) => Some(cpu_hybrid(scene, f.maps, params.size)),
+        _ => None,
+    };
+    let hybrid: Option<&dyn FrameRenderer> = match (&drawing, &cpu_far) {
+        (Drawing::With(r), _) => Some(*r),
+        (_, Some(Ok(r))) => Some(r.as_ref()),
+        _ => None,
+    };
+    if let Some(Err(reason)) = &cpu_far {
+        notes.push(format!("far field not drawn: {reason}"));
+    }
+    let mut far_decision = None;
+    let mut selectors: Vec<(CullMode, crate::blockmap::Selector)> = Vec::new();
+    if let Some(f) = &far {
+        let base =
+            crate::blockmap::Selector::new(f.maps, &scene.bounds, f.select).map_err(|source| {
+                WalkError::Far {
+                    city: scene.name.clone(),
+                    source,
+                }
+            })?;
+        let height = renderer.map_or(params.size, |r| r.size()).1;
+        let qualifies = {
+            let mut probe = base.clone();
+            f.maps.maps.is_empty()
+                || cameras.iter().any(|c| {
+                    probe.reset();
+                    !probe.select(c, height, None).maps.is_empty()
+                })
+        };
+        let decision = if f.maps.maps.is_empty() {
+            FarDecision {
+                used: false,
+                reason: Some(
+                    "the city has no BlockMaps (meshes are cheaper for every node)".into(),
+                ),
+                left_out_after: None,
+            }
+        } else if f.leave_out && !qualifies {
+            FarDecision {
+                used: false,
+                reason: Some(format!(
+                    "no node qualifies on any frame of the route at τ = {} px: the walk runs without the far field",
+                    f.select.tau_px
+                )),
+                left_out_after: None,
+            }
+        } else {
+            FarDecision {
+                used: true,
+                reason: None,
+                left_out_after: None,
+            }
+        };
+        if let Some(r) = &decision.reason {
+            notes.push(format!("far field left out: {r}"));
+        }
+        if decision.used {
+            selectors = modes.iter().map(|&m| (m, base.clone())).collect();
+        }
+        far_decision = Some(decision);
+    }
+    let mut far_records: Vec<FarRecord> = Vec::new();
+    let mut cull_map = scene.occlusion.as_ref().map(|c| c.new_map());
     let oracle = MeshOracle::new(&scene.meshes);
     // The oracle judges the frames at their own resolution (the renderer's, when one draws).
     let oracle_size = renderer.map_or(params.size, |r| r.size());
@@ -284,21 +408,59 @@ pub fn run_walk(
                     .iter()
                     .map(|b| triangles.get(b.0 as usize).copied().unwrap_or(0))
                     .sum();
-                let want_image = params.image_every > 0
+                let keep_image = params.image_every > 0
                     && f % params.image_every == 0
                     && index.structure() == reference
                     && mode == last_mode;
+                let far_here = index.structure() == reference && !selectors.is_empty();
+                let want_reference = far_here && far.as_ref().is_some_and(|x| x.reference);
                 let mut render_s = None;
+                let mut mesh_image = None;
                 if let Some(r) = renderer {
-                    match r.draw(cam, &visible, want_image) {
+                    match r.draw(cam, &visible, keep_image || want_reference) {
                         Ok(drawn) => {
                             render_s = Some(drawn.seconds);
                             if let Some(img) = drawn.image {
-                                images.push((f, img));
+                                if keep_image {
+                                    images.push((f, img.clone()));
+                                }
+                                mesh_image = Some(img);
                             }
                         }
                         Err(e) => notes.push(format!("frame {f}: drawing failed: {e}")),
                     }
+                }
+                if far_here {
+                    let mesh_frame_s = cull_s + render_s.unwrap_or(0.0);
+                    let slot = selectors
+                        .iter()
+                        .position(|(m, _)| *m == mode)
+                        .expect("a selector per mode");
+                    let rec = far_frame(
+                        &mut selectors[slot].1,
+                        FarFrame {
+                            frame: f,
+                            mode,
+                            camera: cam,
+                            height: renderer.map_or(params.size, |r| r.size()).1,
+                            culler: if mode == CullMode::FrustumOcclusion {
+                                scene.occlusion.as_ref()
+                            } else {
+                                None
+                            },
+                            cull_map: cull_map.as_mut(),
+                            hybrid,
+                            mesh_image: if want_reference {
+                                mesh_image.as_ref()
+                            } else {
+                                None
+                            },
+                            mesh_frame_s,
+                            triangles: &triangles,
+                        },
+                        &mut notes,
+                    );
+                    far_records.push(rec);
                 }
                 let false_culls = truth.as_ref().map(|t| {
                     let kept: HashSet<BlockId> = visible.iter().copied().collect();
@@ -319,8 +481,43 @@ pub fn run_walk(
             }
         }
         progress(f + 1, cameras.len());
+        // The timing probe: after the first frames, leave the far field out when hybrid frames
+        // (GPU-timed) are no faster than mesh-only ones.
+        if let (Some(fd), Some(x)) = (far_decision.as_mut(), far.as_ref()) {
+            if fd.used
+                && x.leave_out
+                && f + 1 == x.probe_frames.max(1)
+                && f + 1 < cameras.len()
+                && !far_records.is_empty()
+                && far_records.iter().all(|r| r.gpu_time)
+            {
+                let probe: Vec<&FarRecord> = far_records.iter().collect();
+                let n = probe.len().max(1) as f64;
+                let hyb = probe.iter().map(|r| r.frame_s).sum::<f64>() / n;
+                let mesh = probe.iter().map(|r| r.mesh_frame_s).sum::<f64>() / n;
+                if hyb >= mesh {
+                    fd.used = false;
+                    fd.left_out_after = Some(f);
+                    fd.reason = Some(format!(
+                        "meshes draw faster than maps here: {:.3} ms hybrid vs {:.3} ms mesh-only per frame over the first {} frames",
+                        hyb * 1e3,
+                        mesh * 1e3,
+                        f + 1
+                    ));
+                    notes.push(format!(
+                        "far field left out after frame {f}: {}",
+                        fd.reason.as_deref().unwrap_or_default()
+                    ));
+                    selectors.clear();
+                }
+            }
+        }
     }
     let summary = summarise(&frames, reference);
+    let occlusion_decision = occlusion_decision(&frames, reference);
+    if let Some(d) = &occlusion_decision {
+        notes.push(d.note.clone());
+    }
     Ok(WalkRecord {
         city: scene.name.clone(),
         route: params.route.name.clone(),
@@ -331,5 +528,158 @@ pub fn run_walk(
         images,
         notes,
         total_s: started.elapsed().as_secs_f64(),
+        far: far_records,
+        far_decision,
+        far_options: far.map(|f| f.select),
+        occlusion_decision,
+    })
+}
+
+/// What one hybrid frame needs.
+struct FarFrame<'a, 'm> {
+    frame: usize,
+    mode: CullMode,
+    camera: &'a Camera,
+    height: u32,
+    culler: Option<&'a crate::visibility::OcclusionCuller>,
+    cull_map: Option<&'m mut crate::visibility::CullMap>,
+    hybrid: Option<&'a dyn FrameRenderer>,
+    mesh_image: Option<&'a image::RgbaImage>,
+    mesh_frame_s: f64,
+    triangles: &'a [u64],
+}
+
+/// Selects, draws and (with a mesh image) measures one hybrid frame.
+fn far_frame(
+    selector: &mut crate::blockmap::Selector,
+    x: FarFrame<'_, '_>,
+    notes: &mut Vec<String>,
+) -> FarRecord {
+    let f = x.frame;
+    let t0 = Instant::now();
+    // In occlusion mode the cull map of this camera prunes nodes, as it prunes the structures'
+    // nodes (used only when the culler drew something, as `OcclusionCuller::traverse` does).
+    let map: Option<&crate::visibility::CullMap> = match (x.culler, x.cull_map) {
+        (Some(c), Some(m)) => {
+            let st = c.build(x.camera, m);
+            (st.skipped.is_none() && st.cells_covered > 0).then_some(&*m)
+        }
+        _ => None,
+    };
+    let frozen = x
+        .mesh_image
+        .is_some()
+        .then(|| selector.select_frozen(x.camera, x.height, map));
+    let sel = selector.select(x.camera, x.height, map);
+    let select_s = t0.elapsed().as_secs_f64();
+    let mesh_triangles: u64 = sel
+        .meshes
+        .iter()
+        .map(|b| x.triangles.get(b.0 as usize).copied().unwrap_or(0))
+        .sum();
+    let mut rec = FarRecord {
+        frame: f,
+        mode: x.mode,
+        select_s,
+        render_s: None,
+        frame_s: select_s,
+        mesh_frame_s: x.mesh_frame_s,
+        passes: Vec::new(),
+        mesh_blocks: sel.meshes.len(),
+        mesh_triangles,
+        far_nodes: sel.maps.len(),
+        far_blocks: sel.stats.map_blocks,
+        far_pixels: None,
+        stats: sel.stats,
+        image: None,
+        gpu_time: false,
+    };
+    let Some(r) = x.hybrid else { return rec };
+    let drawn = match r.draw_with_far(x.camera, &sel.meshes, &sel.maps, x.mesh_image.is_some()) {
+        Ok(d) => d,
+        Err(e) => {
+            notes.push(format!("frame {f}: drawing the hybrid frame failed: {e}"));
+            return rec;
+        }
+    };
+    rec.render_s = Some(drawn.seconds);
+    rec.gpu_time = drawn.gpu_time;
+    rec.frame_s = select_s + drawn.seconds;
+    rec.passes = drawn
+        .passes
+        .iter()
+        .map(|(n, s)| (n.to_string(), *s))
+        .collect();
+    rec.far_pixels = drawn.far_pixels;
+    if let (Some(mesh), Some(hyb)) = (x.mesh_image, drawn.image.as_ref()) {
+        let bg = r.draw(x.camera, &[], true).ok().and_then(|d| d.image);
+        let Some(bg) = bg else {
+            notes.push(format!(
+                "frame {f}: the background frame could not be drawn"
+            ));
+            return rec;
+        };
+        let mut err = image_error(mesh, hyb, &bg);
+        if let Some(fr) = frozen.filter(|fr| !far::same_selection(fr, &sel)) {
+            match r.draw_with_far(x.camera, &fr.meshes, &fr.maps, true) {
+                Ok(d) => {
+                    if let Some(img) = d.image {
+                        err.popping_colour_px = changed_pixels(&img, hyb);
+                        err.popping_px = far::coverage_changed(&img, hyb, &bg);
+                    }
+                }
+                Err(e) => notes.push(format!("frame {f}: drawing the popping frame failed: {e}")),
+            }
+        }
+        rec.image = Some(err);
+    }
+    rec
+}
+
+/// Whether occlusion culling saved time on the route: the reference structure's mean frame time
+/// with and without it, and the blocks it dropped (none when only one mode was walked).
+fn occlusion_decision(frames: &[FrameRecord], reference: Structure) -> Option<OcclusionDecision> {
+    let per = |m: CullMode| -> Option<(f64, f64)> {
+        let v: Vec<&FrameRecord> = frames
+            .iter()
+            .filter(|r| r.structure == reference && r.mode == m)
+            .collect();
+        (!v.is_empty()).then(|| {
+            let n = v.len() as f64;
+            (
+                v.iter().map(|r| r.frame_s).sum::<f64>() / n,
+                v.iter().map(|r| r.blocks as f64).sum::<f64>() / n,
+            )
+        })
+    };
+    let (fs, fb) = per(CullMode::Frustum)?;
+    let (os, ob) = per(CullMode::FrustumOcclusion)?;
+    let dropped = fb - ob;
+    let saves = os < fs && dropped > 0.0;
+    let note = if dropped <= 0.0 {
+        format!(
+            "occlusion culling drops no block on this route ({:.3} ms per frame with it, {:.3} ms without; the difference is noise): leave it out (--occlusion off)",
+            os * 1e3,
+            fs * 1e3
+        )
+    } else if saves {
+        format!(
+            "occlusion culling pays on this route: {:.3} ms vs {:.3} ms per frame, {dropped:.1} blocks dropped per frame",
+            os * 1e3,
+            fs * 1e3
+        )
+    } else {
+        format!(
+            "occlusion culling saves nothing on this route: {:.3} ms per frame with it vs {:.3} ms without, though it drops {dropped:.1} blocks per frame: leave it out (--occlusion off)",
+            os * 1e3,
+            fs * 1e3
+        )
+    };
+    Some(OcclusionDecision {
+        frustum_s: fs,
+        occlusion_s: os,
+        blocks_dropped: dropped,
+        saves,
+        note,
     })
 }

@@ -67,6 +67,36 @@ pub fn page(
         }
         h.push_str("</ul>");
     }
+    if let (Some(d), Some(o)) = (&record.far_decision, &record.far_options) {
+        let f = crate::walk::far_json(&record.far, d, o);
+        let num = |k: &str, scale: f64, digits: usize| {
+            f[k].as_f64()
+                .map(|v| format!("{:.*}", digits, v * scale))
+                .unwrap_or("–".into())
+        };
+        let _ = write!(
+            h,
+            "<h2>Far field (BlockMaps, τ = {tau} px)</h2><p>{used}</p><table><tr><th>far nodes</th><th>mesh triangles</th><th>hybrid ms</th><th>mesh-only ms</th><th>ratio</th><th>coverage error max</th><th>PSNR min dB</th><th>silhouette px max</th><th>popping px max</th></tr>             <tr><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td></tr></table>",
+            num("far_nodes", 1.0, 1),
+            num("mesh_triangles", 1.0, 0),
+            num("frame_s", 1e3, 3),
+            num("mesh_frame_s", 1e3, 3),
+            num("frame_time_ratio_vs_mesh", 1.0, 3),
+            num("coverage_error_max", 1.0, 4),
+            num("psnr_min", 1.0, 1),
+            num("silhouette_px_max", 1.0, 1),
+            num("popping_px_max", 1.0, 0),
+            tau = o.tau_px,
+            used = escape(&match (&d.used, &d.reason) {
+                (true, _) => "Drawn on every frame.".to_string(),
+                (false, Some(r)) => format!("Left out: {r}"),
+                (false, None) => "Left out.".to_string(),
+            }),
+        );
+        if !record.far.is_empty() {
+            h.push_str("<p><img src=\"far_frame_time.svg\" alt=\"far frame time\"></p><p>Per frame: <a href=\"far_frames.csv\">far_frames.csv</a>.</p>");
+        }
+    }
     for &mode in modes {
         let _ = write!(
             h,

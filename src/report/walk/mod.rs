@@ -42,7 +42,7 @@ pub enum ReportError {
 
 /// One JSON object: settings, summary, notes, false culls (the per-frame rows are in the CSV).
 pub fn json(record: &WalkRecord) -> serde_json::Value {
-    serde_json::json!({
+    let mut j = serde_json::json!({
         "city": record.city,
         "route": record.route,
         "frames": record.cameras.len(),
@@ -51,7 +51,45 @@ pub fn json(record: &WalkRecord) -> serde_json::Value {
         "false_culls": record.false_culls(),
         "notes": record.notes,
         "total_s": record.total_s,
-    })
+        "occlusion_decision": record.occlusion_decision,
+    });
+    // The far field: its object, and its headline figures at the top level (`coverage_error_max`,
+    // `psnr_min`, `silhouette_px_max`, `far_nodes`, `frame_time_ratio_vs_mesh`, …).
+    if let (Some(d), Some(o)) = (&record.far_decision, &record.far_options) {
+        let f = crate::walk::far_json(&record.far, d, o);
+        if let Some(m) = f.as_object() {
+            for (k, v) in m {
+                j[k.as_str()] = v.clone();
+            }
+        }
+        j["far_used"] = serde_json::json!(d.used);
+        j["far"] = f;
+    }
+    j
+}
+
+/// Frame time along the route, mesh-only against hybrid, in the last culling mode of the far
+/// records.
+fn far_series(record: &WalkRecord) -> Vec<Series> {
+    let mode = record.far.last().map(|r| r.mode);
+    let rows: Vec<&crate::walk::FarRecord> =
+        record.far.iter().filter(|r| Some(r.mode) == mode).collect();
+    vec![
+        Series {
+            name: "mesh only".into(),
+            points: rows
+                .iter()
+                .map(|r| (r.frame as f64, r.mesh_frame_s * 1e3))
+                .collect(),
+        },
+        Series {
+            name: "meshes + BlockMaps".into(),
+            points: rows
+                .iter()
+                .map(|r| (r.frame as f64, r.frame_s * 1e3))
+                .collect(),
+        },
+    ]
 }
 
 /// One series per structure of `value` along the route, for `mode`.
@@ -105,6 +143,9 @@ pub fn write(
         "report.json",
         serde_json::to_string_pretty(&json(record)).unwrap_or_default(),
     )?;
+    if !record.far.is_empty() {
+        put("far_frames.csv", csv::far_csv(record))?;
+    }
     let mut plots = Vec::new();
     for mode in record.modes() {
         let tag = mode_tag(mode);
@@ -133,6 +174,24 @@ pub fn write(
             written.push(q);
         }
         plots.push(mode);
+    }
+    if !record.far.is_empty() {
+        let ft = far_series(record);
+        for ext in ["png", "svg"] {
+            let p = dir.join(format!("far_frame_time.{ext}"));
+            write_plot(
+                &p,
+                &format!(
+                    "Mesh-only vs hybrid frame time along the {} route",
+                    record.route
+                ),
+                "frame",
+                "milliseconds",
+                &ft,
+                PlotKind::Lines,
+            )?;
+            written.push(p);
+        }
     }
     let fdir = frames_dir
         .map(Path::to_path_buf)
@@ -198,6 +257,10 @@ pub(crate) mod tests {
             images: vec![(0, image::RgbaImage::new(4, 3))],
             notes: vec!["a note & more".into()],
             total_s: 0.5,
+            far: Vec::new(),
+            far_decision: None,
+            far_options: None,
+            occlusion_decision: None,
         }
     }
 

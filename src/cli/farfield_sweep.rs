@@ -1,0 +1,346 @@
+//! `blockwalk farfield-sweep`: error against run time of the far field (issue 12). For every K,
+//! route and τ, a hybrid walk with the reference (coverage error, PSNR, silhouette distance,
+//! popping) and the mesh-only frames beside it; a table (Markdown, CSV, JSON), the Pareto plot of
+//! error against milliseconds, frame time along each route (mesh-only vs hybrid), and the walk
+//! report of one configuration per route. Not run in CI: it draws about four frames per camera.
+
+use super::common::{load_scene, CityArgs, Size};
+use anyhow::Context;
+use blockwalk::blockmap::SelectOptions;
+use blockwalk::geom::{Aabb3, Camera};
+use blockwalk::report::plot::{write_plot, PlotKind, Series};
+use blockwalk::route::{CameraRoute, KeyFrame, Lens, RouteChoice};
+use blockwalk::scene::{Scene, SceneOptions};
+use blockwalk::walk::{far_json, run_walk_with_far, Drawing, FarField, OcclusionMode, WalkParams};
+use glam::DVec3;
+use serde::Serialize;
+use std::path::PathBuf;
+
+/// Arguments.
+#[derive(clap::Args, Debug)]
+pub struct Args {
+    #[command(flatten)]
+    pub city: CityArgs,
+    /// Error thresholds τ, pixels.
+    #[arg(long, value_delimiter = ',', default_value = "0.5,1,2,4,8,16")]
+    pub taus: Vec<f64>,
+    /// Height-map sides K.
+    #[arg(long, value_delimiter = ',', default_value = "32,64,128")]
+    pub ks: Vec<u32>,
+    /// Routes: `paper`, `orbit`, `flyover` (high, the whole city in view), `street`, or files.
+    #[arg(long, value_delimiter = ',', default_value = "paper,orbit,flyover")]
+    pub routes: Vec<String>,
+    /// Frames per route.
+    #[arg(long, default_value_t = 12)]
+    pub frames: usize,
+    /// Image size.
+    #[arg(long, default_value = "160x90")]
+    pub size: Size,
+    /// Draw with the GPU renderer when there is one (else the CPU hybrid renderer).
+    #[arg(long)]
+    pub gpu: bool,
+    /// Output directory.
+    #[arg(long, default_value = "farfield-sweep")]
+    pub out: PathBuf,
+    /// Seed of a `synthetic:` city.
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// Print one JSON object instead of the table.
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// One configuration's figures.
+#[derive(Clone, Debug, Serialize)]
+pub struct Row {
+    pub city: String,
+    pub route: String,
+    pub k: u32,
+    pub tau_px: f64,
+    pub maps: usize,
+    pub frames: usize,
+    pub far_nodes: f64,
+    pub mesh_triangles: f64,
+    pub coverage_error_max: Option<f64>,
+    pub coverage_error_mean: Option<f64>,
+    pub psnr_min: Option<f64>,
+    pub silhouette_px_max: Option<f64>,
+    pub popping_px_max: Option<f64>,
+    pub hybrid_ms: Option<f64>,
+    pub mesh_ms: Option<f64>,
+    pub frame_time_ratio_vs_mesh: Option<f64>,
+}
+
+/// A high fly-over: across the city's box from south-west to north-east at an altitude of
+/// 0.8 × its larger side, looking ahead and down 35°, so that most of the city stays in view.
+pub fn flyover_route(bounds: Aabb3, aspect: f64) -> anyhow::Result<CameraRoute> {
+    let e = bounds.extent();
+    let side = e.x.max(e.y).max(100.0);
+    let z = bounds.max.z + 0.8 * side;
+    let c = bounds.center();
+    let a = DVec3::new(bounds.min.x - 0.3 * e.x, bounds.min.y - 0.3 * e.y, z);
+    let b = DVec3::new(c.x + 0.2 * e.x, c.y + 0.2 * e.y, z);
+    let look = |p: DVec3| {
+        Camera::looking_at(
+            p,
+            p + (DVec3::new(c.x, c.y, p.z) - a).normalize() * side
+                + DVec3::new(0.0, 0.0, -side * 0.7),
+        )
+    };
+    let (ca, cb) = (look(a), look(b));
+    let lens = Lens {
+        aspect,
+        far: 4.0 * side + z * 2.0,
+        ..Lens::default()
+    };
+    Ok(CameraRoute::new(
+        "flyover",
+        vec![
+            KeyFrame::new(0.0, a, ca.yaw, ca.pitch),
+            KeyFrame::new(30.0, b, cb.yaw, cb.pitch),
+        ],
+        lens,
+    )?)
+}
+
+fn route_of(name: &str, scene: &Scene, size: Size) -> anyhow::Result<CameraRoute> {
+    if name == "flyover" {
+        return flyover_route(scene.city_bounds(), size.aspect());
+    }
+    let choice: RouteChoice = name.parse().unwrap_or(RouteChoice::Paper);
+    Ok(super::walk::resolve_route(&choice, scene, size)?.0)
+}
+
+pub fn run(args: Args) -> anyhow::Result<()> {
+    anyhow::ensure!(args.frames >= 2, "--frames {}: at least 2", args.frames);
+    anyhow::ensure!(
+        args.taus.iter().all(|t| t.is_finite() && *t > 0.0),
+        "--taus: expected positive numbers of pixels"
+    );
+    let opts = SceneOptions {
+        structures: vec![blockwalk::index::Structure::Bqr],
+        occlusion: None,
+        ..SceneOptions::default()
+    };
+    let scene = load_scene(&args.city, args.seed, &opts)?;
+    std::fs::create_dir_all(&args.out)
+        .with_context(|| format!("creating {}", args.out.display()))?;
+    let routes: Vec<(String, CameraRoute)> = args
+        .routes
+        .iter()
+        .map(|r| Ok((r.clone(), route_of(r, &scene, args.size)?)))
+        .collect::<anyhow::Result<_>>()?;
+    let mut rows = Vec::new();
+    let mut notes = Vec::new();
+    let mut files = Vec::new();
+    for &k in &args.ks {
+        let t0 = std::time::Instant::now();
+        let maps = super::walk::build_far_maps(&scene, k, args.json)?;
+        let build_s = t0.elapsed().as_secs_f64();
+        if !args.json {
+            outln!(
+                "{}: K = {k}: {} maps in {build_s:.1} s",
+                scene.name,
+                maps.maps.len()
+            );
+        }
+        let gpu = args
+            .gpu
+            .then(|| super::walk::gpu_renderer(&scene, args.size, Some(&maps)));
+        if let Some(Err(e)) = &gpu {
+            notes.push(format!(
+                "K = {k}: no GPU renderer ({e}); CPU hybrid renderer"
+            ));
+        }
+        for (rname, route) in &routes {
+            for &tau in &args.taus {
+                let params = WalkParams {
+                    route: route.clone(),
+                    frames: args.frames,
+                    occlusion: OcclusionMode::Off,
+                    image_every: 0,
+                    oracle: false,
+                    size: args.size.pair(),
+                };
+                let drawing = match &gpu {
+                    Some(Ok(r)) => Drawing::With(r.as_ref()),
+                    _ => Drawing::CpuFallback {
+                        reason: "farfield-sweep".into(),
+                    },
+                };
+                let far = FarField {
+                    select: SelectOptions {
+                        tau_px: tau,
+                        ..SelectOptions::default()
+                    },
+                    reference: true,
+                    leave_out: false,
+                    ..FarField::new(&maps)
+                };
+                let rec = run_walk_with_far(&scene, &params, drawing, Some(far), &mut |_, _| {})?;
+                let d = rec
+                    .far_decision
+                    .clone()
+                    .unwrap_or(blockwalk::walk::FarDecision {
+                        used: false,
+                        reason: None,
+                        left_out_after: None,
+                    });
+                let j = far_json(&rec.far, &d, &far.select);
+                let g = |key: &str| j[key].as_f64();
+                let row = Row {
+                    city: scene.name.clone(),
+                    route: rname.clone(),
+                    k,
+                    tau_px: tau,
+                    maps: maps.maps.len(),
+                    frames: args.frames,
+                    far_nodes: g("far_nodes").unwrap_or(0.0),
+                    mesh_triangles: g("mesh_triangles").unwrap_or(0.0),
+                    coverage_error_max: g("coverage_error_max"),
+                    coverage_error_mean: g("coverage_error_mean"),
+                    psnr_min: g("psnr_min"),
+                    silhouette_px_max: g("silhouette_px_max"),
+                    popping_px_max: g("popping_px_max"),
+                    hybrid_ms: g("frame_s").map(|s| s * 1e3),
+                    mesh_ms: g("mesh_frame_s").map(|s| s * 1e3),
+                    frame_time_ratio_vs_mesh: g("frame_time_ratio_vs_mesh"),
+                };
+                if !args.json {
+                    outln!("{}", table_line(&row));
+                }
+                // The walk report of one configuration per route: τ = 1 at K = 64 when swept,
+                // else the first.
+                let show_k = if args.ks.contains(&64) {
+                    64
+                } else {
+                    args.ks[0]
+                };
+                let show_t = if args.taus.contains(&1.0) {
+                    1.0
+                } else {
+                    args.taus[0]
+                };
+                if k == show_k && tau == show_t {
+                    let dir = args.out.join(format!("walk_{rname}_k{k}_tau{tau}"));
+                    files.extend(
+                        blockwalk::report::walk::write(&rec, &dir, None)
+                            .with_context(|| format!("writing {}", dir.display()))?,
+                    );
+                }
+                rows.push(row);
+            }
+        }
+    }
+    files.extend(write_outputs(&args.out, &scene.name, &rows)?);
+    if args.json {
+        outln!(
+            "{}",
+            serde_json::to_string(&serde_json::json!({
+                "city": scene.name, "size": [args.size.width, args.size.height],
+                "frames": args.frames, "rows": rows, "notes": notes, "files": files,
+            }))?
+        );
+    } else {
+        for n in &notes {
+            outln!("note: {n}");
+        }
+        outln!("table: {}", args.out.join("sweep.md").display());
+    }
+    Ok(())
+}
+
+const HEADER: &str = "| city | route | K | τ px | maps | far nodes | mesh tris | coverage err max | PSNR min dB | silhouette px max | popping px max | hybrid ms | mesh ms | ratio |";
+
+fn opt(v: Option<f64>, digits: usize) -> String {
+    v.map(|v| format!("{v:.digits$}")).unwrap_or("–".into())
+}
+
+fn table_line(r: &Row) -> String {
+    format!(
+        "| {} | {} | {} | {} | {} | {:.1} | {:.0} | {} | {} | {} | {} | {} | {} | {} |",
+        r.city,
+        r.route,
+        r.k,
+        r.tau_px,
+        r.maps,
+        r.far_nodes,
+        r.mesh_triangles,
+        opt(r.coverage_error_max, 4),
+        opt(r.psnr_min, 1),
+        opt(r.silhouette_px_max, 1),
+        opt(r.popping_px_max, 0),
+        opt(r.hybrid_ms, 2),
+        opt(r.mesh_ms, 2),
+        opt(r.frame_time_ratio_vs_mesh, 3),
+    )
+}
+
+/// Points of `pts` (ms, error) no other point beats in both, by ms.
+fn pareto(mut pts: Vec<(f64, f64)>) -> Vec<(f64, f64)> {
+    pts.retain(|p| p.0.is_finite() && p.1.is_finite());
+    pts.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.total_cmp(&b.1)));
+    let mut out: Vec<(f64, f64)> = Vec::new();
+    for p in pts {
+        if out.last().is_none_or(|l| p.1 < l.1) {
+            out.push(p);
+        }
+    }
+    out
+}
+
+fn write_outputs(dir: &std::path::Path, city: &str, rows: &[Row]) -> anyhow::Result<Vec<PathBuf>> {
+    let mut files = Vec::new();
+    let mut md = format!("{HEADER}\n|{}\n", "---|".repeat(14));
+    for r in rows {
+        md.push_str(&table_line(r));
+        md.push('\n');
+    }
+    let p = dir.join("sweep.md");
+    std::fs::write(&p, md).with_context(|| format!("writing {}", p.display()))?;
+    files.push(p);
+    let p = dir.join("sweep.json");
+    std::fs::write(&p, serde_json::to_string_pretty(rows)?)
+        .with_context(|| format!("writing {}", p.display()))?;
+    files.push(p);
+    // Error against milliseconds: one series per K, the mesh-only frames at zero error, and the
+    // Pareto front over all configurations.
+    let mut ks: Vec<u32> = rows.iter().map(|r| r.k).collect();
+    ks.dedup();
+    let mut series: Vec<Series> = ks
+        .iter()
+        .map(|&k| Series {
+            name: format!("K = {k}"),
+            points: rows
+                .iter()
+                .filter(|r| r.k == k)
+                .filter_map(|r| Some((r.hybrid_ms?, r.coverage_error_max? * 100.0)))
+                .collect(),
+        })
+        .collect();
+    series.push(Series {
+        name: "mesh only".into(),
+        points: rows
+            .iter()
+            .filter_map(|r| Some((r.mesh_ms?, 0.0)))
+            .collect(),
+    });
+    let all: Vec<(f64, f64)> = series.iter().flat_map(|s| s.points.clone()).collect();
+    series.push(Series {
+        name: "Pareto front".into(),
+        points: pareto(all),
+    });
+    for ext in ["png", "svg"] {
+        let p = dir.join(format!("pareto.{ext}"));
+        write_plot(
+            &p,
+            &format!("{city}: coverage error against frame time (all routes, τ, K)"),
+            "ms per frame",
+            "coverage error max, %",
+            &series,
+            PlotKind::Points,
+        )?;
+        files.push(p);
+    }
+    Ok(files)
+}

@@ -1,0 +1,423 @@
+//! The far field in a walk (issue 12, items 4 and 5): per frame, the reference structure's
+//! blocks are drawn a second time as a hybrid frame, near meshes plus far BlockMaps chosen by
+//! [`Selector`] (seed 000 §4–5), and, with a reference, compared with the mesh-only frame of the
+//! same camera and culling mode.
+//!
+//! The image measures work on the frames' own pictures, whatever drew them:
+//! - **coverage**: a pixel shows a building when it differs from the same camera's frame drawn
+//!   with no block (ground and sky only); the coverage error is the share of pixels whose
+//!   coverage differs between the mesh-only and the hybrid frame (seed 001's measure);
+//! - **colour PSNR** (RGB, dB) of the hybrid frame against the mesh-only frame;
+//! - **silhouette distance**: the largest distance, in pixels, of a coverage-mismatched pixel
+//!   from a silhouette pixel of the frame that does not cover it (a pixel only the hybrid covers:
+//!   the mesh frame's; only the mesh covers: the hybrid frame's), the form of BLOCKMAPS.md D.3-2
+//!   that `blockmap::compare` derives (≤ 1 px + τ/cos²θ where the bound holds);
+//! - **popping**: between the hybrid frame and the same camera drawn with the previous frame's
+//!   decisions kept ([`crate::blockmap::Selector::select_frozen`]), so that only what the
+//!   selection changed differs: pixels whose coverage changes (`popping_px`, the geometric pop)
+//!   and pixels whose colour changes at all (`popping_colour_px`; a map's colours differ a little
+//!   from the meshes' nearly everywhere, so this counts every pixel of a switched node).
+
+use super::CullMode;
+use crate::blockmap::compare::{psnr_db, silhouette_pixels};
+use crate::blockmap::{MapTree, SelectOptions, SelectStats, Selection};
+
+/// Pixels whose coverage differs between two frames of one camera (`background`: no block).
+pub fn coverage_changed(
+    a: &image::RgbaImage,
+    b: &image::RgbaImage,
+    background: &image::RgbaImage,
+) -> u64 {
+    coverage(a, background)
+        .iter()
+        .zip(coverage(b, background))
+        .filter(|(p, q)| **p != *q)
+        .count() as u64
+}
+use serde::Serialize;
+
+/// Whether a walk draws a far field.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, clap::ValueEnum)]
+#[serde(rename_all = "snake_case")]
+pub enum FarMode {
+    /// Meshes only.
+    #[default]
+    None,
+    /// Near meshes and far BlockMaps.
+    Blockmaps,
+}
+
+/// The far field of a walk.
+#[derive(Clone, Copy, Debug)]
+pub struct FarField<'a> {
+    /// The maps (their indices are what the renderer was built with).
+    pub maps: &'a MapTree,
+    /// τ and hysteresis.
+    pub select: SelectOptions,
+    /// Compare every hybrid frame with the mesh-only frame (draws 3–4 frames per camera).
+    pub reference: bool,
+    /// Leave the far field out when the scene does not need it: when no node qualifies on any
+    /// frame of the route, or when, over the first [`FarField::probe_frames`] frames timed on
+    /// the GPU, hybrid frames draw no faster than mesh-only ones.
+    pub leave_out: bool,
+    /// Frames measured before the timing decision.
+    pub probe_frames: usize,
+}
+
+impl<'a> FarField<'a> {
+    /// τ = 1 px, default hysteresis, no reference, leave-out on, 8 probe frames.
+    pub fn new(maps: &'a MapTree) -> Self {
+        Self {
+            maps,
+            select: SelectOptions::default(),
+            reference: false,
+            leave_out: true,
+            probe_frames: 8,
+        }
+    }
+}
+
+/// One hybrid frame.
+#[derive(Clone, Debug, Serialize)]
+pub struct FarRecord {
+    /// Frame number along the route.
+    pub frame: usize,
+    /// The culling mode (the cull map prunes nodes in `frustum+occlusion`).
+    pub mode: CullMode,
+    /// Selection time (with the cull map's construction in occlusion mode), seconds.
+    pub select_s: f64,
+    /// Drawing time of the hybrid frame, seconds.
+    pub render_s: Option<f64>,
+    /// Selection + drawing, seconds.
+    pub frame_s: f64,
+    /// The mesh-only frame of the same camera and mode (reference structure), seconds.
+    pub mesh_frame_s: f64,
+    /// Seconds per pass of the hybrid draw, when the renderer measures them.
+    pub passes: Vec<(String, f64)>,
+    /// Blocks drawn as meshes.
+    pub mesh_blocks: usize,
+    /// Their triangles.
+    pub mesh_triangles: u64,
+    /// Maps drawn.
+    pub far_nodes: usize,
+    /// Blocks inside the drawn maps.
+    pub far_blocks: u64,
+    /// Pixels the maps covered, when the renderer counts them.
+    pub far_pixels: Option<u64>,
+    /// Selection counters.
+    pub stats: SelectStats,
+    /// Image measures, with a reference.
+    pub image: Option<ImageError>,
+    /// True when `render_s` comes from GPU timestamps.
+    pub gpu_time: bool,
+}
+
+/// The hybrid frame against the mesh-only frame (see the module doc).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize)]
+pub struct ImageError {
+    /// Share of pixels whose coverage differs.
+    pub coverage_error: f64,
+    /// Colour PSNR, dB (infinite when identical).
+    pub psnr_db: f64,
+    /// Largest distance of a coverage-mismatched pixel from a mesh silhouette, pixels (0 when
+    /// nothing mismatches).
+    pub silhouette_px: f64,
+    /// Pixels whose coverage changed only because the selection changed.
+    pub popping_px: u64,
+    /// Pixels whose colour changed only because the selection changed.
+    pub popping_colour_px: u64,
+}
+
+/// Whether the far field ran, and why not.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct FarDecision {
+    /// True when hybrid frames were drawn (for the whole route unless `left_out_after`).
+    pub used: bool,
+    /// Why it was left out, in words.
+    pub reason: Option<String>,
+    /// The frame after which it was left out (after the timing probe).
+    pub left_out_after: Option<usize>,
+}
+
+/// Whether occlusion culling paid for itself on the route (reference structure).
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct OcclusionDecision {
+    /// Mean seconds per frame with frustum culling only.
+    pub frustum_s: f64,
+    /// Mean seconds per frame with frustum and occlusion culling.
+    pub occlusion_s: f64,
+    /// Mean blocks per frame the occlusion test dropped.
+    pub blocks_dropped: f64,
+    /// True when occlusion culling made frames faster on this route.
+    pub saves: bool,
+    /// The decision in words.
+    pub note: String,
+}
+
+/// Pixels of `img` that show something other than `background` (the same camera with no block).
+pub fn coverage(img: &image::RgbaImage, background: &image::RgbaImage) -> Vec<bool> {
+    img.pixels()
+        .zip(background.pixels())
+        .map(|(a, b)| a.0[..3] != b.0[..3])
+        .collect()
+}
+
+/// Pixels whose RGB differs.
+pub fn changed_pixels(a: &image::RgbaImage, b: &image::RgbaImage) -> u64 {
+    a.pixels()
+        .zip(b.pixels())
+        .filter(|(p, q)| p.0[..3] != q.0[..3])
+        .count() as u64
+}
+
+/// Coverage error, PSNR and silhouette distance of `hybrid` against `mesh`, both of the same
+/// camera, `background` the frame with no block (popping is filled in by the walk).
+pub fn image_error(
+    mesh: &image::RgbaImage,
+    hybrid: &image::RgbaImage,
+    background: &image::RgbaImage,
+) -> ImageError {
+    let (w, h) = (mesh.width() as usize, mesh.height() as usize);
+    let mc = coverage(mesh, background);
+    let hc = coverage(hybrid, background);
+    let mask = |cov: &[bool]| {
+        let mut m = vec![false; w * h];
+        for (x, y) in silhouette_pixels(cov, w, h) {
+            m[y as usize * w + x as usize] = true;
+        }
+        m
+    };
+    let (mesh_sil, hybrid_sil) = (mask(&mc), mask(&hc));
+    let mut mismatched = 0usize;
+    let mut worst: f64 = 0.0;
+    for k in 0..w * h {
+        if mc[k] != hc[k] {
+            mismatched += 1;
+            let (x, y) = ((k % w) as i64, (k / w) as i64);
+            // As `blockmap::compare` derives the bound: a pixel only the hybrid covers lies
+            // near a silhouette of the mesh frame, one only the mesh covers near a silhouette
+            // of the hybrid frame. No silhouette at all: the frame's diagonal.
+            let sil = if hc[k] { &mesh_sil } else { &hybrid_sil };
+            let d =
+                nearest_in_mask(sil, w, h, x, y).unwrap_or_else(|| ((w * w + h * h) as f64).sqrt());
+            worst = worst.max(d);
+        }
+    }
+    let se: f64 = mesh
+        .pixels()
+        .zip(hybrid.pixels())
+        .map(|(a, b)| {
+            (0..3)
+                .map(|c| {
+                    let d = a.0[c] as f64 - b.0[c] as f64;
+                    d * d
+                })
+                .sum::<f64>()
+        })
+        .sum();
+    ImageError {
+        coverage_error: mismatched as f64 / (w * h).max(1) as f64,
+        psnr_db: psnr_db(se, 3 * w * h),
+        silhouette_px: worst,
+        popping_px: 0,
+        popping_colour_px: 0,
+    }
+}
+
+/// Distance from `(x, y)` to the nearest set pixel of `mask` (`w × h`), searching square rings
+/// of growing radius (the first hit at ring `r` bounds the answer by `r·√2`, so rings up to
+/// that bound are searched too); none when the mask is empty. The same distance as
+/// [`crate::blockmap::compare::nearest_distance`] over the mask's pixels, in time proportional to the answer's square
+/// instead of the silhouette's length.
+pub fn nearest_in_mask(mask: &[bool], w: usize, h: usize, x: i64, y: i64) -> Option<f64> {
+    let (wi, hi) = (w as i64, h as i64);
+    let rmax = wi.max(hi);
+    let mut best2: Option<i64> = None;
+    for r in 0..=rmax {
+        if let Some(b) = best2 {
+            if r * r > b {
+                break;
+            }
+        }
+        let mut visit = |px: i64, py: i64| {
+            if px >= 0 && py >= 0 && px < wi && py < hi && mask[(py * wi + px) as usize] {
+                let d2 = (px - x) * (px - x) + (py - y) * (py - y);
+                if best2.is_none_or(|b| d2 < b) {
+                    best2 = Some(d2);
+                }
+            }
+        };
+        if r == 0 {
+            visit(x, y);
+            continue;
+        }
+        for d in -r..=r {
+            visit(x + d, y - r);
+            visit(x + d, y + r);
+        }
+        for d in -r + 1..r {
+            visit(x - r, y + d);
+            visit(x + r, y + d);
+        }
+    }
+    best2.map(|b| (b as f64).sqrt())
+}
+
+/// True when two selections draw the same maps and meshes.
+pub fn same_selection(a: &Selection, b: &Selection) -> bool {
+    let mut am = a.maps.clone();
+    let mut bm = b.maps.clone();
+    am.sort_unstable();
+    bm.sort_unstable();
+    let mut ab = a.meshes.clone();
+    let mut bb = b.meshes.clone();
+    ab.sort_unstable();
+    bb.sort_unstable();
+    am == bm && ab == bb
+}
+
+/// The figures of the hybrid frames in one JSON object: `coverage_error_max`, `psnr_min`,
+/// `silhouette_px_max`, `popping_px_max`, `far_nodes` (mean per frame), `mesh_triangles` (mean),
+/// `frame_time_ratio_vs_mesh` (mean hybrid frame time over mean mesh-only frame time, same
+/// frames, in the last culling mode; null when the frames were not drawn), and the decision.
+pub fn far_json(
+    records: &[FarRecord],
+    decision: &FarDecision,
+    opts: &SelectOptions,
+) -> serde_json::Value {
+    let mean = |v: &mut dyn Iterator<Item = f64>| {
+        let (s, n) = v.fold((0.0, 0usize), |(s, n), x| (s + x, n + 1));
+        if n == 0 {
+            None
+        } else {
+            Some(s / n as f64)
+        }
+    };
+    let last_mode = records.last().map(|r| r.mode);
+    let sel: Vec<&FarRecord> = records
+        .iter()
+        .filter(|r| Some(r.mode) == last_mode)
+        .collect();
+    let hyb = mean(&mut sel.iter().map(|r| r.frame_s));
+    let mesh = mean(&mut sel.iter().map(|r| r.mesh_frame_s));
+    // Only drawn frames compare times (without drawing, both are selection or culling alone).
+    let drawn = !sel.is_empty() && sel.iter().all(|r| r.render_s.is_some());
+    let ratio = match (hyb, mesh) {
+        (Some(a), Some(b)) if b > 0.0 && drawn => Some(a / b),
+        _ => None,
+    };
+    let imgs: Vec<&ImageError> = sel.iter().filter_map(|r| r.image.as_ref()).collect();
+    let fin = |x: f64| x.is_finite().then_some(x);
+    let fold_max = |g: &dyn Fn(&ImageError) -> f64| {
+        (!imgs.is_empty()).then(|| imgs.iter().map(|i| g(i)).fold(0.0, f64::max))
+    };
+    let psnr_min = (!imgs.is_empty())
+        .then(|| imgs.iter().map(|i| i.psnr_db).fold(f64::INFINITY, f64::min))
+        .and_then(fin);
+    let mut passes: Vec<(String, f64, usize)> = Vec::new();
+    for r in &sel {
+        for (name, s) in &r.passes {
+            match passes.iter_mut().find(|(n, _, _)| n == name) {
+                Some(p) => {
+                    p.1 += s;
+                    p.2 += 1;
+                }
+                None => passes.push((name.clone(), *s, 1)),
+            }
+        }
+    }
+    serde_json::json!({
+        "used": decision.used,
+        "reason": decision.reason,
+        "left_out_after": decision.left_out_after,
+        "tau_px": opts.tau_px,
+        "hysteresis": opts.hysteresis,
+        "mode": last_mode,
+        "frames": sel.len(),
+        "coverage_error_max": fold_max(&|i| i.coverage_error),
+        "coverage_error_mean": mean(&mut imgs.iter().map(|i| i.coverage_error)),
+        "psnr_min": psnr_min,
+        "silhouette_px_max": fold_max(&|i| i.silhouette_px),
+        "popping_px_max": fold_max(&|i| i.popping_px as f64),
+        "popping_px_mean": mean(&mut imgs.iter().map(|i| i.popping_px as f64)),
+        "popping_colour_px_max": fold_max(&|i| i.popping_colour_px as f64),
+        "far_nodes": mean(&mut sel.iter().map(|r| r.far_nodes as f64)),
+        "far_pixels": mean(&mut sel.iter().filter_map(|r| r.far_pixels.map(|p| p as f64))),
+        "mesh_triangles": mean(&mut sel.iter().map(|r| r.mesh_triangles as f64)),
+        "mesh_blocks": mean(&mut sel.iter().map(|r| r.mesh_blocks as f64)),
+        "select_s": mean(&mut sel.iter().map(|r| r.select_s)),
+        "frame_s": hyb,
+        "mesh_frame_s": mesh,
+        "frame_time_ratio_vs_mesh": ratio,
+        "passes_s": passes.iter().map(|(n, s, c)| (n.clone(), serde_json::json!(s / *c as f64))).collect::<serde_json::Map<_, _>>(),
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::blockmap::compare::nearest_distance;
+    use image::{Rgba, RgbaImage};
+
+    /// A 20×10 frame on a grey background with a red square `[x0, x0 + 4) × [2, 6)`.
+    fn frame(x0: u32, colour: [u8; 3]) -> RgbaImage {
+        let mut img = RgbaImage::from_pixel(20, 10, Rgba([90, 90, 90, 255]));
+        for y in 2..6 {
+            for x in x0..x0 + 4 {
+                img.put_pixel(x, y, Rgba([colour[0], colour[1], colour[2], 255]));
+            }
+        }
+        img
+    }
+
+    #[test]
+    fn ring_search_equals_brute_force() {
+        use rand::{Rng, SeedableRng};
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(4);
+        for _ in 0..200 {
+            let (w, h) = (rng.random_range(1..30usize), rng.random_range(1..30usize));
+            let fill = rng.random_range(0.0..0.2);
+            let mask: Vec<bool> = (0..w * h).map(|_| rng.random_bool(fill)).collect();
+            let list: Vec<(i64, i64)> = (0..w * h)
+                .filter(|&k| mask[k])
+                .map(|k| ((k % w) as i64, (k / w) as i64))
+                .collect();
+            let (x, y) = (rng.random_range(0..w) as i64, rng.random_range(0..h) as i64);
+            let fast = nearest_in_mask(&mask, w, h, x, y);
+            if list.is_empty() {
+                assert_eq!(fast, None);
+            } else {
+                assert_eq!(fast, Some(nearest_distance(&list, x, y)));
+            }
+        }
+    }
+
+    #[test]
+    fn identical_frames_have_no_error() {
+        let bg = RgbaImage::from_pixel(20, 10, Rgba([90, 90, 90, 255]));
+        let e = image_error(&frame(5, [200, 0, 0]), &frame(5, [200, 0, 0]), &bg);
+        assert_eq!(e.coverage_error, 0.0);
+        assert!(e.psnr_db.is_infinite());
+        assert_eq!(e.silhouette_px, 0.0);
+    }
+
+    #[test]
+    fn a_shifted_square_mismatches_next_to_the_silhouette() {
+        let bg = RgbaImage::from_pixel(20, 10, Rgba([90, 90, 90, 255]));
+        // Shifted by 3 px: columns 5–7 only in the mesh, 9–11 only in the hybrid (8 in both).
+        let e = image_error(&frame(5, [200, 0, 0]), &frame(8, [200, 0, 0]), &bg);
+        assert!((e.coverage_error - 24.0 / 200.0).abs() < 1e-12, "{e:?}");
+        // Column 11 is 2 px from the mesh silhouette (column 9, just right of the square);
+        // column 5 lies on it.
+        assert!((e.silhouette_px - 2.0).abs() < 1e-12, "{e:?}");
+        assert!(e.psnr_db.is_finite());
+        // A colour change alone is no coverage error, but lowers the PSNR.
+        let c = image_error(&frame(5, [200, 0, 0]), &frame(5, [190, 0, 0]), &bg);
+        assert_eq!(c.coverage_error, 0.0);
+        assert!(c.psnr_db < 60.0 && c.psnr_db > 20.0, "{c:?}");
+        assert_eq!(
+            changed_pixels(&frame(5, [200, 0, 0]), &frame(5, [190, 0, 0])),
+            16
+        );
+    }
+}
