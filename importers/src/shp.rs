@@ -87,7 +87,11 @@ pub fn read(path: &Path) -> Result<Layer, ImportError> {
         }
     };
     let shapes = match indexed {
-        Some(s) => s,
+        Some(s) => {
+            // The shapes own their coordinates: the file's bytes are no longer needed.
+            drop(shp_bytes);
+            s
+        }
         None => read_shapes_in_sequence(path, shp_bytes)?,
     };
 
@@ -112,7 +116,8 @@ pub fn read(path: &Path) -> Result<Layer, ImportError> {
         });
     }
     // The reader yields the same I/O error forever once the file ends: stop at the first one.
-    let mut records: Vec<Result<dbase::Record, dbase::Error>> = Vec::with_capacity(declared);
+    // Each record becomes its attributes as it is read (the dBase map is not kept).
+    let mut records: Vec<Result<Attributes, dbase::Error>> = Vec::with_capacity(declared);
     for (i, r) in dbf.iter_records().take(declared).enumerate() {
         if let Err(e) = &r {
             if matches!(e.kind(), dbase::ErrorKind::IoError(_)) {
@@ -123,8 +128,9 @@ pub fn read(path: &Path) -> Result<Layer, ImportError> {
                 });
             }
         }
-        records.push(r);
+        records.push(r.map(|r| convert_record(r, &decimals)));
     }
+    drop(dbf);
     if records.len() != shapes.len() {
         return Err(ImportError::Format {
             file: path.to_path_buf(),
@@ -161,7 +167,7 @@ pub fn read(path: &Path) -> Result<Layer, ImportError> {
             Ok(geometry) => features.push(Feature {
                 fid,
                 geometry,
-                attributes: convert_record(record, &decimals),
+                attributes: record,
             }),
             Err(reason) => report.refuse(fid, reason),
         }

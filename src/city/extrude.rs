@@ -19,7 +19,7 @@ use std::collections::HashMap;
 use glam::{DVec2, DVec3, Vec3};
 use spade::{ConstrainedDelaunayTriangulation, Point2, Triangulation};
 
-use super::appearance::{building_style, ring_u};
+use super::appearance::building_style;
 use super::mesh::{Mesh, VertexAppearance};
 use super::model::{Building, City, LocalFrame};
 use crate::geom::predicates::{open_ring, orient2d, Orientation};
@@ -61,12 +61,44 @@ pub enum ExtrudeError {
     },
 }
 
+/// Per-thread buffers reused from one building to the next, so that extruding a city allocates
+/// only what the meshes keep (and what spade allocates for each triangulation).
+#[derive(Default)]
+struct Scratch {
+    /// The footprint's rings in local f64 coordinates, open (no repeated closing point), one
+    /// after the other.
+    local: Vec<DVec2>,
+    /// Where each ring starts in `local`, plus its end.
+    starts: Vec<usize>,
+    /// Face classification of the flood fill: 0 unknown, 1 outside, 2 inside.
+    inside: Vec<u8>,
+    /// Faces of the flood fill still to visit.
+    stack: Vec<spade::handles::FixedFaceHandle<spade::handles::InnerTag>>,
+    /// The cap's triangles.
+    cap: Vec<[u32; 3]>,
+    /// Along-wall coordinates of one ring.
+    us: Vec<f32>,
+}
+
+thread_local! {
+    static SCRATCH: std::cell::RefCell<Scratch> = std::cell::RefCell::new(Scratch::default());
+}
+
 /// Extrudes a building into a closed prism in the local frame.
 ///
 /// # Errors
 /// [`ExtrudeError`] for a footprint that is not valid or impossible heights; buildings of a
 /// [`City`] are valid by construction.
 pub fn try_extrude_building(b: &Building, frame: &LocalFrame) -> Result<Mesh, ExtrudeError> {
+    SCRATCH.with(|s| match s.try_borrow_mut() {
+        Ok(mut s) => extrude_with(b, frame, &mut s),
+        // Only reachable if extrusion re-entered itself on this thread: fresh buffers.
+        Err(_) => extrude_with(b, frame, &mut Scratch::default()),
+    })
+}
+
+/// [`try_extrude_building`] with the given buffers.
+fn extrude_with(b: &Building, frame: &LocalFrame, s: &mut Scratch) -> Result<Mesh, ExtrudeError> {
     let (z0, z1) = (b.min_height_m, b.height_m);
     if !(z0.is_finite() && z1.is_finite() && z1 > z0) {
         return Err(ExtrudeError::Heights {
@@ -75,22 +107,27 @@ pub fn try_extrude_building(b: &Building, frame: &LocalFrame) -> Result<Mesh, Ex
             bottom: z0,
         });
     }
-    let lp = frame.to_local_polygon(&b.footprint);
-
-    // Triangulate in local f64.
-    let mut verts: Vec<Point2<f64>> = Vec::new();
-    let mut edges: Vec<[usize; 2]> = Vec::new();
-    for ring in std::iter::once(lp.exterior()).chain(lp.interiors()) {
-        let r = open_ring(&ring.0);
-        let start = verts.len();
-        for c in r {
-            verts.push(Point2::new(c.x, c.y));
-        }
-        for i in 0..r.len() {
-            edges.push([start + i, start + (i + 1) % r.len()]);
-        }
+    // Local f64 rings (the origin subtracted in f64), each opened after the subtraction as
+    // `to_local_polygon` + `open_ring` would.
+    s.local.clear();
+    s.starts.clear();
+    for ring in std::iter::once(b.footprint.exterior()).chain(b.footprint.interiors()) {
+        let start = s.local.len();
+        s.starts.push(start);
+        s.local.extend(ring.0.iter().map(|&c| frame.to_local_xy(c)));
+        let n = open_ring(&s.local[start..]).len();
+        s.local.truncate(start + n);
     }
-    let n_in = verts.len();
+    s.starts.push(s.local.len());
+    let n_in = s.local.len();
+
+    // Triangulate in local f64 (spade takes its vertex and edge lists by value).
+    let verts: Vec<Point2<f64>> = s.local.iter().map(|p| Point2::new(p.x, p.y)).collect();
+    let mut edges: Vec<[usize; 2]> = Vec::with_capacity(n_in);
+    for w in s.starts.windows(2) {
+        let (start, len) = (w[0], w[1] - w[0]);
+        edges.extend((0..len).map(|i| [start + i, start + (i + 1) % len]));
+    }
     let mut conflicts = 0usize;
     let cdt =
         ConstrainedDelaunayTriangulation::<Point2<f64>>::try_bulk_load_cdt(verts, edges, |_| {
@@ -107,20 +144,18 @@ pub fn try_extrude_building(b: &Building, frame: &LocalFrame) -> Result<Mesh, Ex
             duplicates: n_in - cdt.num_vertices(),
         });
     }
-    let cap = cap_triangles(&cdt);
+    cap_triangles_into(&cdt, s);
 
     // The footprint is already local (origin subtracted in f64): this is the one f32 rounding.
     let p32 = |x: f64, y: f64, z: f64| LocalFrame::round_to_f32(DVec3::new(x, y, z));
 
-    let n_walls: usize = std::iter::once(lp.exterior())
-        .chain(lp.interiors())
-        .map(|r| open_ring(&r.0).len())
-        .sum();
+    let n_walls = n_in;
+    let n_v = 2 * n_in + 4 * n_walls;
     let mut m = Mesh {
-        positions: Vec::with_capacity(2 * n_in + 4 * n_walls),
-        normals: Vec::with_capacity(2 * n_in + 4 * n_walls),
-        indices: Vec::with_capacity(6 * cap.len() + 6 * n_walls),
-        appearance: Vec::with_capacity(2 * n_in + 4 * n_walls),
+        positions: Vec::with_capacity(n_v),
+        normals: Vec::with_capacity(n_v),
+        indices: Vec::with_capacity(6 * s.cap.len() + 6 * n_walls),
+        appearance: Vec::with_capacity(n_v),
         styles: vec![building_style(b)],
     };
     // Appearance: one style (index 0); u = 0 on roof and floor, the unfolded ring on walls.
@@ -131,10 +166,10 @@ pub fn try_extrude_building(b: &Building, frame: &LocalFrame) -> Result<Mesh, Ex
         for v in cdt.vertices() {
             let p = v.position();
             m.positions.push(p32(p.x, p.y, z));
-            m.normals.push(Vec3::new(0.0, 0.0, nz));
-            m.appearance.push(va(0.0));
         }
-        for t in &cap {
+        m.normals.resize(m.positions.len(), Vec3::new(0.0, 0.0, nz));
+        m.appearance.resize(m.positions.len(), va(0.0));
+        for t in &s.cap {
             if flip {
                 m.indices.extend([base + t[0], base + t[2], base + t[1]]);
             } else {
@@ -144,12 +179,12 @@ pub fn try_extrude_building(b: &Building, frame: &LocalFrame) -> Result<Mesh, Ex
     }
     // Walls: the exterior is CCW and holes CW, so the solid is always left of each directed
     // edge and the outward normal points right.
-    for ring in std::iter::once(lp.exterior()).chain(lp.interiors()) {
-        let r = open_ring(&ring.0);
-        let us = ring_u(r);
+    for w in s.starts.windows(2) {
+        let r = &s.local[w[0]..w[1]];
+        ring_u_into(r, &mut s.us);
         for i in 0..r.len() {
             let (a, b2) = (r[i], r[(i + 1) % r.len()]);
-            let (ua, ub) = (us[i], us[i + 1]);
+            let (ua, ub) = (s.us[i], s.us[i + 1]);
             let (dx, dy) = (b2.x - a.x, b2.y - a.y);
             let len = (dx * dx + dy * dy).sqrt();
             let n = LocalFrame::round_to_f32(DVec3::new(dy / len, -dx / len, 0.0));
@@ -169,45 +204,75 @@ pub fn try_extrude_building(b: &Building, frame: &LocalFrame) -> Result<Mesh, Ex
     Ok(m)
 }
 
+/// [`super::appearance::ring_u`] of an open ring of local points, into `out` (cleared first): the same sums in the
+/// same order.
+fn ring_u_into(ring: &[DVec2], out: &mut Vec<f32>) {
+    out.clear();
+    let mut acc = 0.0f64;
+    for (i, a) in ring.iter().enumerate() {
+        out.push(acc as f32);
+        let b = ring[(i + 1) % ring.len()];
+        acc += (b.x - a.x).hypot(b.y - a.y);
+    }
+    out.push(acc as f32);
+}
+
 /// The footprint's CDT.
 type Cdt = ConstrainedDelaunayTriangulation<Point2<f64>>;
 
 /// The triangles of the CDT inside the footprint, in spade's face order, counter-clockwise (as
 /// vertex indices).
 ///
-/// A breadth-first flood fill over the faces: the outer face is outside, and crossing an edge
-/// flips inside/outside exactly when the edge is a constraint (a ring edge). A face is inside
-/// when an odd number of ring edges separate it from the outer face: inside the exterior and
-/// outside every hole. O(faces).
+/// A flood fill over the faces: the outer face is outside, and crossing an edge flips
+/// inside/outside exactly when the edge is a constraint (a ring edge). A face is inside when an
+/// odd number of ring edges separate it from the outer face: inside the exterior and outside
+/// every hole. O(faces). The parity does not depend on the order in which faces are reached
+/// (the rings do not cross), so a stack serves as well as a queue.
+#[cfg(test)]
 fn cap_triangles(cdt: &Cdt) -> Vec<[u32; 3]> {
-    let mut inside: Vec<Option<bool>> = vec![None; cdt.num_all_faces()];
-    inside[cdt.outer_face().fix().index()] = Some(false);
-    let mut queue = std::collections::VecDeque::new();
+    let mut s = Scratch::default();
+    cap_triangles_into(cdt, &mut s);
+    s.cap
+}
+
+/// [`cap_triangles`] into `s.cap`, with `s`'s buffers.
+fn cap_triangles_into(cdt: &Cdt, s: &mut Scratch) {
+    const UNKNOWN: u8 = 0;
+    const OUT: u8 = 1;
+    const IN: u8 = 2;
+    let class = |inside: bool| if inside { IN } else { OUT };
+    s.inside.clear();
+    s.inside.resize(cdt.num_all_faces(), UNKNOWN);
+    s.inside[cdt.outer_face().fix().index()] = OUT;
+    s.stack.clear();
     // Seeds: the faces on the convex hull, next to the outer face.
     for f in cdt.inner_faces() {
         for e in f.adjacent_edges() {
-            if e.rev().face().is_outer() && inside[f.fix().index()].is_none() {
-                inside[f.fix().index()] = Some(e.is_constraint_edge());
-                queue.push_back(f);
+            if e.rev().face().is_outer() && s.inside[f.fix().index()] == UNKNOWN {
+                s.inside[f.fix().index()] = class(e.is_constraint_edge());
+                s.stack.push(f.fix());
             }
         }
     }
-    while let Some(f) = queue.pop_front() {
-        let here = inside[f.fix().index()].expect("queued faces are classified");
+    while let Some(fix) = s.stack.pop() {
+        let f = cdt.face(fix);
+        let here = s.inside[fix.index()] == IN;
         for e in f.adjacent_edges() {
             if let Some(g) = e.rev().face().as_inner() {
-                let slot = &mut inside[g.fix().index()];
-                if slot.is_none() {
-                    *slot = Some(here != e.is_constraint_edge());
-                    queue.push_back(g);
+                let slot = &mut s.inside[g.fix().index()];
+                if *slot == UNKNOWN {
+                    *slot = class(here != e.is_constraint_edge());
+                    s.stack.push(g.fix());
                 }
             }
         }
     }
-    cdt.inner_faces()
-        .filter(|f| inside[f.fix().index()] == Some(true))
-        .map(|f| oriented(f.vertices()))
-        .collect()
+    s.cap.clear();
+    s.cap.extend(
+        cdt.inner_faces()
+            .filter(|f| s.inside[f.fix().index()] == IN)
+            .map(|f| oriented(f.vertices())),
+    );
 }
 
 /// A face's vertex indices, counter-clockwise by the exact orientation (spade's faces are
@@ -242,25 +307,29 @@ pub fn extrude_city(city: &City) -> Vec<Mesh> {
 
 /// Like [`extrude_city`], but every failure is returned (in building order) instead of an empty
 /// mesh.
+///
+/// The meshes are collected straight into their vector (failures are rare and kept aside with
+/// their building's index), so no second vector of results is held beside the meshes.
 pub fn try_extrude_city(city: &City) -> (Vec<Mesh>, Vec<ExtrudeError>) {
     use rayon::prelude::*;
-    let results: Vec<Result<Mesh, ExtrudeError>> = city
+    let failed = std::sync::Mutex::new(Vec::new());
+    let meshes: Vec<Mesh> = city
         .buildings
         .par_iter()
-        .map(|b| try_extrude_building(b, &city.frame))
+        .enumerate()
+        .map(|(i, b)| {
+            try_extrude_building(b, &city.frame).unwrap_or_else(|e| {
+                failed
+                    .lock()
+                    .unwrap_or_else(|p| p.into_inner())
+                    .push((i, e));
+                Mesh::default()
+            })
+        })
         .collect();
-    let mut meshes = Vec::with_capacity(results.len());
-    let mut errors = Vec::new();
-    for r in results {
-        match r {
-            Ok(m) => meshes.push(m),
-            Err(e) => {
-                errors.push(e);
-                meshes.push(Mesh::default());
-            }
-        }
-    }
-    (meshes, errors)
+    let mut failed = failed.into_inner().unwrap_or_else(|p| p.into_inner());
+    failed.sort_by_key(|f| f.0);
+    (meshes, failed.into_iter().map(|f| f.1).collect())
 }
 
 /// Checks that a mesh is closed and consistently oriented: after welding vertices with equal

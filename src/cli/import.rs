@@ -12,7 +12,7 @@ use blockwalk::city::extrude::try_extrude_city;
 use blockwalk::geom::predicates::polygon_area;
 use serde_json::json;
 
-use super::common::{load_city_with, peak_memory_bytes, spinner, CityArgs};
+use super::common::{peak_memory_bytes, spinner, CityArgs};
 
 /// Arguments.
 #[derive(clap::Args, Debug)]
@@ -49,6 +49,16 @@ pub struct Args {
     default_height: f64,
 }
 
+/// The city of `args` without a city folder's parcels, which `import` does not use (an explicit
+/// `--parcels` file is still read and reported).
+fn load_buildings(args: &CityArgs, opts: &BuildOptions) -> anyhow::Result<blockwalk::city::City> {
+    let source = args.source(0)?.without_folder_parcels()?;
+    let pb = spinner("loading the city");
+    let loaded = source.load(opts, &mut |m| pb.set_message(m.to_string()));
+    pb.finish_and_clear();
+    Ok(loaded?.city)
+}
+
 pub fn run(args: Args) -> anyhow::Result<()> {
     let mut heights = HeightFields::default();
     if !args.height_field.is_empty() {
@@ -65,7 +75,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     };
 
     let t0 = Instant::now();
-    let city = match load_city_with(&args.city, &opts) {
+    let city = match load_buildings(&args.city, &opts) {
         Ok(c) => c,
         Err(e) => {
             // With --json, nothing usable left still gives one JSON object (with the reasons).

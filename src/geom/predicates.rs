@@ -236,44 +236,91 @@ pub fn point_in_linestring(p: Coord<f64>, ring: &LineString<f64>) -> Location {
 /// inside interval is returned. `attempt` picks other scanlines (0 = the one nearest the middle,
 /// then alternating outwards), for the rare case where rounding puts the point on the boundary.
 pub fn interior_point(poly: &Polygon<f64>, attempt: usize) -> Option<Coord<f64>> {
-    let mut ys: Vec<f64> = std::iter::once(poly.exterior())
-        .chain(poly.interiors())
-        .flat_map(|r| r.0.iter().map(|c| c.y))
-        .collect();
-    ys.sort_by(f64::total_cmp);
-    ys.dedup();
-    if ys.len() < 2 {
-        return None;
+    let mut s = InteriorPoints::default();
+    s.reset(poly);
+    s.point(poly, attempt)
+}
+
+/// [`interior_point`] for many attempts on one polygon, or many polygons in turn, with its
+/// buffers kept: the sorted vertex heights are computed once per polygon ([`InteriorPoints::reset`])
+/// and nothing is allocated once the buffers have grown. Gives exactly [`interior_point`]'s points.
+#[derive(Clone, Debug, Default)]
+pub struct InteriorPoints {
+    /// The polygon's distinct vertex heights, ascending.
+    ys: Vec<f64>,
+    /// One scanline's crossings.
+    xs: Vec<f64>,
+}
+
+impl InteriorPoints {
+    /// Prepares for `poly` (its sorted, distinct vertex heights).
+    pub fn reset(&mut self, poly: &Polygon<f64>) {
+        self.ys.clear();
+        self.ys.extend(
+            std::iter::once(poly.exterior())
+                .chain(poly.interiors())
+                .flat_map(|r| r.0.iter().map(|c| c.y)),
+        );
+        self.ys.sort_by(f64::total_cmp);
+        self.ys.dedup();
     }
-    let gaps = ys.len() - 1;
-    // Order the gaps from the middle outwards; prefer wide gaps near the middle.
-    let mid = gaps / 2;
-    let mut order: Vec<usize> = (0..gaps).collect();
-    order.sort_by_key(|&g| (g as isize - mid as isize).unsigned_abs());
-    let g = *order.get(attempt % gaps.max(1))?;
-    let y = 0.5 * (ys[g] + ys[g + 1]);
-    let mut xs = Vec::new();
-    for r in std::iter::once(poly.exterior()).chain(poly.interiors()) {
-        let ring = open_ring(&r.0);
-        let n = ring.len();
-        for i in 0..n {
-            let a = ring[i];
-            let b = ring[(i + 1) % n];
-            if (a.y > y) != (b.y > y) {
-                let t = (y - a.y) / (b.y - a.y);
-                xs.push(a.x + t * (b.x - a.x));
+
+    /// [`interior_point`]`(poly, attempt)`; `poly` is the polygon last given to
+    /// [`InteriorPoints::reset`].
+    pub fn point(&mut self, poly: &Polygon<f64>, attempt: usize) -> Option<Coord<f64>> {
+        let ys = &self.ys;
+        if ys.len() < 2 {
+            return None;
+        }
+        let gaps = ys.len() - 1;
+        let g = gap_from_middle(gaps, attempt % gaps);
+        let y = 0.5 * (ys[g] + ys[g + 1]);
+        self.xs.clear();
+        for r in std::iter::once(poly.exterior()).chain(poly.interiors()) {
+            let ring = open_ring(&r.0);
+            let n = ring.len();
+            for i in 0..n {
+                let a = ring[i];
+                let b = ring[(i + 1) % n];
+                if (a.y > y) != (b.y > y) {
+                    let t = (y - a.y) / (b.y - a.y);
+                    self.xs.push(a.x + t * (b.x - a.x));
+                }
             }
         }
-    }
-    xs.sort_by(f64::total_cmp);
-    let mut best: Option<(f64, f64)> = None;
-    for pair in xs.chunks_exact(2) {
-        let w = pair[1] - pair[0];
-        if w > 0.0 && best.is_none_or(|(bw, _)| w > bw) {
-            best = Some((w, 0.5 * (pair[0] + pair[1])));
+        self.xs.sort_by(f64::total_cmp);
+        let mut best: Option<(f64, f64)> = None;
+        for pair in self.xs.chunks_exact(2) {
+            let w = pair[1] - pair[0];
+            if w > 0.0 && best.is_none_or(|(bw, _)| w > bw) {
+                best = Some((w, 0.5 * (pair[0] + pair[1])));
+            }
         }
+        best.map(|(_, x)| Coord { x, y })
     }
-    best.map(|(_, x)| Coord { x, y })
+}
+
+/// The `k`-th of the gaps `0..gaps` ordered from the middle (`gaps / 2`) outwards, the lower
+/// one first at equal distance (prefer wide gaps near the middle): middle, middle − 1,
+/// middle + 1, middle − 2, … then what is left on the longer side. `k < gaps`.
+fn gap_from_middle(gaps: usize, k: usize) -> usize {
+    let mid = gaps / 2;
+    let (below, above) = (mid, gaps - mid - 1);
+    let both = below.min(above);
+    if k == 0 {
+        mid
+    } else if k <= 2 * both {
+        let d = k.div_ceil(2);
+        if k % 2 == 1 {
+            mid - d
+        } else {
+            mid + d
+        }
+    } else if below > above {
+        mid - (k - both)
+    } else {
+        mid + (k - both)
+    }
 }
 
 /// A point strictly inside `poly` by the exact test, trying several scanlines.
@@ -294,6 +341,17 @@ pub fn robust_interior_point(poly: &Polygon<f64>) -> Option<Coord<f64>> {
 
 #[cfg(test)]
 mod tests {
+
+    #[test]
+    fn gaps_from_the_middle_follow_the_stable_sort() {
+        for gaps in 1..40usize {
+            let mid = gaps / 2;
+            let mut order: Vec<usize> = (0..gaps).collect();
+            order.sort_by_key(|&g| (g as isize - mid as isize).unsigned_abs());
+            let direct: Vec<usize> = (0..gaps).map(|k| gap_from_middle(gaps, k)).collect();
+            assert_eq!(direct, order, "{gaps} gaps");
+        }
+    }
     use super::*;
     use geo_types::{coord, polygon};
 

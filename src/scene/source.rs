@@ -194,6 +194,33 @@ impl CitySource {
         Ok(Some((fp, st, pa)))
     }
 
+    /// The same source without a city folder's parcel layer (an explicit parcel file is kept),
+    /// for commands that do not use parcels: `import` builds and extrudes the buildings only,
+    /// and a folder's parcels (as many polygons as buildings in a generated city) would cost
+    /// it as much reading and memory as the footprints.
+    ///
+    /// # Errors
+    /// [`SourceError::NoBuildingsInFolder`].
+    pub fn without_folder_parcels(&self) -> Result<Self, SourceError> {
+        match (self, self.layer_files()?) {
+            (
+                CitySource::Files {
+                    footprints,
+                    parcels,
+                    exclude_street_tags,
+                    ..
+                },
+                Some((fp, st, _)),
+            ) if footprints.is_dir() => Ok(CitySource::Files {
+                footprints: fp,
+                streets: st,
+                parcels: parcels.clone(),
+                exclude_street_tags: exclude_street_tags.clone(),
+            }),
+            _ => Ok(self.clone()),
+        }
+    }
+
     /// Reads the layers (footprints, streets, parcels) of a file source; `None` for a synthetic
     /// one. `progress` hears what is being read.
     ///
@@ -206,17 +233,28 @@ impl CitySource {
         let Some((fp, st, pa)) = self.layer_files()? else {
             return Ok(None);
         };
-        let mut read = |path: &Path, theme: &Theme| {
-            progress(&format!("reading {}", path.display()));
+        let read = |path: &Path, theme: &Theme| {
             read_layer(path, theme).map_err(|source| SourceError::Read {
                 file: path.to_path_buf(),
                 source: Box::new(source),
             })
         };
-        let footprints = read(&fp, &Theme::Buildings)?;
-        let streets = st.map(|s| read(&s, &Theme::Streets)).transpose()?;
-        let parcels = pa.map(|p| read(&p, &Theme::Parcels)).transpose()?;
-        Ok(Some((footprints, streets, parcels)))
+        for p in std::iter::once(&fp).chain(&st).chain(&pa) {
+            progress(&format!("reading {}", p.display()));
+        }
+        // The layers are read side by side on rayon's pool. Besides the time, this keeps the
+        // layers' memory, freed once the city is built, in the pool's allocation arenas, where
+        // the extrusion (also on the pool) reuses it.
+        let (footprints, (streets, parcels)) = rayon::join(
+            || read(&fp, &Theme::Buildings),
+            || {
+                rayon::join(
+                    || st.as_deref().map(|s| read(s, &Theme::Streets)).transpose(),
+                    || pa.as_deref().map(|p| read(p, &Theme::Parcels)).transpose(),
+                )
+            },
+        );
+        Ok(Some((footprints?, streets?, parcels?)))
     }
 
     /// Loads the city with `opts` (the source's street exclusions are added to them).
