@@ -201,7 +201,7 @@ fn astana_steps(d: &Path, out: &Path, args: &Args) -> Vec<Step> {
             ],
         ),
         step(
-            "Astana: the paper's camera route, BqR-tree and VAMSplit R-tree, rendered",
+            "Astana: the paper's camera route, BqR-tree and VAMSplit R-tree, rendered, BlockMaps far away",
             &[
                 "walk",
                 p(&fp),
@@ -211,6 +211,8 @@ fn astana_steps(d: &Path, out: &Path, args: &Args) -> Vec<Step> {
                 "paper",
                 "--structures",
                 "vamsplit,bqr",
+                "--far",
+                "blockmaps",
                 "--frames",
                 &frames,
                 "--render",
@@ -271,6 +273,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         o("bubenec_blocks.geojson"),
         o("bubenec_blocks.png"),
     );
+    let hel_maps = o("helsinki_maps");
     let (hel_glb, hel_blocks, hel_png, hel_plot, hel_walk) = (
         o("helsinki.glb"),
         o("helsinki_blocks.geojson"),
@@ -327,6 +330,19 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 p(&hel_blocks),
                 "--png",
                 p(&hel_png),
+            ],
+        ),
+        step(
+            "Helsinki: BlockMaps for the block quadtree, every map checked against the meshes",
+            &[
+                "blockmaps",
+                p(&hel),
+                "--streets",
+                p(&hel_streets),
+                "--check",
+                "1000",
+                "-o",
+                p(&hel_maps),
             ],
         ),
         step(
