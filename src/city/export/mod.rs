@@ -11,7 +11,10 @@ pub mod gltf;
 use std::path::PathBuf;
 
 pub use self::geojson::{geojson_value, write_geojson};
-pub use self::gltf::{glb_bytes, write_glb, write_glb_to, GlbStats, GLB_MAX_BYTES};
+pub use self::gltf::{
+    glb_bytes, tile_glb_bytes, write_glb, write_glb_to, GlbStats, TileFeature, TileMesh,
+    GLB_MAX_BYTES,
+};
 
 /// Why an export failed. Every variant names the file.
 #[derive(Debug, thiserror::Error)]
