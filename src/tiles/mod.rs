@@ -17,7 +17,7 @@
 //!   city's origin). The root's `transform` places that frame on the WGS84 ellipsoid
 //!   ([`geodesy`]): the east-north-up frame at the origin's longitude/latitude (ellipsoidal
 //!   height = the origin's z: heights are above the ellipsoid, not the geoid), turned by the
-//!   projection's grid convergence and scaled by its scale factor at the origin (both measured
+//!   projection's grid convergence and its x, y scaled by the scale factor at the origin (both measured
 //!   on the CRS, so that grid north and grid metres land where they belong). A city without a
 //!   geodetic CRS gets no transform (the tileset then sits at the Earth's centre; the summary
 //!   says so).
@@ -153,7 +153,8 @@ pub struct Georef {
     pub height_m: f64,
     /// Angle from true north to grid north (the local +y), degrees, counter-clockwise positive.
     pub convergence_deg: f64,
-    /// Ground metres per grid metre at the origin.
+    /// Ground metres per grid metre at the origin (applied to x and y; heights are ground
+    /// metres already).
     pub scale: f64,
     /// The root transform (local → ECEF), column-major as `tileset.json` stores it.
     pub ecef_from_local: [f64; 16],
@@ -227,7 +228,7 @@ pub fn georef(city: &City) -> Option<Georef> {
     if !(gamma.is_finite() && scale.is_finite() && scale > 0.5 && scale < 2.0) {
         return None;
     }
-    let m = enu * DMat4::from_rotation_z(gamma) * DMat4::from_scale(DVec3::splat(scale));
+    let m = enu * DMat4::from_rotation_z(gamma) * DMat4::from_scale(DVec3::new(scale, scale, 1.0));
     Some(Georef {
         lon_deg: lon,
         lat_deg: lat,
@@ -508,7 +509,9 @@ pub fn build_tileset(
         let (content, bytes, aabb) = w?;
         t.content = content;
         t.content_bytes = bytes;
-        t.aabb = aabb;
+        // No flat box: a side of at least 2 cm (a leaf of blocks without buildings is flat).
+        let (c, h) = (aabb.center(), (0.5 * aabb.extent()).max(DVec3::splat(0.01)));
+        t.aabb = Aabb3::new(c - h, c + h);
     }
     // Boxes hold their children's (children come after parents: sweep backwards).
     for i in (0..tiles.len()).rev() {
@@ -570,11 +573,10 @@ pub fn build_tileset(
     Ok((set, summary))
 }
 
-/// A box as 3D Tiles writes it: centre, then the three half-axes (x, y, z) as columns. A flat
-/// side gets 1 cm so that no box is degenerate.
+/// A box as 3D Tiles writes it: centre, then the three half-axes (x, y, z) as columns.
 fn box_json(a: &Aabb3) -> Value {
     let c = a.center();
-    let h = (0.5 * a.extent()).max(DVec3::splat(0.01));
+    let h = 0.5 * a.extent();
     json!([c.x, c.y, c.z, h.x, 0.0, 0.0, 0.0, h.y, 0.0, 0.0, 0.0, h.z])
 }
 
