@@ -240,7 +240,7 @@ pub fn georef(city: &City) -> Option<Georef> {
 }
 
 /// The leaf content of `buildings`: their meshes merged, one feature per building, vertex
-/// colours from the city's appearance (roof or facade colour at the vertex).
+/// colours from the city's appearance (roof, underside or plain facade colour).
 fn leaf_mesh(city: &City, meshes: &[Mesh], buildings: &[u32]) -> TileMesh {
     let mut t = TileMesh::default();
     for (fid, &b) in buildings.iter().enumerate() {
@@ -254,8 +254,14 @@ fn leaf_mesh(city: &City, meshes: &[Mesh], buildings: &[u32]) -> TileMesh {
             };
             t.positions.push(p);
             t.normals.push(n);
-            t.colors
-                .push(to_rgb8(surface_color(style, n, u, p.z)).map(heightfield::srgb_to_linear));
+            // Walls take the plain facade colour: the window pattern sampled at the corners
+            // of a wall would only streak it.
+            let c = if n.z.abs() > 0.5 {
+                surface_color(style, n, u, p.z)
+            } else {
+                style.facade
+            };
+            t.colors.push(to_rgb8(c).map(heightfield::srgb_to_linear));
             t.feature_ids.push(fid as u32);
         }
         t.indices.extend(m.indices.iter().map(|i| base + i));
