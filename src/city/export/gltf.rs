@@ -52,6 +52,7 @@ const ARRAY_BUFFER: u32 = 34962;
 const ELEMENT_ARRAY_BUFFER: u32 = 34963;
 const FLOAT: u32 = 5126;
 const UNSIGNED_INT: u32 = 5125;
+const UNSIGNED_BYTE: u32 = 5121;
 
 fn y_up(v: Vec3) -> [f32; 3] {
     [v.x, v.z, -v.y]
@@ -450,7 +451,8 @@ pub struct TileMesh {
     pub positions: Vec<Vec3>,
     /// Unit normals, one per position.
     pub normals: Vec<Vec3>,
-    /// Linear RGB vertex colours in `[0, 1]` (`COLOR_0`): empty or one per position.
+    /// Linear RGB vertex colours in `[0, 1]` (`COLOR_0`, stored as normalised bytes): empty or
+    /// one per position.
     pub colors: Vec<[f32; 3]>,
     /// Feature id of each vertex (`_FEATURE_ID_0`, an index into `features`): empty, or one per
     /// position.
@@ -480,7 +482,7 @@ fn push_view(bin: &mut Vec<u8>, bytes: &[u8], target: Option<u32>, stride: Optio
 }
 
 /// The `.glb` of one 3D Tiles 1.1 tile: one mesh with one primitive (POSITION with min/max,
-/// NORMAL, optional `COLOR_0`, u32 indices), written Y-up as [`write_glb_to`] writes it (local
+/// NORMAL, optional `COLOR_0` as normalised RGBA bytes, u32 indices), written Y-up as [`write_glb_to`] writes it (local
 /// (x, y, z) as (x, z, −y); 3D Tiles turns glTF content back to Z-up). With feature ids, the
 /// primitive carries `_FEATURE_ID_0` (FLOAT scalars holding whole numbers, as
 /// `EXT_mesh_features` allows) and an `EXT_mesh_features` feature id set pointing at property
@@ -488,23 +490,32 @@ fn push_view(bin: &mut Vec<u8>, bytes: &[u8], target: Option<u32>, stride: Optio
 /// `min_height_m` FLOAT64). `extras` goes on the root node. Deterministic.
 ///
 /// # Errors
-/// [`ExportError::MeshCount`] when the per-vertex arrays do not match the positions (the
-/// counts are given as meshes and buildings), [`ExportError::TooLarge`] over [`GLB_MAX_BYTES`].
+/// [`ExportError::AttributeCount`] when a per-vertex array does not match the positions or a
+/// feature id has no row in `features` (its count is then the id), [`ExportError::TooLarge`]
+/// over [`GLB_MAX_BYTES`].
 pub fn tile_glb_bytes(name: &str, mesh: &TileMesh, extras: Value) -> Result<Vec<u8>, ExportError> {
     let n = mesh.positions.len();
-    let mismatch = |got: usize| ExportError::MeshCount {
+    let mismatch = |attribute: &'static str, count: usize| ExportError::AttributeCount {
         file: "<glb>".into(),
-        meshes: got,
-        buildings: n,
+        attribute,
+        count,
+        vertices: n,
     };
     if mesh.normals.len() != n {
-        return Err(mismatch(mesh.normals.len()));
+        return Err(mismatch("NORMAL", mesh.normals.len()));
     }
     if !mesh.colors.is_empty() && mesh.colors.len() != n {
-        return Err(mismatch(mesh.colors.len()));
+        return Err(mismatch("COLOR_0", mesh.colors.len()));
     }
     if !mesh.feature_ids.is_empty() && mesh.feature_ids.len() != n {
-        return Err(mismatch(mesh.feature_ids.len()));
+        return Err(mismatch("_FEATURE_ID_0", mesh.feature_ids.len()));
+    }
+    if let Some(&f) = mesh
+        .feature_ids
+        .iter()
+        .find(|&&f| f as usize >= mesh.features.len())
+    {
+        return Err(mismatch("_FEATURE_ID_0", f as usize));
     }
     let f32s = |it: &mut dyn Iterator<Item = f32>| -> Vec<u8> {
         it.flat_map(|c| c.to_le_bytes()).collect()
@@ -543,17 +554,18 @@ pub fn tile_glb_bytes(name: &str, mesh: &TileMesh, extras: Value) -> Result<Vec<
     if !mesh.colors.is_empty() {
         let v = vertex_view(
             &mut bin,
-            f32s(
-                &mut mesh
-                    .colors
-                    .iter()
-                    .flat_map(|c| c.map(|x| x.clamp(0.0, 1.0))),
-            ),
-            12,
+            // Normalised bytes, RGBA (4-byte aligned vertex elements, glTF 2.0 §3.6.2.4).
+            mesh.colors
+                .iter()
+                .flat_map(|c| {
+                    let [r, g, b] = c.map(|x| (x.clamp(0.0, 1.0) * 255.0).round() as u8);
+                    [r, g, b, 255]
+                })
+                .collect(),
+            4,
         );
         attributes.insert("COLOR_0".into(), json!(accessors.len()));
-        accessors
-            .push(json!({"bufferView": v, "componentType": FLOAT, "count": n, "type": "VEC3"}));
+        accessors.push(json!({"bufferView": v, "componentType": UNSIGNED_BYTE, "normalized": true, "count": n, "type": "VEC4"}));
     }
     let with_features = !mesh.feature_ids.is_empty();
     if with_features {
@@ -919,6 +931,145 @@ mod tests {
             "{e:?}"
         );
         assert!(sink.is_empty());
+    }
+
+    fn two_triangles() -> TileMesh {
+        let p = |x: f32, y: f32, z: f32| Vec3::new(x, y, z);
+        TileMesh {
+            positions: vec![
+                p(0., 0., 1.),
+                p(1., 0., 1.),
+                p(0., 1., 1.),
+                p(5., 5., 2.),
+                p(6., 5., 2.),
+                p(5., 6., 2.),
+            ],
+            normals: vec![Vec3::Z; 6],
+            colors: vec![[0.5, 0.25, 0.125]; 6],
+            feature_ids: vec![0, 0, 0, 1, 1, 1],
+            indices: vec![0, 1, 2, 3, 4, 5],
+            features: vec![
+                TileFeature {
+                    source_id: "a".into(),
+                    height_m: 1.0,
+                    min_height_m: 0.0,
+                },
+                TileFeature {
+                    source_id: "bé".into(),
+                    height_m: 2.0,
+                    min_height_m: 0.5,
+                },
+            ],
+        }
+    }
+
+    /// The JSON chunk of a `.glb`.
+    fn json_of(bytes: &[u8]) -> Value {
+        let n = u32::from_le_bytes(bytes[12..16].try_into().unwrap()) as usize;
+        serde_json::from_slice(&bytes[20..20 + n]).unwrap()
+    }
+
+    #[test]
+    fn tile_glb_holds_features_colours_and_y_up_positions() {
+        let m = two_triangles();
+        let bytes = tile_glb_bytes("t", &m, json!({"k": 1})).unwrap();
+        assert_eq!(bytes, tile_glb_bytes("t", &m, json!({"k": 1})).unwrap());
+        assert_eq!(
+            u32::from_le_bytes(bytes[8..12].try_into().unwrap()) as usize,
+            bytes.len()
+        );
+        let doc = json_of(&bytes);
+        let prim = &doc["meshes"][0]["primitives"][0];
+        for want in ["POSITION", "NORMAL", "COLOR_0", "_FEATURE_ID_0"] {
+            assert!(prim["attributes"][want].is_number(), "{want}: {prim}");
+        }
+        // Y-up: the local z = 2 of the second triangle is glTF y; local y is −z.
+        let pos = &doc["accessors"][prim["attributes"]["POSITION"].as_u64().unwrap() as usize];
+        assert_eq!(pos["max"], json!([6.0, 2.0, 0.0]));
+        assert_eq!(pos["min"], json!([0.0, 1.0, -6.0]));
+        let col = &doc["accessors"][prim["attributes"]["COLOR_0"].as_u64().unwrap() as usize];
+        assert_eq!(
+            (col["componentType"].as_u64(), col["normalized"].as_bool()),
+            (Some(5121), Some(true))
+        );
+        assert_eq!(
+            prim["extensions"]["EXT_mesh_features"]["featureIds"][0]["featureCount"],
+            2
+        );
+        let table = &doc["extensions"]["EXT_structural_metadata"]["propertyTables"][0];
+        assert_eq!(table["count"], 2);
+        // Every buffer view is 8-byte aligned; the string offsets end at the strings' length.
+        for v in doc["bufferViews"].as_array().unwrap() {
+            assert_eq!(v["byteOffset"].as_u64().unwrap() % 8, 0);
+        }
+        let jl = u32::from_le_bytes(bytes[12..16].try_into().unwrap()) as usize;
+        let bin = &bytes[28 + jl..];
+        let view = |k: u64| {
+            let v = &doc["bufferViews"][k as usize];
+            let o = v["byteOffset"].as_u64().unwrap() as usize;
+            &bin[o..o + v["byteLength"].as_u64().unwrap() as usize]
+        };
+        let strings = view(table["properties"]["source_id"]["values"].as_u64().unwrap());
+        assert_eq!(std::str::from_utf8(strings).unwrap(), "abé");
+        let offs = view(
+            table["properties"]["source_id"]["stringOffsets"]
+                .as_u64()
+                .unwrap(),
+        );
+        assert_eq!(offs, [0, 0, 0, 0, 1, 0, 0, 0, 4, 0, 0, 0]);
+        // Without features: no extension, no feature attribute.
+        let plain = TileMesh {
+            feature_ids: Vec::new(),
+            features: Vec::new(),
+            ..m
+        };
+        let doc = json_of(&tile_glb_bytes("p", &plain, Value::Null).unwrap());
+        assert!(doc.get("extensionsUsed").is_none());
+        assert!(doc["meshes"][0]["primitives"][0]["attributes"]["_FEATURE_ID_0"].is_null());
+    }
+
+    #[test]
+    fn tile_glb_refuses_arrays_that_do_not_match_the_positions() {
+        let mut m = two_triangles();
+        m.feature_ids.pop();
+        let e = tile_glb_bytes("t", &m, Value::Null).unwrap_err();
+        assert!(
+            matches!(
+                e,
+                ExportError::AttributeCount {
+                    attribute: "_FEATURE_ID_0",
+                    count: 5,
+                    vertices: 6,
+                    ..
+                }
+            ),
+            "{e:?}"
+        );
+        assert!(
+            e.to_string()
+                .contains("_FEATURE_ID_0 has 5 entries for 6 vertices"),
+            "{e}"
+        );
+        let mut m = two_triangles();
+        m.colors.push([0.0; 3]);
+        assert!(matches!(
+            tile_glb_bytes("t", &m, Value::Null).unwrap_err(),
+            ExportError::AttributeCount {
+                attribute: "COLOR_0",
+                count: 7,
+                ..
+            }
+        ));
+        let mut m = two_triangles();
+        m.features.pop();
+        assert!(matches!(
+            tile_glb_bytes("t", &m, Value::Null).unwrap_err(),
+            ExportError::AttributeCount {
+                attribute: "_FEATURE_ID_0",
+                count: 1,
+                ..
+            }
+        ));
     }
 
     #[test]

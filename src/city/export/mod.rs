@@ -38,6 +38,18 @@ pub enum ExportError {
         /// Buildings in the city.
         buildings: usize,
     },
+    /// A per-vertex array of a tile mesh does not have one entry per position.
+    #[error("{file}: {attribute} has {count} entries for {vertices} vertices")]
+    AttributeCount {
+        /// The file (`<glb>` when no file is written).
+        file: PathBuf,
+        /// The attribute (`NORMAL`, `COLOR_0`, `_FEATURE_ID_0`).
+        attribute: &'static str,
+        /// Entries given.
+        count: usize,
+        /// Positions.
+        vertices: usize,
+    },
     /// The `.glb` would be larger than the format allows ([`GLB_MAX_BYTES`]: its header stores
     /// the length in 32 bits). Nothing was written.
     #[error(
@@ -78,6 +90,17 @@ impl ExportError {
                 file: file.to_path_buf(),
                 meshes,
                 buildings,
+            },
+            ExportError::AttributeCount {
+                attribute,
+                count,
+                vertices,
+                ..
+            } => ExportError::AttributeCount {
+                file: file.to_path_buf(),
+                attribute,
+                count,
+                vertices,
             },
             ExportError::TooLarge { bytes, limit, .. } => ExportError::TooLarge {
                 file: file.to_path_buf(),
