@@ -325,17 +325,23 @@ fn plan(tree: &BqrTree, maps: &MapTree, layout: &BlockLayout, meshes: &[Mesh]) -
             kids_of[p].push(i);
         }
     }
+    /// What the depth-first walk reads.
+    struct Walk<'a> {
+        tree: &'a BqrTree,
+        maps: &'a MapTree,
+        kids_of: &'a [Vec<usize>],
+        leaf: &'a dyn Fn(u64, Vec<BlockId>) -> Tile,
+        blocks_of: &'a dyn Fn(std::ops::Range<usize>) -> Vec<BlockId>,
+    }
     // Depth-first, parents before children: (map slot, parent tile).
-    fn visit(
-        slot: usize,
-        parent: Option<usize>,
-        tree: &BqrTree,
-        maps: &MapTree,
-        kids_of: &[Vec<usize>],
-        tiles: &mut Vec<Tile>,
-        leaf: &dyn Fn(u64, Vec<BlockId>) -> Tile,
-        blocks_of: &dyn Fn(std::ops::Range<usize>) -> Vec<BlockId>,
-    ) {
+    fn visit(slot: usize, parent: Option<usize>, w: &Walk<'_>, tiles: &mut Vec<Tile>) {
+        let Walk {
+            tree,
+            maps,
+            kids_of,
+            leaf,
+            blocks_of,
+        } = *w;
         let m = &maps.maps[slot];
         let v = tree.node(m.node).expect("mapped nodes exist");
         let me = tiles.len();
@@ -370,7 +376,7 @@ fn plan(tree: &BqrTree, maps: &MapTree, layout: &BlockLayout, meshes: &[Mesh]) -
                     .is_some_and(|n| n.blocks == cv.blocks)
             });
             match mapped {
-                Some(k) => visit(k, Some(me), tree, maps, kids_of, tiles, leaf, blocks_of),
+                Some(k) => visit(k, Some(me), w, tiles),
                 None => {
                     let t = leaf(cv.key, blocks_of(cv.blocks.clone()));
                     let i = tiles.len();
@@ -398,9 +404,14 @@ fn plan(tree: &BqrTree, maps: &MapTree, layout: &BlockLayout, meshes: &[Mesh]) -
         .filter(|&i| maps.maps[i].parent.is_none())
         .collect();
     debug_assert_eq!(roots.len(), 1, "the map tree has one root");
-    visit(
-        roots[0], None, tree, maps, &kids_of, &mut tiles, &leaf, &blocks_of,
-    );
+    let w = Walk {
+        tree,
+        maps,
+        kids_of: &kids_of,
+        leaf: &leaf,
+        blocks_of: &blocks_of,
+    };
+    visit(roots[0], None, &w, &mut tiles);
     tiles
 }
 
@@ -471,7 +482,9 @@ pub fn build_tileset(
     // Contents, in parallel; each tile's bytes depend only on the tile.
     let total = tiles.len();
     let done = std::sync::atomic::AtomicUsize::new(0);
-    let written: Vec<Result<(Option<String>, usize, Aabb3), TilesError>> = tiles
+    // (content uri, bytes, box) of each tile.
+    type Written = (Option<String>, usize, Aabb3);
+    let written: Vec<Result<Written, TilesError>> = tiles
         .par_iter()
         .map(|t| {
             let (name, mesh, extras) = match t.kind {

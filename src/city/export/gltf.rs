@@ -467,7 +467,7 @@ pub struct TileMesh {
 /// for 8-byte aligned property buffer views; 8 covers the 4 that vertex data needs) and returns
 /// the buffer view describing it.
 fn push_view(bin: &mut Vec<u8>, bytes: &[u8], target: Option<u32>, stride: Option<u32>) -> Value {
-    while bin.len() % 8 != 0 {
+    while !bin.len().is_multiple_of(8) {
         bin.push(0);
     }
     let mut v = json!({ "buffer": 0, "byteOffset": bin.len(), "byteLength": bytes.len() });
