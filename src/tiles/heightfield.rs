@@ -9,9 +9,10 @@
 //! mesh is closed against the ground plane only (no floor), like the extruded prisms seen from
 //! above.
 //!
-//! Its distance to the original prisms is at most the map's declared ε plus half a texel
-//! diagonal (the prisms replace the per-pixel ray cast's exact texel tops; walls stand on texel
-//! edges), which is what the tile's `geometricError` states.
+//! The mesh is the map's own geometry, the texel prisms that the reference caster intersects
+//! (seed 002 §4.2.2) and that the error measure compares with the buildings (`blockmap::error`),
+//! so the map's declared ε bounds its distance to the buildings: the tile's `geometricError`.
+//! Only the roof normals (sloped roofs) are not carried: tops are drawn flat.
 
 use crate::blockmap::BlockMap;
 use crate::city::export::TileMesh;
