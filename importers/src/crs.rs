@@ -374,6 +374,15 @@ impl MetricTransform {
         Ok(())
     }
 
+    /// Metric ground coordinates → WGS84 longitude/latitude in degrees (the datum shift is the
+    /// CRS's `+towgs84`/`+datum` when it has one); `None` for a frame without geodetic meaning
+    /// ([`Crs::Unknown`]) or a point the projection refuses.
+    pub fn to_wgs84_lonlat(&self, p: [f64; 2]) -> Option<[f64; 2]> {
+        let i = self.inner.as_ref()?;
+        let wgs84 = Frame::new(WGS84_LONLAT).ok()?;
+        i.metric.project(&wgs84, p).ok()
+    }
+
     /// True when [`Self::to_metric`] is the identity.
     pub fn is_identity(&self) -> bool {
         self.inner.as_ref().is_none_or(|i| i.identity)

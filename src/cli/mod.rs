@@ -42,6 +42,7 @@ mod farfield_sweep;
 mod generate;
 mod import;
 mod occlusion_bench;
+mod tileset;
 mod view;
 mod walk;
 
@@ -63,6 +64,8 @@ enum Command {
     Blocks(blocks::Args),
     /// BlockMaps for the block quadtree's nodes, with their measured error.
     Blockmaps(blockmaps::Args),
+    /// The city as a 3D Tiles 1.1 tileset (block quadtree, BlockMap height fields, building meshes).
+    Tileset(tileset::Args),
     /// Compare spatial structures on frustum culling.
     CullBench(cull_bench::Args),
     /// Occlusion culling with the cull map, checked against the visibility oracle.
@@ -118,6 +121,7 @@ fn dispatch(command: Command) -> anyhow::Result<()> {
         Command::Generate(a) => generate::run(a),
         Command::Blocks(a) => blocks::run(a),
         Command::Blockmaps(a) => blockmaps::run(a),
+        Command::Tileset(a) => tileset::run(a),
         Command::CullBench(a) => cull_bench::run(a),
         Command::OcclusionBench(a) => occlusion_bench::run(a),
         Command::Walk(a) => walk::run(a),

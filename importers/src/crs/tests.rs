@@ -256,3 +256,26 @@ fn layers_in_other_crs_land_in_the_same_frame() {
         utm.describe()
     );
 }
+
+#[test]
+fn metric_points_go_to_wgs84_lonlat() {
+    // On the central meridian (false easting 500 000 m) the longitude is the meridian's.
+    let tm35 = Crs::from_wkt(TM35_PRJ)
+        .unwrap()
+        .metric_transform([385_000.0, 6_672_000.0]);
+    let [lon, lat] = tm35.to_wgs84_lonlat([500_000.0, 6_672_000.0]).unwrap();
+    assert!((lon - 27.0).abs() < 1e-9, "{lon}");
+    assert!((lat - 60.17).abs() < 0.05, "{lat}");
+    // A Web Mercator layer's local frame: its centre is the origin of the metric frame.
+    let merc = Crs::WebMercator.metric_transform([1_603_000.0, 6_464_000.0]);
+    let [clon, clat] = merc.center_lonlat.unwrap();
+    let [lon, lat] = merc.to_wgs84_lonlat([0.0, 0.0]).unwrap();
+    assert!((lon - clon).abs() < 1e-9 && (lat - clat).abs() < 1e-9);
+    // No CRS, no geodetic meaning.
+    assert_eq!(
+        Crs::Unknown
+            .metric_transform([0.0, 0.0])
+            .to_wgs84_lonlat([1.0, 2.0]),
+        None
+    );
+}

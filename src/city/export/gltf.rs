@@ -52,6 +52,7 @@ const ARRAY_BUFFER: u32 = 34962;
 const ELEMENT_ARRAY_BUFFER: u32 = 34963;
 const FLOAT: u32 = 5126;
 const UNSIGNED_INT: u32 = 5125;
+const UNSIGNED_BYTE: u32 = 5121;
 
 fn y_up(v: Vec3) -> [f32; 3] {
     [v.x, v.z, -v.y]
@@ -431,6 +432,271 @@ fn write_glb_limited(
     Ok(p.stats)
 }
 
+/// One building of a 3D Tiles content `.glb` ([`tile_glb_bytes`]): a row of its property table.
+#[derive(Clone, Debug, PartialEq)]
+pub struct TileFeature {
+    /// The building's source id.
+    pub source_id: String,
+    /// Roof height above the ground, metres.
+    pub height_m: f64,
+    /// Bottom of the building (raised parts), metres.
+    pub min_height_m: f64,
+}
+
+/// One primitive of a 3D Tiles content `.glb`, local frame (x east, y north, z up; metres
+/// relative to the city's origin), written by [`tile_glb_bytes`].
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct TileMesh {
+    /// Vertex positions (local, z up).
+    pub positions: Vec<Vec3>,
+    /// Unit normals, one per position.
+    pub normals: Vec<Vec3>,
+    /// Linear RGB vertex colours in `[0, 1]` (`COLOR_0`, stored as normalised bytes): empty or
+    /// one per position.
+    pub colors: Vec<[f32; 3]>,
+    /// Feature id of each vertex (`_FEATURE_ID_0`, an index into `features`): empty, or one per
+    /// position.
+    pub feature_ids: Vec<u32>,
+    /// Three indices per triangle, counter-clockwise seen from outside.
+    pub indices: Vec<u32>,
+    /// The features' property table (`EXT_structural_metadata`), indexed by feature id.
+    pub features: Vec<TileFeature>,
+}
+
+/// Appends `bytes` to `bin` at an offset aligned to 8 bytes (`EXT_structural_metadata` asks
+/// for 8-byte aligned property buffer views; 8 covers the 4 that vertex data needs) and returns
+/// the buffer view describing it.
+fn push_view(bin: &mut Vec<u8>, bytes: &[u8], target: Option<u32>, stride: Option<u32>) -> Value {
+    while !bin.len().is_multiple_of(8) {
+        bin.push(0);
+    }
+    let mut v = json!({ "buffer": 0, "byteOffset": bin.len(), "byteLength": bytes.len() });
+    if let Some(t) = target {
+        v["target"] = json!(t);
+    }
+    if let Some(s) = stride {
+        v["byteStride"] = json!(s);
+    }
+    bin.extend_from_slice(bytes);
+    v
+}
+
+/// The `.glb` of one 3D Tiles 1.1 tile: one mesh with one primitive (POSITION with min/max,
+/// NORMAL, optional `COLOR_0` as normalised RGBA bytes, u32 indices), written Y-up as [`write_glb_to`] writes it (local
+/// (x, y, z) as (x, z, −y); 3D Tiles turns glTF content back to Z-up). With feature ids, the
+/// primitive carries `_FEATURE_ID_0` (FLOAT scalars holding whole numbers, as
+/// `EXT_mesh_features` allows) and an `EXT_mesh_features` feature id set pointing at property
+/// table 0 of `EXT_structural_metadata`, class `building` (`source_id` STRING, `height_m` and
+/// `min_height_m` FLOAT64). `extras` goes on the root node. Deterministic.
+///
+/// # Errors
+/// [`ExportError::AttributeCount`] when a per-vertex array does not match the positions or a
+/// feature id has no row in `features` (its count is then the id), [`ExportError::TooLarge`]
+/// over [`GLB_MAX_BYTES`].
+pub fn tile_glb_bytes(name: &str, mesh: &TileMesh, extras: Value) -> Result<Vec<u8>, ExportError> {
+    let n = mesh.positions.len();
+    let mismatch = |attribute: &'static str, count: usize| ExportError::AttributeCount {
+        file: "<glb>".into(),
+        attribute,
+        count,
+        vertices: n,
+    };
+    if mesh.normals.len() != n {
+        return Err(mismatch("NORMAL", mesh.normals.len()));
+    }
+    if !mesh.colors.is_empty() && mesh.colors.len() != n {
+        return Err(mismatch("COLOR_0", mesh.colors.len()));
+    }
+    if !mesh.feature_ids.is_empty() && mesh.feature_ids.len() != n {
+        return Err(mismatch("_FEATURE_ID_0", mesh.feature_ids.len()));
+    }
+    if let Some(&f) = mesh
+        .feature_ids
+        .iter()
+        .find(|&&f| f as usize >= mesh.features.len())
+    {
+        return Err(mismatch("_FEATURE_ID_0", f as usize));
+    }
+    let f32s = |it: &mut dyn Iterator<Item = f32>| -> Vec<u8> {
+        it.flat_map(|c| c.to_le_bytes()).collect()
+    };
+    let mut bin: Vec<u8> = Vec::new();
+    let mut views: Vec<Value> = Vec::new();
+    let mut accessors: Vec<Value> = Vec::new();
+    let mut attributes = serde_json::Map::new();
+    let mut vertex_view = |bin: &mut Vec<u8>, bytes: Vec<u8>, stride: u32| -> usize {
+        views.push(push_view(bin, &bytes, Some(ARRAY_BUFFER), Some(stride)));
+        views.len() - 1
+    };
+    let mut lo = [f32::INFINITY; 3];
+    let mut hi = [f32::NEG_INFINITY; 3];
+    for p in &mesh.positions {
+        let q = y_up(*p);
+        for k in 0..3 {
+            lo[k] = lo[k].min(q[k]);
+            hi[k] = hi[k].max(q[k]);
+        }
+    }
+    let v = vertex_view(
+        &mut bin,
+        f32s(&mut mesh.positions.iter().flat_map(|p| y_up(*p))),
+        12,
+    );
+    attributes.insert("POSITION".into(), json!(accessors.len()));
+    accessors.push(json!({"bufferView": v, "componentType": FLOAT, "count": n, "type": "VEC3", "min": lo, "max": hi}));
+    let v = vertex_view(
+        &mut bin,
+        f32s(&mut mesh.normals.iter().flat_map(|p| y_up(*p))),
+        12,
+    );
+    attributes.insert("NORMAL".into(), json!(accessors.len()));
+    accessors.push(json!({"bufferView": v, "componentType": FLOAT, "count": n, "type": "VEC3"}));
+    if !mesh.colors.is_empty() {
+        let v = vertex_view(
+            &mut bin,
+            // Normalised bytes, RGBA (4-byte aligned vertex elements, glTF 2.0 §3.6.2.4).
+            mesh.colors
+                .iter()
+                .flat_map(|c| {
+                    let [r, g, b] = c.map(|x| (x.clamp(0.0, 1.0) * 255.0).round() as u8);
+                    [r, g, b, 255]
+                })
+                .collect(),
+            4,
+        );
+        attributes.insert("COLOR_0".into(), json!(accessors.len()));
+        accessors.push(json!({"bufferView": v, "componentType": UNSIGNED_BYTE, "normalized": true, "count": n, "type": "VEC4"}));
+    }
+    let with_features = !mesh.feature_ids.is_empty();
+    if with_features {
+        let v = vertex_view(
+            &mut bin,
+            f32s(&mut mesh.feature_ids.iter().map(|&i| i as f32)),
+            4,
+        );
+        attributes.insert("_FEATURE_ID_0".into(), json!(accessors.len()));
+        accessors
+            .push(json!({"bufferView": v, "componentType": FLOAT, "count": n, "type": "SCALAR"}));
+    }
+    let idx: Vec<u8> = mesh.indices.iter().flat_map(|i| i.to_le_bytes()).collect();
+    views.push(push_view(&mut bin, &idx, Some(ELEMENT_ARRAY_BUFFER), None));
+    let a_idx = accessors.len();
+    accessors.push(json!({"bufferView": views.len() - 1, "componentType": UNSIGNED_INT, "count": mesh.indices.len(), "type": "SCALAR"}));
+
+    let mut primitive = json!({
+        "attributes": Value::Object(attributes),
+        "indices": a_idx,
+        "material": 0,
+        "mode": 4,
+    });
+    let mut doc_ext = serde_json::Map::new();
+    let mut used: Vec<&str> = Vec::new();
+    if with_features {
+        let f = &mesh.features;
+        let mut view_of = |bytes: Vec<u8>| -> usize {
+            views.push(push_view(&mut bin, &bytes, None, None));
+            views.len() - 1
+        };
+        let heights = view_of(f.iter().flat_map(|r| r.height_m.to_le_bytes()).collect());
+        let mins = view_of(
+            f.iter()
+                .flat_map(|r| r.min_height_m.to_le_bytes())
+                .collect(),
+        );
+        let mut strings = Vec::new();
+        let mut offsets: Vec<u8> = Vec::new();
+        for r in f {
+            offsets.extend_from_slice(&(strings.len() as u32).to_le_bytes());
+            strings.extend_from_slice(r.source_id.as_bytes());
+        }
+        offsets.extend_from_slice(&(strings.len() as u32).to_le_bytes());
+        let ids = view_of(strings);
+        let id_offsets = view_of(offsets);
+        primitive["extensions"] = json!({
+            "EXT_mesh_features": {
+                "featureIds": [{
+                    "featureCount": f.len(),
+                    "attribute": 0,
+                    "propertyTable": 0,
+                    "label": "building",
+                }]
+            }
+        });
+        doc_ext.insert(
+            "EXT_structural_metadata".into(),
+            json!({
+                "schema": {
+                    "id": "blockwalk",
+                    "classes": {
+                        "building": {
+                            "name": "Building",
+                            "properties": {
+                                "source_id": { "type": "STRING", "description": "id in the source data" },
+                                "height_m": { "type": "SCALAR", "componentType": "FLOAT64", "description": "roof height above the ground, metres" },
+                                "min_height_m": { "type": "SCALAR", "componentType": "FLOAT64", "description": "bottom of the building, metres" },
+                            }
+                        }
+                    }
+                },
+                "propertyTables": [{
+                    "class": "building",
+                    "count": f.len(),
+                    "properties": {
+                        "source_id": { "values": ids, "stringOffsets": id_offsets, "stringOffsetType": "UINT32" },
+                        "height_m": { "values": heights },
+                        "min_height_m": { "values": mins },
+                    }
+                }]
+            }),
+        );
+        used = vec!["EXT_mesh_features", "EXT_structural_metadata"];
+    }
+    let bin_len = bin.len() as u64;
+    let mut doc = json!({
+        "asset": { "version": "2.0", "generator": "blockwalk" },
+        "scene": 0,
+        "scenes": [{ "name": name, "nodes": [0] }],
+        "nodes": [{ "name": name, "mesh": 0, "extras": extras }],
+        "meshes": [{ "name": name, "primitives": [primitive] }],
+        "materials": [{
+            "name": "tile",
+            "pbrMetallicRoughness": {
+                "baseColorFactor": [1.0, 1.0, 1.0, 1.0],
+                "metallicFactor": 0.0,
+                "roughnessFactor": 0.9,
+            },
+        }],
+        "accessors": accessors,
+        "bufferViews": views,
+        "buffers": [{ "byteLength": bin_len }],
+    });
+    if !used.is_empty() {
+        doc["extensionsUsed"] = json!(used);
+        doc["extensions"] = Value::Object(doc_ext);
+    }
+    let json_bytes = serde_json::to_vec(&doc).map_err(json_error)?;
+    let json_padded =
+        padded(json_bytes.len() as u64).ok_or_else(|| too_large(None, GLB_MAX_BYTES))?;
+    let bin_padded = padded(bin_len).ok_or_else(|| too_large(None, GLB_MAX_BYTES))?;
+    let total = 12 + 8 + json_padded + 8 + bin_padded;
+    if total > GLB_MAX_BYTES {
+        return Err(too_large(Some(total), GLB_MAX_BYTES));
+    }
+    let mut out = Vec::with_capacity(total as usize);
+    out.extend_from_slice(b"glTF");
+    out.extend_from_slice(&2u32.to_le_bytes());
+    out.extend_from_slice(&(total as u32).to_le_bytes());
+    out.extend_from_slice(&(json_padded as u32).to_le_bytes());
+    out.extend_from_slice(b"JSON");
+    out.extend_from_slice(&json_bytes);
+    out.resize(out.len() + (json_padded as usize - json_bytes.len()), b' ');
+    out.extend_from_slice(&(bin_padded as u32).to_le_bytes());
+    out.extend_from_slice(b"BIN\0");
+    out.extend_from_slice(&bin);
+    out.resize(total as usize, 0);
+    Ok(out)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -665,6 +931,145 @@ mod tests {
             "{e:?}"
         );
         assert!(sink.is_empty());
+    }
+
+    fn two_triangles() -> TileMesh {
+        let p = |x: f32, y: f32, z: f32| Vec3::new(x, y, z);
+        TileMesh {
+            positions: vec![
+                p(0., 0., 1.),
+                p(1., 0., 1.),
+                p(0., 1., 1.),
+                p(5., 5., 2.),
+                p(6., 5., 2.),
+                p(5., 6., 2.),
+            ],
+            normals: vec![Vec3::Z; 6],
+            colors: vec![[0.5, 0.25, 0.125]; 6],
+            feature_ids: vec![0, 0, 0, 1, 1, 1],
+            indices: vec![0, 1, 2, 3, 4, 5],
+            features: vec![
+                TileFeature {
+                    source_id: "a".into(),
+                    height_m: 1.0,
+                    min_height_m: 0.0,
+                },
+                TileFeature {
+                    source_id: "bé".into(),
+                    height_m: 2.0,
+                    min_height_m: 0.5,
+                },
+            ],
+        }
+    }
+
+    /// The JSON chunk of a `.glb`.
+    fn json_of(bytes: &[u8]) -> Value {
+        let n = u32::from_le_bytes(bytes[12..16].try_into().unwrap()) as usize;
+        serde_json::from_slice(&bytes[20..20 + n]).unwrap()
+    }
+
+    #[test]
+    fn tile_glb_holds_features_colours_and_y_up_positions() {
+        let m = two_triangles();
+        let bytes = tile_glb_bytes("t", &m, json!({"k": 1})).unwrap();
+        assert_eq!(bytes, tile_glb_bytes("t", &m, json!({"k": 1})).unwrap());
+        assert_eq!(
+            u32::from_le_bytes(bytes[8..12].try_into().unwrap()) as usize,
+            bytes.len()
+        );
+        let doc = json_of(&bytes);
+        let prim = &doc["meshes"][0]["primitives"][0];
+        for want in ["POSITION", "NORMAL", "COLOR_0", "_FEATURE_ID_0"] {
+            assert!(prim["attributes"][want].is_number(), "{want}: {prim}");
+        }
+        // Y-up: the local z = 2 of the second triangle is glTF y; local y is −z.
+        let pos = &doc["accessors"][prim["attributes"]["POSITION"].as_u64().unwrap() as usize];
+        assert_eq!(pos["max"], json!([6.0, 2.0, 0.0]));
+        assert_eq!(pos["min"], json!([0.0, 1.0, -6.0]));
+        let col = &doc["accessors"][prim["attributes"]["COLOR_0"].as_u64().unwrap() as usize];
+        assert_eq!(
+            (col["componentType"].as_u64(), col["normalized"].as_bool()),
+            (Some(5121), Some(true))
+        );
+        assert_eq!(
+            prim["extensions"]["EXT_mesh_features"]["featureIds"][0]["featureCount"],
+            2
+        );
+        let table = &doc["extensions"]["EXT_structural_metadata"]["propertyTables"][0];
+        assert_eq!(table["count"], 2);
+        // Every buffer view is 8-byte aligned; the string offsets end at the strings' length.
+        for v in doc["bufferViews"].as_array().unwrap() {
+            assert_eq!(v["byteOffset"].as_u64().unwrap() % 8, 0);
+        }
+        let jl = u32::from_le_bytes(bytes[12..16].try_into().unwrap()) as usize;
+        let bin = &bytes[28 + jl..];
+        let view = |k: u64| {
+            let v = &doc["bufferViews"][k as usize];
+            let o = v["byteOffset"].as_u64().unwrap() as usize;
+            &bin[o..o + v["byteLength"].as_u64().unwrap() as usize]
+        };
+        let strings = view(table["properties"]["source_id"]["values"].as_u64().unwrap());
+        assert_eq!(std::str::from_utf8(strings).unwrap(), "abé");
+        let offs = view(
+            table["properties"]["source_id"]["stringOffsets"]
+                .as_u64()
+                .unwrap(),
+        );
+        assert_eq!(offs, [0, 0, 0, 0, 1, 0, 0, 0, 4, 0, 0, 0]);
+        // Without features: no extension, no feature attribute.
+        let plain = TileMesh {
+            feature_ids: Vec::new(),
+            features: Vec::new(),
+            ..m
+        };
+        let doc = json_of(&tile_glb_bytes("p", &plain, Value::Null).unwrap());
+        assert!(doc.get("extensionsUsed").is_none());
+        assert!(doc["meshes"][0]["primitives"][0]["attributes"]["_FEATURE_ID_0"].is_null());
+    }
+
+    #[test]
+    fn tile_glb_refuses_arrays_that_do_not_match_the_positions() {
+        let mut m = two_triangles();
+        m.feature_ids.pop();
+        let e = tile_glb_bytes("t", &m, Value::Null).unwrap_err();
+        assert!(
+            matches!(
+                e,
+                ExportError::AttributeCount {
+                    attribute: "_FEATURE_ID_0",
+                    count: 5,
+                    vertices: 6,
+                    ..
+                }
+            ),
+            "{e:?}"
+        );
+        assert!(
+            e.to_string()
+                .contains("_FEATURE_ID_0 has 5 entries for 6 vertices"),
+            "{e}"
+        );
+        let mut m = two_triangles();
+        m.colors.push([0.0; 3]);
+        assert!(matches!(
+            tile_glb_bytes("t", &m, Value::Null).unwrap_err(),
+            ExportError::AttributeCount {
+                attribute: "COLOR_0",
+                count: 7,
+                ..
+            }
+        ));
+        let mut m = two_triangles();
+        m.features.pop();
+        assert!(matches!(
+            tile_glb_bytes("t", &m, Value::Null).unwrap_err(),
+            ExportError::AttributeCount {
+                attribute: "_FEATURE_ID_0",
+                count: 1,
+                ..
+            }
+        ));
     }
 
     #[test]

@@ -11,7 +11,10 @@ pub mod gltf;
 use std::path::PathBuf;
 
 pub use self::geojson::{geojson_value, write_geojson};
-pub use self::gltf::{glb_bytes, write_glb, write_glb_to, GlbStats, GLB_MAX_BYTES};
+pub use self::gltf::{
+    glb_bytes, tile_glb_bytes, write_glb, write_glb_to, GlbStats, TileFeature, TileMesh,
+    GLB_MAX_BYTES,
+};
 
 /// Why an export failed. Every variant names the file.
 #[derive(Debug, thiserror::Error)]
@@ -34,6 +37,18 @@ pub enum ExportError {
         meshes: usize,
         /// Buildings in the city.
         buildings: usize,
+    },
+    /// A per-vertex array of a tile mesh does not have one entry per position.
+    #[error("{file}: {attribute} has {count} entries for {vertices} vertices")]
+    AttributeCount {
+        /// The file (`<glb>` when no file is written).
+        file: PathBuf,
+        /// The attribute (`NORMAL`, `COLOR_0`, `_FEATURE_ID_0`).
+        attribute: &'static str,
+        /// Entries given.
+        count: usize,
+        /// Positions.
+        vertices: usize,
     },
     /// The `.glb` would be larger than the format allows ([`GLB_MAX_BYTES`]: its header stores
     /// the length in 32 bits). Nothing was written.
@@ -75,6 +90,17 @@ impl ExportError {
                 file: file.to_path_buf(),
                 meshes,
                 buildings,
+            },
+            ExportError::AttributeCount {
+                attribute,
+                count,
+                vertices,
+                ..
+            } => ExportError::AttributeCount {
+                file: file.to_path_buf(),
+                attribute,
+                count,
+                vertices,
             },
             ExportError::TooLarge { bytes, limit, .. } => ExportError::TooLarge {
                 file: file.to_path_buf(),

@@ -1,0 +1,104 @@
+//! `blockwalk tileset`: the city as a 3D Tiles 1.1 tileset (the block quadtree; BlockMap height
+//! fields inside, building meshes at the leaves), for CesiumJS and other 3D Tiles viewers.
+
+use super::common::{load_scene, CityArgs};
+use anyhow::Context;
+use blockwalk::blockmap::Stop;
+use blockwalk::scene::SceneOptions;
+use blockwalk::tiles::{build_tileset, TilesetOptions};
+use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
+use std::io::IsTerminal;
+use std::path::PathBuf;
+
+/// Arguments.
+#[derive(clap::Args, Debug)]
+pub struct Args {
+    #[command(flatten)]
+    pub city: CityArgs,
+    /// Height-map side K of the inner tiles' BlockMaps: 32, 64 or 128.
+    #[arg(long, default_value_t = 64)]
+    pub k: u32,
+    /// Inner tiles for the first N levels of the quadtree (default: a map where it costs fewer
+    /// bytes than the meshes, seed 000 §4).
+    #[arg(long)]
+    pub levels: Option<u32>,
+    /// Output directory (tileset.json and tiles/).
+    #[arg(short = 'o', long = "out")]
+    pub out: PathBuf,
+    /// Print one JSON object instead of the human summary.
+    #[arg(long)]
+    pub json: bool,
+}
+
+pub fn run(args: Args) -> anyhow::Result<()> {
+    anyhow::ensure!(
+        blockwalk::blockmap::layout::ALLOWED_K.contains(&args.k),
+        "--k {}: expected 32, 64 or 128",
+        args.k
+    );
+    if let Some(l) = args.levels {
+        anyhow::ensure!(l >= 1, "--levels must be at least 1");
+    }
+    let t0 = std::time::Instant::now();
+    let scene = load_scene(
+        &args.city,
+        0,
+        &SceneOptions {
+            structures: Vec::new(),
+            ..SceneOptions::default()
+        },
+    )?;
+    let meshes = blockwalk::city::extrude::extrude_city(&scene.city);
+    let bar = if args.json || !std::io::stderr().is_terminal() {
+        ProgressBar::hidden()
+    } else {
+        ProgressBar::with_draw_target(Some(0), ProgressDrawTarget::stderr())
+    };
+    bar.set_style(
+        ProgressStyle::with_template("tileset [{bar:40}] {pos}/{len} ({eta})")
+            .unwrap_or_else(|_| ProgressStyle::default_bar())
+            .progress_chars("=> "),
+    );
+    std::fs::create_dir_all(&args.out)
+        .with_context(|| format!("creating {}", args.out.display()))?;
+    let opts = TilesetOptions {
+        k: args.k,
+        stop: args.levels.map_or(Stop::Competitive, Stop::Levels),
+    };
+    let (_, summary) = build_tileset(
+        &scene.city,
+        &scene.layout,
+        &scene.bounds,
+        &meshes,
+        &args.out,
+        &opts,
+        &|done, total| {
+            bar.set_length(total as u64);
+            bar.set_position(done as u64);
+        },
+    )?;
+    bar.finish_and_clear();
+    let total_s = t0.elapsed().as_secs_f64();
+    if args.json {
+        let mut v = serde_json::to_value(&summary)?;
+        v["total_seconds"] = serde_json::json!(total_s);
+        outln!("{}", serde_json::to_string(&v)?);
+    } else {
+        outln!(
+            "{}: {} tiles ({} BlockMap height fields, {} building leaves), depth {}, {} buildings, {:.2} MiB, built in {:.1} s ({:.1} s with loading)",
+            summary.city,
+            summary.tiles,
+            summary.map_tiles,
+            summary.leaf_tiles,
+            summary.depth,
+            summary.buildings,
+            summary.bytes as f64 / 1048576.0,
+            summary.seconds,
+            total_s
+        );
+        outln!("root geometric error {:.2} m", summary.root_geometric_error);
+        outln!("{}", summary.placement());
+        outln!("wrote {}", summary.tileset_json.display());
+    }
+    Ok(())
+}

@@ -1,0 +1,534 @@
+//! The 3D Tiles 1.1 export (`blockwalk::tiles`) on the bundled Helsinki and Bubeneč data: the
+//! tile tree against the block quadtree (every block in one leaf, every building in one leaf
+//! `.glb`, geometric errors, boxes), the feature ids and property tables read back from the
+//! binary, the root transform against an independent geodetic implementation (proj4rs) and
+//! against the projection of the buildings' own corners, determinism, and the Khronos
+//! glTF-Validator on every content file (skipped without node, unless
+//! `BLOCKWALK_REQUIRE_VALIDATORS=1`).
+
+use std::collections::{BTreeMap, BTreeSet};
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+use blockwalk::city::extrude::extrude_city;
+use blockwalk::city::Mesh;
+use blockwalk::scene::{CitySource, Scene, SceneOptions};
+use blockwalk::tiles::geodesy::{ecef_from_geodetic, geodetic_from_ecef};
+use blockwalk::tiles::{
+    build_tileset, local_from_gltf, local_to_ecef, TileKind, Tileset, TilesetOptions,
+    TilesetSummary,
+};
+use glam::{DVec3, Vec3};
+use serde_json::Value;
+
+struct Built {
+    scene: Scene,
+    meshes: Vec<Mesh>,
+    set: Tileset,
+    summary: TilesetSummary,
+    dir: tempfile::TempDir,
+}
+
+fn build(input: &str, streets: Option<&str>) -> Built {
+    let source = CitySource::parse(Path::new(input), streets.map(PathBuf::from), None, &[], 0)
+        .expect("source");
+    let scene = Scene::load(
+        &source,
+        &SceneOptions {
+            structures: Vec::new(),
+            ..SceneOptions::default()
+        },
+        &mut |_| {},
+    )
+    .expect("scene");
+    let meshes = extrude_city(&scene.city);
+    let dir = tempfile::tempdir().unwrap();
+    let (set, summary) = build_tileset(
+        &scene.city,
+        &scene.layout,
+        &scene.bounds,
+        &meshes,
+        dir.path(),
+        &TilesetOptions::default(),
+        &|_, _| {},
+    )
+    .expect("tileset");
+    Built {
+        scene,
+        meshes,
+        set,
+        summary,
+        dir,
+    }
+}
+
+fn helsinki() -> Built {
+    build(
+        "data/helsinki/buildings.shp",
+        Some("data/helsinki/streets_blockclass.shp"),
+    )
+}
+
+fn bubenec() -> Built {
+    build(
+        "data/bubenec/buildings.shp",
+        Some("data/bubenec/streets.shp"),
+    )
+}
+
+/// A `.glb` read back: its JSON and its binary chunk.
+struct Glb {
+    doc: Value,
+    bin: Vec<u8>,
+}
+
+fn read_glb(path: &Path) -> Glb {
+    let b = std::fs::read(path).unwrap();
+    let u32_at = |o: usize| u32::from_le_bytes(b[o..o + 4].try_into().unwrap()) as usize;
+    assert_eq!(&b[0..4], b"glTF");
+    assert_eq!(u32_at(8), b.len(), "{}: header length", path.display());
+    let jl = u32_at(12);
+    assert_eq!(&b[16..20], b"JSON");
+    let doc: Value = serde_json::from_slice(&b[20..20 + jl]).unwrap();
+    let bl = u32_at(20 + jl);
+    assert_eq!(&b[24 + jl..28 + jl], b"BIN\0");
+    Glb {
+        doc,
+        bin: b[28 + jl..28 + jl + bl].to_vec(),
+    }
+}
+
+impl Glb {
+    fn view(&self, v: usize) -> &[u8] {
+        let bv = &self.doc["bufferViews"][v];
+        let o = bv["byteOffset"].as_u64().unwrap_or(0) as usize;
+        &self.bin[o..o + bv["byteLength"].as_u64().unwrap() as usize]
+    }
+    /// A FLOAT accessor's components.
+    fn floats(&self, a: usize) -> Vec<f32> {
+        let acc = &self.doc["accessors"][a];
+        assert_eq!(acc["componentType"], 5126);
+        let n = acc["count"].as_u64().unwrap() as usize
+            * match acc["type"].as_str().unwrap() {
+                "SCALAR" => 1,
+                "VEC3" => 3,
+                t => panic!("{t}"),
+            };
+        let d = self.view(acc["bufferView"].as_u64().unwrap() as usize);
+        (0..n)
+            .map(|k| f32::from_le_bytes(d[4 * k..4 * k + 4].try_into().unwrap()))
+            .collect()
+    }
+    fn primitive(&self) -> &Value {
+        &self.doc["meshes"][0]["primitives"][0]
+    }
+    fn positions(&self) -> Vec<Vec3> {
+        let a = self.primitive()["attributes"]["POSITION"].as_u64().unwrap() as usize;
+        self.floats(a)
+            .chunks(3)
+            .map(|c| Vec3::new(c[0], c[1], c[2]))
+            .collect()
+    }
+    /// `_FEATURE_ID_0` per vertex.
+    fn feature_ids(&self) -> Vec<u32> {
+        let a = self.primitive()["attributes"]["_FEATURE_ID_0"]
+            .as_u64()
+            .expect("_FEATURE_ID_0") as usize;
+        self.floats(a)
+            .into_iter()
+            .map(|f| {
+                assert_eq!(f, f.trunc(), "feature ids are whole numbers");
+                f as u32
+            })
+            .collect()
+    }
+    /// Property table 0's `source_id` strings and `height_m` values.
+    fn properties(&self) -> (Vec<String>, Vec<f64>) {
+        let ext = &self.doc["extensions"]["EXT_structural_metadata"];
+        let t = &ext["propertyTables"][0];
+        assert_eq!(t["class"], "building");
+        let n = t["count"].as_u64().unwrap() as usize;
+        let p = &t["properties"];
+        let vals = self.view(p["source_id"]["values"].as_u64().unwrap() as usize);
+        let offs = self.view(p["source_id"]["stringOffsets"].as_u64().unwrap() as usize);
+        let off =
+            |k: usize| u32::from_le_bytes(offs[4 * k..4 * k + 4].try_into().unwrap()) as usize;
+        let ids = (0..n)
+            .map(|k| String::from_utf8(vals[off(k)..off(k + 1)].to_vec()).unwrap())
+            .collect();
+        let h = self.view(p["height_m"]["values"].as_u64().unwrap() as usize);
+        let heights = (0..n)
+            .map(|k| f64::from_le_bytes(h[8 * k..8 * k + 8].try_into().unwrap()))
+            .collect();
+        // Property buffer views are 8-byte aligned (EXT_structural_metadata).
+        for key in ["source_id", "height_m", "min_height_m"] {
+            let v = p[key]["values"].as_u64().unwrap() as usize;
+            let o = self.doc["bufferViews"][v]["byteOffset"].as_u64().unwrap();
+            assert_eq!(o % 8, 0, "{key}");
+        }
+        (ids, heights)
+    }
+}
+
+/// Every tile of the JSON tree with its parent (index in preorder).
+fn json_tiles(doc: &Value) -> Vec<(Option<usize>, Value)> {
+    fn walk(t: &Value, parent: Option<usize>, out: &mut Vec<(Option<usize>, Value)>) {
+        let me = out.len();
+        out.push((parent, t.clone()));
+        for c in t["children"].as_array().into_iter().flatten() {
+            walk(c, Some(me), out);
+        }
+    }
+    let mut out = Vec::new();
+    walk(&doc["root"], None, &mut out);
+    out
+}
+
+/// A tile box as (min, max): centre ± half-axes (our boxes are axis-aligned).
+fn box_of(t: &Value) -> (DVec3, DVec3) {
+    let b: Vec<f64> = t["boundingVolume"]["box"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|v| v.as_f64().unwrap())
+        .collect();
+    assert_eq!(b.len(), 12);
+    for k in [4, 5, 6, 8, 9, 10] {
+        assert_eq!(b[k], 0.0, "axis-aligned box");
+    }
+    let c = DVec3::new(b[0], b[1], b[2]);
+    let h = DVec3::new(b[3], b[7], b[11]);
+    assert!(h.min_element() > 0.0);
+    (c - h, c + h)
+}
+
+fn check_structure(name: &str, b: &Built) {
+    let doc: Value =
+        serde_json::from_slice(&std::fs::read(b.dir.path().join("tileset.json")).unwrap()).unwrap();
+    assert_eq!(doc["asset"]["version"], "1.1");
+    let tiles = json_tiles(&doc);
+    assert_eq!(tiles.len(), b.set.tiles.len(), "{name}");
+    assert!(b.set.tiles.len() > 1, "{name}: a tree, not one tile");
+    let root_ge = tiles[0].1["geometricError"].as_f64().unwrap();
+    assert!(doc["geometricError"].as_f64().unwrap() >= root_ge, "{name}");
+    let mut block_leaf: BTreeMap<u32, usize> = BTreeMap::new();
+    let mut building_leaf: BTreeMap<u32, usize> = BTreeMap::new();
+    for (i, (parent, t)) in tiles.iter().enumerate() {
+        assert_eq!(t["refine"], "REPLACE", "{name}");
+        let ge = t["geometricError"].as_f64().unwrap();
+        assert!(ge.is_finite() && ge >= 0.0);
+        let leaf = t.get("children").is_none();
+        let rust = &b.set.tiles[i];
+        if leaf {
+            assert_eq!(ge, 0.0, "{name}: leaf geometric error");
+            assert_eq!(rust.kind, TileKind::Buildings);
+            for bl in t["extras"]["blocks"].as_array().unwrap() {
+                let id = bl.as_u64().unwrap() as u32;
+                assert!(
+                    block_leaf.insert(id, i).is_none(),
+                    "{name}: block {id} in two leaves"
+                );
+            }
+        } else {
+            assert!(
+                matches!(rust.kind, TileKind::Map(_)),
+                "{name}: inner tiles are maps"
+            );
+            assert!(ge > 0.0, "{name}: inner tile with error 0");
+        }
+        if let Some(p) = parent {
+            let pt = &tiles[*p].1;
+            assert!(
+                pt["geometricError"].as_f64().unwrap() >= ge,
+                "{name}: parent error below child"
+            );
+            let (pa, pb) = box_of(pt);
+            let (ca, cb) = box_of(t);
+            let s = 1e-6 * (1.0 + pb.abs().max_element());
+            assert!(
+                ca.cmpge(pa - s).all() && cb.cmple(pb + s).all(),
+                "{name}: child box {ca:?}..{cb:?} outside parent {pa:?}..{pb:?}"
+            );
+            // An inner tile's blocks are the union of its children's.
+        }
+        // The content: leaves hold the meshes of their buildings, one feature each.
+        let Some(uri) = t["content"]["uri"].as_str() else {
+            assert!(rust.buildings.is_empty() || !leaf);
+            continue;
+        };
+        let glb = read_glb(&b.dir.path().join(uri));
+        let (lo, hi) = box_of(t);
+        for p in glb.positions() {
+            let q = local_from_gltf(p);
+            assert!(
+                q.cmpge(lo - 1e-3).all() && q.cmple(hi + 1e-3).all(),
+                "{name}: {uri}: vertex {q:?} outside its box"
+            );
+        }
+        if !leaf {
+            assert!(glb.primitive()["attributes"]["COLOR_0"].is_number());
+            continue;
+        }
+        let fids = glb.feature_ids();
+        let (ids, heights) = glb.properties();
+        assert_eq!(ids.len(), rust.buildings.len(), "{name}: {uri}");
+        let mut per_feature = vec![0usize; ids.len()];
+        for f in &fids {
+            per_feature[*f as usize] += 1;
+        }
+        for (f, &bi) in rust.buildings.iter().enumerate() {
+            let bd = &b.scene.city.buildings[bi as usize];
+            assert_eq!(ids[f], bd.source_id, "{name}: {uri} feature {f}");
+            assert_eq!(heights[f], bd.height_m);
+            assert_eq!(
+                per_feature[f],
+                b.meshes[bi as usize].positions.len(),
+                "{name}: {uri}: feature {f} ({}) does not cover its building's vertices",
+                bd.source_id
+            );
+            assert!(
+                building_leaf.insert(bi, i).is_none(),
+                "{name}: building {bi} in two leaves"
+            );
+            // Its block's leaf is this one.
+            let block = b
+                .scene
+                .layout
+                .blocks
+                .iter()
+                .find(|bl| bl.buildings.iter().any(|x| x.0 == bi))
+                .unwrap();
+            assert_eq!(block_leaf.get(&block.id.0), Some(&i));
+        }
+    }
+    // Every block in exactly one leaf, every building with a mesh in exactly one leaf .glb.
+    let all_blocks: BTreeSet<u32> = b.scene.bounds.iter().map(|x| x.id.0).collect();
+    assert_eq!(
+        block_leaf.keys().copied().collect::<BTreeSet<_>>(),
+        all_blocks,
+        "{name}"
+    );
+    let with_mesh: BTreeSet<u32> = (0..b.meshes.len() as u32)
+        .filter(|&i| b.meshes[i as usize].triangle_count() > 0)
+        .filter(|&i| {
+            b.scene
+                .layout
+                .blocks
+                .iter()
+                .any(|bl| bl.buildings.iter().any(|x| x.0 == i))
+        })
+        .collect();
+    assert_eq!(
+        building_leaf.keys().copied().collect::<BTreeSet<_>>(),
+        with_mesh,
+        "{name}"
+    );
+    assert_eq!(b.summary.buildings, with_mesh.len());
+    println!(
+        "{name}: {} tiles ({} maps, {} leaves), depth {}, {} bytes, root ε {:.2} m",
+        b.summary.tiles,
+        b.summary.map_tiles,
+        b.summary.leaf_tiles,
+        b.summary.depth,
+        b.summary.bytes,
+        b.summary.root_geometric_error
+    );
+}
+
+#[test]
+fn helsinki_tileset_is_the_block_quadtree_with_every_building_once() {
+    check_structure("helsinki", &helsinki());
+}
+
+#[test]
+fn bubenec_tileset_is_the_block_quadtree_with_every_building_once() {
+    check_structure("bubenec", &bubenec());
+}
+
+/// ECEF of a geodetic point by proj4rs (`+proj=geocent`): an implementation independent of ours.
+fn proj4rs_ecef(lon: f64, lat: f64, h: f64) -> DVec3 {
+    use proj4rs::proj::Proj;
+    let from = Proj::from_proj_string("+proj=longlat +datum=WGS84 +no_defs").unwrap();
+    let to = Proj::from_proj_string("+proj=geocent +datum=WGS84 +units=m +no_defs").unwrap();
+    let mut p = (lon.to_radians(), lat.to_radians(), h);
+    proj4rs::transform::transform(&from, &to, &mut p).unwrap();
+    DVec3::new(p.0, p.1, p.2)
+}
+
+#[test]
+fn our_ecef_matches_proj4rs_and_round_trips_within_a_millimetre() {
+    for &(lon, lat, h) in &[
+        (24.946, 60.169, 0.0),
+        (14.392, 50.104, 250.0),
+        (71.43, 51.13, 350.0),
+        (-58.38, -34.60, 25.0),
+        (0.0, 0.0, 0.0),
+    ] {
+        let ours = ecef_from_geodetic(lon, lat, h);
+        let theirs = proj4rs_ecef(lon, lat, h);
+        assert!(
+            (ours - theirs).length() < 1e-3,
+            "({lon}, {lat}, {h}): {ours:?} vs proj4rs {theirs:?}"
+        );
+        let (lo, la, hh) = geodetic_from_ecef(ours);
+        assert!((ecef_from_geodetic(lo, la, hh) - ours).length() < 1e-3);
+    }
+}
+
+/// The root transform puts the origin and every building corner where the CRS says they are:
+/// the origin's ECEF round-trips to the CRS's longitude/latitude within 1 mm, and the roof
+/// vertices read back from the leaf `.glb` files (glTF Y-up, turned Z-up as 3D Tiles does, then
+/// the root transform) land on their footprint corners projected through the CRS.
+#[test]
+fn root_transform_places_the_buildings_where_the_crs_says() {
+    for (name, b) in [("helsinki", helsinki()), ("bubenec", bubenec())] {
+        let g = b.set.georef.expect("a projected CRS is georeferenced");
+        let city = &b.scene.city;
+        let o = city.frame.origin;
+        let [lon, lat] = city.transform.to_wgs84_lonlat([o.x, o.y]).unwrap();
+        let origin = local_to_ecef(&g, DVec3::ZERO);
+        let (lo, la, h) = geodetic_from_ecef(origin);
+        let m_per_deg = 6_378_137.0f64.to_radians();
+        assert!((la - lat).abs() * m_per_deg < 1e-3, "{name}: latitude");
+        assert!(
+            (lo - lon).abs() * m_per_deg * lat.to_radians().cos() < 1e-3,
+            "{name}: longitude"
+        );
+        assert!((h - o.z).abs() < 1e-3, "{name}: height");
+        assert!(
+            (origin - proj4rs_ecef(lon, lat, o.z)).length() < 1e-3,
+            "{name}"
+        );
+
+        // Roof corners of every leaf's buildings.
+        let (mut worst_h, mut worst_v, mut n) = (0.0f64, 0.0f64, 0usize);
+        for t in b.set.tiles.iter().filter(|t| t.kind == TileKind::Buildings) {
+            let Some(uri) = &t.content else { continue };
+            let glb = read_glb(&b.dir.path().join(uri));
+            let pos = glb.positions();
+            let fids = glb.feature_ids();
+            for (p, f) in pos.iter().zip(&fids) {
+                let bd = &city.buildings[t.buildings[*f as usize] as usize];
+                let local = local_from_gltf(*p);
+                if (local.z - bd.height_m).abs() > 1e-3 {
+                    continue; // roof vertices only
+                }
+                let (plon, plat, ph) = geodetic_from_ecef(local_to_ecef(&g, local));
+                // The footprint corner through the CRS.
+                let world = [o.x + local.x, o.y + local.y];
+                let [clon, clat] = city.transform.to_wgs84_lonlat(world).unwrap();
+                let dn = (plat - clat) * m_per_deg;
+                let de = (plon - clon) * m_per_deg * clat.to_radians().cos();
+                worst_h = worst_h.max((dn * dn + de * de).sqrt());
+                // A flat local frame rises above the curved ellipsoid by d²/2R.
+                let d2 = local.x * local.x + local.y * local.y;
+                worst_v = worst_v.max((ph - (o.z + bd.height_m) - d2 / (2.0 * 6_371_000.0)).abs());
+                n += 1;
+            }
+        }
+        println!("{name}: {n} roof vertices: horizontal error ≤ {worst_h:.4} m, vertical ≤ {worst_v:.4} m");
+        assert!(n > 100, "{name}");
+        assert!(worst_h < 0.02, "{name}: horizontal {worst_h} m");
+        assert!(worst_v < 0.01, "{name}: vertical {worst_v} m");
+    }
+}
+
+#[test]
+fn a_city_without_a_crs_gets_no_transform() {
+    let b = build("synthetic:3x3", None);
+    assert!(b.set.georef.is_none());
+    let doc: Value =
+        serde_json::from_slice(&std::fs::read(b.dir.path().join("tileset.json")).unwrap()).unwrap();
+    assert!(doc["root"].get("transform").is_none());
+    assert_eq!(doc["asset"]["extras"]["georeferenced"], false);
+    assert!(b.summary.placement().contains("no transform"));
+}
+
+#[test]
+fn same_city_same_bytes() {
+    let a = bubenec();
+    let b = bubenec();
+    let files = |d: &Path| -> Vec<(String, Vec<u8>)> {
+        let mut v: Vec<(String, Vec<u8>)> = std::fs::read_dir(d.join("tiles"))
+            .unwrap()
+            .map(|e| e.unwrap().path())
+            .chain(std::iter::once(d.join("tileset.json")))
+            .map(|p| {
+                (
+                    p.file_name().unwrap().to_string_lossy().into_owned(),
+                    std::fs::read(&p).unwrap(),
+                )
+            })
+            .collect();
+        v.sort();
+        v
+    };
+    let (fa, fb) = (files(a.dir.path()), files(b.dir.path()));
+    assert!(fa.len() > 2);
+    assert!(fa == fb, "two exports of the same city differ");
+}
+
+const REQUIRE: &str = "BLOCKWALK_REQUIRE_VALIDATORS";
+
+fn tools() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/tools")
+}
+
+#[test]
+fn every_tile_is_valid_gltf() {
+    let node = std::env::var("BLOCKWALK_NODE").unwrap_or_else(|_| "node".into());
+    let have = Command::new(&node)
+        .arg("--version")
+        .output()
+        .is_ok_and(|o| o.status.success())
+        && tools().join("node_modules/gltf-validator").is_dir();
+    if !have {
+        let why = "node or the glTF validator is missing (npm ci --prefix tests/tools)";
+        if std::env::var(REQUIRE).is_ok_and(|v| v == "1") {
+            panic!("every_tile_is_valid_gltf: {why}, and {REQUIRE}=1");
+        }
+        eprintln!("every_tile_is_valid_gltf: skipped: {why}");
+        return;
+    }
+    for (name, b) in [("helsinki", helsinki()), ("bubenec", bubenec())] {
+        let mut totals = [0u64; 4];
+        let mut files = 0;
+        for t in &b.set.tiles {
+            let Some(uri) = &t.content else { continue };
+            let f = b.dir.path().join(uri);
+            let out = Command::new(&node)
+                .arg(tools().join("validate_gltf.js"))
+                .arg(&f)
+                .output()
+                .unwrap();
+            assert!(
+                out.status.success(),
+                "{uri}: {}",
+                String::from_utf8_lossy(&out.stderr)
+            );
+            let r: Value = serde_json::from_slice(&out.stdout).unwrap();
+            let i = &r["issues"];
+            let c = ["numErrors", "numWarnings", "numInfos", "numHints"]
+                .map(|k| i[k].as_u64().unwrap());
+            assert_eq!(c[..2], [0, 0], "{name}: {uri}: {:#}", i["messages"]);
+            // Infos allowed: the validator does not know EXT_mesh_features /
+            // EXT_structural_metadata, and so calls the property buffer views unused.
+            for m in i["messages"].as_array().unwrap() {
+                let code = m["code"].as_str().unwrap();
+                assert!(
+                    code == "UNSUPPORTED_EXTENSION" || code == "UNUSED_OBJECT",
+                    "{name}: {uri}: {m}"
+                );
+            }
+            for k in 0..4 {
+                totals[k] += c[k];
+            }
+            files += 1;
+        }
+        println!(
+            "{name}: {files} .glb validated: {} errors, {} warnings, {} infos, {} hints",
+            totals[0], totals[1], totals[2], totals[3]
+        );
+        assert!(files > 1);
+    }
+}
