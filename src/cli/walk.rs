@@ -243,10 +243,15 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         bar.set_position(done as u64)
     })?;
     bar.finish_and_clear();
-    let files = report::walk::write(&record, &args.out, args.frames_dir.as_deref())
+    let ctx = report::walk::ReportContext {
+        plan: report::walk::Plan::from_scene(&scene),
+        machine: Some(report::walk::Machine::detect()),
+        command: std::env::args().collect(),
+    };
+    let files = report::walk::write_with(&record, &args.out, args.frames_dir.as_deref(), &ctx)
         .with_context(|| format!("writing the report to {}", args.out.display()))?;
     if args.json {
-        let mut j = report::walk::json(&record);
+        let mut j = report::walk::json_with(&record, &ctx);
         j["out"] = serde_json::json!(args.out);
         j["files"] = serde_json::json!(files);
         outln!("{}", serde_json::to_string(&j)?);
@@ -295,9 +300,9 @@ fn print_summary(record: &WalkRecord, out: &std::path::Path) -> anyhow::Result<(
         outln!("note: {n}");
     }
     outln!(
-        "report: {} ({:.1} s)",
+        "report: {} ({:.0} ms)",
         out.join("report.html").display(),
-        record.total_s
+        record.total_s * 1e3
     );
     Ok(())
 }

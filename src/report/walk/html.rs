@@ -1,9 +1,10 @@
-//! The walk's self-contained HTML page.
+//! The walk's self-contained HTML page: every picture is embedded (`data:` URLs, inline SVG), so
+//! the page needs no other file; the files written beside it are named as text, not linked.
 
-use super::mode_tag;
+use super::context::ReportContext;
+use super::{image_mode, kept_frame_rows};
 use crate::walk::{CullMode, WalkRecord};
 use std::fmt::Write as _;
-use std::path::{Path, PathBuf};
 
 /// Escapes text for HTML.
 pub fn escape(s: &str) -> String {
@@ -13,33 +14,58 @@ pub fn escape(s: &str) -> String {
         .replace('"', "&quot;")
 }
 
-/// The page: Table 1, the notes, one pair of plots per culling mode (files written beside it by
-/// [`super::write`]) and the kept frames (`frames`: frame number and file).
-pub fn page(
-    record: &WalkRecord,
-    dir: &Path,
-    modes: &[CullMode],
-    frames: &[(usize, PathBuf)],
-) -> String {
-    let rel = |p: &Path| {
-        p.strip_prefix(dir)
-            .map(|r| r.to_string_lossy().into_owned())
-            .unwrap_or_else(|_| p.to_string_lossy().into_owned())
-    };
+/// The seed-003 Fig. 4 plots of one culling mode, as `data:` URLs.
+#[derive(Clone, Debug)]
+pub struct ModePlots {
+    /// The culling mode.
+    pub mode: CullMode,
+    /// Frame time along the route, ms.
+    pub frame_time: String,
+    /// Triangles drawn along the route.
+    pub triangles: String,
+}
+
+/// The pictures the page embeds.
+#[derive(Clone, Debug, Default)]
+pub struct Embedded {
+    /// The route map (an `<svg>` element), when the city's plan was given.
+    pub map_svg: Option<String>,
+    /// Fig. 4 plots, one entry per culling mode.
+    pub plots: Vec<ModePlots>,
+    /// Mesh-only against hybrid frame time, when a far field ran (`data:` URL).
+    pub far_plot: Option<String>,
+    /// Thumbnails of the kept frames: frame number and `data:` URL.
+    pub thumbs: Vec<(usize, String)>,
+}
+
+/// `v` with `d` decimals, or a dash.
+fn opt(v: Option<f64>, d: usize) -> String {
+    v.filter(|v| v.is_finite())
+        .map(|v| format!("{v:.d$}"))
+        .unwrap_or("–".into())
+}
+
+/// The page: the machine and command, Table 1 (ms), the notes, the route map, the strip of kept
+/// frames with their figures, the far field's figures and plot, and the Fig. 4 plots.
+pub fn page(record: &WalkRecord, ctx: &ReportContext, e: &Embedded) -> String {
     let mut h = String::new();
     let _ = write!(
         h,
-        "<!doctype html><html><head><meta charset=\"utf-8\"><title>blockwalk walk: {city}</title>\
-         <style>body{{font-family:sans-serif;max-width:1100px;margin:2em auto}}\
+        "<!doctype html><html lang=\"en\"><head><meta charset=\"utf-8\"><title>blockwalk walk: {city}</title>\
+         <style>body{{font-family:sans-serif;max-width:1200px;margin:2em auto;padding:0 1em}}\
          table{{border-collapse:collapse}}td,th{{border:1px solid #bbb;padding:3px 8px;text-align:right}}\
-         td:first-child,td:nth-child(2){{text-align:left}}img{{max-width:100%}}</style></head><body>\
-         <h1>Walk through {city}</h1><p>Route <b>{route}</b>, {n} frames; renderer: {r}; total {t:.2} s.</p>",
+         td:first-child,td:nth-child(2){{text-align:left}}img{{max-width:100%}}\
+         .strip{{display:flex;gap:12px;overflow-x:auto;padding-bottom:8px}}\
+         .strip figure{{margin:0;flex:0 0 auto;width:330px}}.strip table{{font-size:12px;width:100%}}\
+         .strip figcaption{{font-size:12px}}dl.machine dt{{font-weight:bold;float:left;clear:left;width:9em}}\
+         dl.machine dd{{margin-left:10em}}code{{word-break:break-all}}</style></head><body>\
+         <h1>Walk through {city}</h1><p>Route <b>{route}</b>, {n} frames; total {t:.0} ms.</p>",
         city = escape(&record.city),
         route = escape(&record.route),
         n = record.cameras.len(),
-        r = escape(&record.renderer),
-        t = record.total_s
+        t = record.total_s * 1e3
     );
+    machine_section(&mut h, record, ctx);
     h.push_str("<h2>Average per frame (seed 003 Table 1)</h2><table><tr><th>structure</th><th>culling</th><th>ms/frame</th><th>ratio BqR/structure</th><th>cull ms</th><th>render ms</th><th>triangles</th><th>blocks</th><th>nodes</th><th>false culls</th></tr>");
     for r in &record.summary {
         let _ = write!(
@@ -50,9 +76,7 @@ pub fn page(
             r.seconds_per_frame * 1e3,
             r.ratio,
             r.cull_s * 1e3,
-            r.render_s
-                .map(|v| format!("{:.3}", v * 1e3))
-                .unwrap_or("–".into()),
+            opt(r.render_s.map(|v| v * 1e3), 3),
             r.triangles,
             r.blocks,
             r.nodes_visited,
@@ -67,76 +91,164 @@ pub fn page(
         }
         h.push_str("</ul>");
     }
-    if let (Some(d), Some(o)) = (&record.far_decision, &record.far_options) {
-        let f = crate::walk::far_json(&record.far, d, o);
-        let num = |k: &str, scale: f64, digits: usize| {
-            f[k].as_f64()
-                .map(|v| format!("{:.*}", digits, v * scale))
-                .unwrap_or("–".into())
-        };
+    h.push_str("<h2>The route</h2>");
+    match &e.map_svg {
+        Some(svg) => {
+            h.push_str("<p>Blocks (blue), buildings (grey), the camera path (red, from the green dot) and the numbered frames below.</p><div class=\"mapbox\">");
+            h.push_str(svg);
+            h.push_str("</div>");
+        }
+        None => h.push_str("<p>No map: the report was not given the city's plan.</p>"),
+    }
+    strip(&mut h, record, e);
+    far_section(&mut h, record, e);
+    for p in &e.plots {
         let _ = write!(
             h,
-            "<h2>Far field (BlockMaps, τ = {tau} px)</h2><p>{used}</p><table><tr><th>far nodes</th><th>mesh triangles</th><th>hybrid ms</th><th>mesh-only ms</th><th>ratio</th><th>coverage error max</th><th>PSNR min dB</th><th>silhouette px max</th><th>popping px max</th></tr>             <tr><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td></tr></table>",
-            num("far_nodes", 1.0, 1),
-            num("mesh_triangles", 1.0, 0),
-            num("frame_s", 1e3, 3),
-            num("mesh_frame_s", 1e3, 3),
-            num("frame_time_ratio_vs_mesh", 1.0, 3),
-            num("coverage_error_max", 1.0, 4),
-            num("psnr_min", 1.0, 1),
-            num("silhouette_px_max", 1.0, 1),
-            num("popping_px_max", 1.0, 0),
-            tau = o.tau_px,
-            used = escape(&match (&d.used, &d.reason) {
-                (true, _) => "Drawn on every frame.".to_string(),
-                (false, Some(r)) => format!("Left out: {r}"),
-                (false, None) => "Left out.".to_string(),
-            }),
-        );
-        if !record.far.is_empty() {
-            h.push_str("<p><img src=\"far_frame_time.svg\" alt=\"far frame time\"></p><p>Per frame: <a href=\"far_frames.csv\">far_frames.csv</a>.</p>");
-        }
-    }
-    for &mode in modes {
-        let _ = write!(
-            h,
-            "<h2>Along the route ({m}; seed 003 Fig. 4)</h2><p><img src=\"frame_time_{t}.svg\" alt=\"frame time\"></p><p><img src=\"triangles_{t}.svg\" alt=\"triangles\"></p>",
-            m = escape(mode.name()),
-            t = mode_tag(mode)
+            "<h2>Along the route ({m}; seed 003 Fig. 4)</h2><p><img src=\"{ft}\" alt=\"time per frame, {m}\"></p><p><img src=\"{tr}\" alt=\"triangles drawn, {m}\"></p>",
+            m = escape(p.mode.name()),
+            ft = p.frame_time,
+            tr = p.triangles,
         );
     }
-    if !frames.is_empty() {
-        h.push_str("<h2>Frames</h2>");
-        for (f, p) in frames {
-            let _ = write!(
-                h,
-                "<figure style=\"display:inline-block;width:48%\"><img src=\"{}\" alt=\"frame {f}\"><figcaption>frame {f}</figcaption></figure>",
-                escape(&rel(p))
-            );
-        }
-    }
-    h.push_str("<p>Per-frame data: <a href=\"frames.csv\">frames.csv</a>; summary: <a href=\"summary.md\">summary.md</a>; <a href=\"report.json\">report.json</a>.</p></body></html>\n");
+    h.push_str("<p>Written beside this page: <code>frames.csv</code> (per frame), <code>summary.md</code> (Table 1), <code>report.json</code> (all the figures here), the plots as PNG and SVG, and the full-size frames.</p></body></html>\n");
     h
 }
 
-#[cfg(test)]
-mod tests {
-    use super::*;
+/// The machine, the build and the command line.
+fn machine_section(h: &mut String, record: &WalkRecord, ctx: &ReportContext) {
+    h.push_str("<h2>Machine and command</h2><dl class=\"machine\">");
+    let mut item = |k: &str, v: &str| {
+        let _ = write!(h, "<dt>{k}</dt><dd>{v}</dd>");
+    };
+    match &ctx.machine {
+        Some(m) => {
+            item(
+                "CPU",
+                &escape(&format!(
+                    "{} ({} hardware threads)",
+                    m.cpu.as_deref().unwrap_or("unknown model"),
+                    m.cores
+                )),
+            );
+            item("OS", &escape(&m.os));
+            item(
+                "blockwalk",
+                &escape(&match &m.commit {
+                    Some(c) => format!("{} (commit {c})", m.version),
+                    None => m.version.clone(),
+                }),
+            );
+        }
+        None => item("machine", "not recorded"),
+    }
+    item("renderer", &escape(&record.renderer));
+    let cmd = if ctx.command.is_empty() {
+        "not recorded".to_string()
+    } else {
+        format!(
+            "<code class=\"command\">{}</code>",
+            escape(&shell_words(&ctx.command))
+        )
+    };
+    item("command", &cmd);
+    h.push_str("</dl>");
+}
 
-    #[test]
-    fn escapes_text_and_links_plots_and_frames() {
-        let r = crate::report::walk::tests::record();
-        let dir = Path::new("/out");
-        let h = page(
-            &r,
-            dir,
-            &[CullMode::Frustum, CullMode::FrustumOcclusion],
-            &[(0, dir.join("frames/frame_0000.png"))],
+/// The arguments as one shell line (quoted where needed).
+fn shell_words(args: &[String]) -> String {
+    args.iter()
+        .map(|a| {
+            if !a.is_empty()
+                && a.chars()
+                    .all(|c| c.is_ascii_alphanumeric() || "-_./=,:+@%".contains(c))
+            {
+                a.clone()
+            } else {
+                format!("'{}'", a.replace('\'', "'\\''"))
+            }
+        })
+        .collect::<Vec<_>>()
+        .join(" ")
+}
+
+/// The strip of kept frames, each with its figures.
+fn strip(h: &mut String, record: &WalkRecord, e: &Embedded) {
+    if e.thumbs.is_empty() {
+        h.push_str("<p>No frames were kept (walk with <code>--render</code> to keep some).</p>");
+        return;
+    }
+    let _ = write!(
+        h,
+        "<h2>Frames along the route ({})</h2><div class=\"strip\">",
+        escape(image_mode(record).map_or("", |m| m.name()))
+    );
+    for (f, url) in &e.thumbs {
+        let (rows, far) = kept_frame_rows(record, *f);
+        let _ = write!(
+            h,
+            "<figure class=\"frame\"><img src=\"{url}\" alt=\"frame {f}\"><figcaption><b>frame {f}</b>\
+             <table><tr><th>structure</th><th>blocks</th><th>triangles</th><th>cull ms</th><th>frame ms</th></tr>"
         );
-        assert!(h.contains("Walk through Test &lt;city&gt;"));
-        assert!(h.contains("a note &amp; more"));
-        assert!(h.contains("frame_time_frustum_occlusion.svg"));
-        assert!(h.contains("src=\"frames/frame_0000.png\""));
-        assert_eq!(h.matches("<tr><td>").count(), r.summary.len());
+        for r in rows {
+            let _ = write!(
+                h,
+                "<tr><td>{}</td><td>{}</td><td>{}</td><td>{:.3}</td><td>{:.3}</td></tr>",
+                r.structure,
+                r.blocks,
+                r.triangles,
+                r.cull_s * 1e3,
+                r.frame_s * 1e3
+            );
+        }
+        h.push_str("</table>");
+        if let Some(r) = far {
+            let _ = write!(
+                h,
+                "far field: {} nodes, {} mesh triangles, hybrid {:.3} ms (meshes only {:.3} ms), coverage error {}, PSNR {} dB",
+                r.far_nodes,
+                r.mesh_triangles,
+                r.frame_s * 1e3,
+                r.mesh_frame_s * 1e3,
+                opt(r.image.map(|i| i.coverage_error), 4),
+                opt(r.image.map(|i| i.psnr_db), 1),
+            );
+        }
+        h.push_str("</figcaption></figure>");
+    }
+    h.push_str("</div>");
+}
+
+/// The far field's figures and its error-against-time plot.
+fn far_section(h: &mut String, record: &WalkRecord, e: &Embedded) {
+    let (Some(d), Some(o)) = (&record.far_decision, &record.far_options) else {
+        return;
+    };
+    let f = crate::walk::far_json(&record.far, d, o);
+    let num = |k: &str, scale: f64, digits: usize| opt(f[k].as_f64().map(|v| v * scale), digits);
+    let _ = write!(
+        h,
+        "<h2>Far field (BlockMaps, τ = {tau} px)</h2><p>{used}</p><table><tr><th>far nodes</th><th>mesh triangles</th><th>hybrid ms</th><th>mesh-only ms</th><th>ratio</th><th>coverage error max</th><th>PSNR min dB</th><th>silhouette px max</th><th>popping px max</th></tr><tr><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td></tr></table>",
+        num("far_nodes", 1.0, 1),
+        num("mesh_triangles", 1.0, 0),
+        num("frame_s", 1e3, 3),
+        num("mesh_frame_s", 1e3, 3),
+        num("frame_time_ratio_vs_mesh", 1.0, 3),
+        num("coverage_error_max", 1.0, 4),
+        num("psnr_min", 1.0, 1),
+        num("silhouette_px_max", 1.0, 1),
+        num("popping_px_max", 1.0, 0),
+        tau = o.tau_px,
+        used = escape(&match (&d.used, &d.reason) {
+            (true, _) => "Drawn on every frame.".to_string(),
+            (false, Some(r)) => format!("Left out: {r}"),
+            (false, None) => "Left out.".to_string(),
+        }),
+    );
+    if let Some(url) = &e.far_plot {
+        let _ = write!(
+            h,
+            "<p><img src=\"{url}\" alt=\"mesh-only against hybrid frame time\"></p>"
+        );
     }
 }

@@ -4,11 +4,17 @@
 //!
 //! - [`csv`]: the per-frame table.
 //! - [`markdown`]: Table 1.
-//! - [`html`]: the page.
+//! - [`html`]: the page (every picture embedded: it opens alone).
+//! - [`map`]: the city in plan view with the route.
+//! - [`context`]: what the report needs besides the record (plan, machine, command).
 
+pub mod context;
 pub mod csv;
 pub mod html;
+pub mod map;
 pub mod markdown;
+
+pub use context::{Machine, Plan, ReportContext};
 
 use crate::report::plot::{write_plot, PlotError, PlotKind, Series};
 use crate::walk::{CullMode, FrameRecord, WalkRecord};
@@ -42,6 +48,71 @@ pub enum ReportError {
 
 /// One JSON object: settings, summary, notes, false culls (the per-frame rows are in the CSV).
 pub fn json(record: &WalkRecord) -> serde_json::Value {
+    json_with(record, &ReportContext::default())
+}
+
+/// The figures of one frame of one structure, times in ms, as the page shows them.
+fn frame_json(r: &FrameRecord) -> serde_json::Value {
+    serde_json::json!({
+        "frame": r.frame,
+        "structure": r.structure,
+        "mode": r.mode,
+        "cull_ms": r.cull_s * 1e3,
+        "render_ms": r.render_s.map(|v| v * 1e3),
+        "frame_ms": r.frame_s * 1e3,
+        "blocks": r.blocks,
+        "triangles": r.triangles,
+        "nodes_visited": r.stats.nodes_visited,
+        "false_culls": r.false_culls,
+    })
+}
+
+/// The far-field figures of one hybrid frame, times in ms.
+fn far_frame_json(r: &crate::walk::FarRecord) -> serde_json::Value {
+    serde_json::json!({
+        "frame": r.frame,
+        "mode": r.mode,
+        "select_ms": r.select_s * 1e3,
+        "render_ms": r.render_s.map(|v| v * 1e3),
+        "frame_ms": r.frame_s * 1e3,
+        "mesh_frame_ms": r.mesh_frame_s * 1e3,
+        "mesh_blocks": r.mesh_blocks,
+        "mesh_triangles": r.mesh_triangles,
+        "far_nodes": r.far_nodes,
+        "far_blocks": r.far_blocks,
+        "coverage_error": r.image.map(|i| i.coverage_error),
+        "psnr_db": r.image.map(|i| i.psnr_db).filter(|v| v.is_finite()),
+    })
+}
+
+/// The culling mode the kept images were drawn in (the last one walked).
+pub fn image_mode(record: &WalkRecord) -> Option<CullMode> {
+    record.modes().last().copied()
+}
+
+/// The per-frame figures shown under a kept frame: one row per structure in
+/// [`image_mode`], and the far field's record of that frame and mode, when there is one.
+pub fn kept_frame_rows(
+    record: &WalkRecord,
+    frame: usize,
+) -> (Vec<&FrameRecord>, Option<&crate::walk::FarRecord>) {
+    let mode = image_mode(record);
+    let rows = record
+        .frames
+        .iter()
+        .filter(|r| r.frame == frame && Some(r.mode) == mode)
+        .collect();
+    let far_mode = record.far.last().map(|r| r.mode);
+    let far = record
+        .far
+        .iter()
+        .find(|r| r.frame == frame && Some(r.mode) == far_mode);
+    (rows, far)
+}
+
+/// [`json`] with the machine, the command, every per-frame figure (times in ms) and the
+/// figures of the kept frames, as `report.html` shows them.
+pub fn json_with(record: &WalkRecord, ctx: &ReportContext) -> serde_json::Value {
     let mut j = serde_json::json!({
         "city": record.city,
         "route": record.route,
@@ -65,6 +136,31 @@ pub fn json(record: &WalkRecord) -> serde_json::Value {
         j["far_used"] = serde_json::json!(d.used);
         j["far"] = f;
     }
+    j["total_ms"] = serde_json::json!(record.total_s * 1e3);
+    j["machine"] = serde_json::json!(ctx.machine);
+    j["command"] = serde_json::json!(ctx.command);
+    j["per_frame"] = record.frames.iter().map(frame_json).collect();
+    if !record.far.is_empty() {
+        j["far_frames"] = record.far.iter().map(far_frame_json).collect();
+    }
+    j["kept_frames"] = record
+        .images
+        .iter()
+        .map(|(f, _)| {
+            let (rows, far) = kept_frame_rows(record, *f);
+            let pos = record
+                .cameras
+                .get(*f)
+                .map(|c| [c.position.x, c.position.y, c.position.z]);
+            serde_json::json!({
+                "frame": f,
+                "mode": image_mode(record),
+                "position": pos,
+                "structures": rows.into_iter().map(frame_json).collect::<Vec<_>>(),
+                "far": far.map(far_frame_json),
+            })
+        })
+        .collect();
     j
 }
 
@@ -114,9 +210,7 @@ pub fn mode_tag(mode: CullMode) -> String {
     mode.name().replace('+', "_")
 }
 
-/// Writes `frames.csv`, `summary.md`, `report.json`, the plots (`frame_time_<mode>.png/.svg`,
-/// `triangles_<mode>.png/.svg`), the kept frames (`frames/frame_NNNN.png`, or under
-/// `frames_dir`) and `report.html`, which links them all. Returns the files written.
+/// [`write_with`] without a plan, machine or command (the page says they are unknown).
 ///
 /// # Errors
 /// [`ReportError`] naming the file that could not be written.
@@ -124,6 +218,34 @@ pub fn write(
     record: &WalkRecord,
     dir: &Path,
     frames_dir: Option<&Path>,
+) -> Result<Vec<PathBuf>, ReportError> {
+    write_with(record, dir, frames_dir, &ReportContext::default())
+}
+
+/// Long side of a frame's thumbnail in the page's strip, pixels.
+pub const THUMB_SIZE: u32 = 320;
+
+/// `bytes` as a `data:` URL of type `mime`.
+fn data_url(mime: &str, bytes: &[u8]) -> String {
+    use base64::Engine as _;
+    format!(
+        "data:{mime};base64,{}",
+        base64::engine::general_purpose::STANDARD.encode(bytes)
+    )
+}
+
+/// Writes `frames.csv`, `summary.md`, `report.json`, the plots (`frame_time_<mode>.png/.svg`,
+/// `triangles_<mode>.png/.svg`, times in ms), the kept frames (`frames/frame_NNNN.png`, or under
+/// `frames_dir`) and `report.html`, which embeds the plots, the route map drawn from
+/// `ctx.plan` and thumbnails of the frames, so that it opens alone. Returns the files written.
+///
+/// # Errors
+/// [`ReportError`] naming the file that could not be written.
+pub fn write_with(
+    record: &WalkRecord,
+    dir: &Path,
+    frames_dir: Option<&Path>,
+    ctx: &ReportContext,
 ) -> Result<Vec<PathBuf>, ReportError> {
     let werr = |file: &Path| {
         let file = file.to_path_buf();
@@ -141,7 +263,7 @@ pub fn write(
     put("summary.md", markdown::summary_markdown(&record.summary))?;
     put(
         "report.json",
-        serde_json::to_string_pretty(&json(record)).unwrap_or_default(),
+        serde_json::to_string_pretty(&json_with(record, ctx)).unwrap_or_default(),
     )?;
     if !record.far.is_empty() {
         put("far_frames.csv", csv::far_csv(record))?;
@@ -149,7 +271,7 @@ pub fn write(
     let mut plots = Vec::new();
     for mode in record.modes() {
         let tag = mode_tag(mode);
-        let ft = series(record, mode, |r| r.frame_s);
+        let ft = series(record, mode, |r| r.frame_s * 1e3);
         let tri = series(record, mode, |r| r.triangles as f64);
         for ext in ["png", "svg"] {
             let p = dir.join(format!("frame_time_{tag}.{ext}"));
@@ -157,7 +279,7 @@ pub fn write(
                 &p,
                 &format!("Time per frame along the {} route ({mode})", record.route),
                 "frame",
-                "seconds",
+                "milliseconds",
                 &ft,
                 PlotKind::Lines,
             )?;
@@ -173,8 +295,18 @@ pub fn write(
             )?;
             written.push(q);
         }
-        plots.push(mode);
+        let png = |name: String| -> Result<String, ReportError> {
+            let p = dir.join(name);
+            let bytes = std::fs::read(&p).map_err(werr(&p))?;
+            Ok(data_url("image/png", &bytes))
+        };
+        plots.push(html::ModePlots {
+            mode,
+            frame_time: png(format!("frame_time_{tag}.png"))?,
+            triangles: png(format!("triangles_{tag}.png"))?,
+        });
     }
+    let mut far_plot = None;
     if !record.far.is_empty() {
         let ft = far_series(record);
         for ext in ["png", "svg"] {
@@ -192,11 +324,14 @@ pub fn write(
             )?;
             written.push(p);
         }
+        let p = dir.join("far_frame_time.png");
+        let bytes = std::fs::read(&p).map_err(werr(&p))?;
+        far_plot = Some(data_url("image/png", &bytes));
     }
     let fdir = frames_dir
         .map(Path::to_path_buf)
         .unwrap_or_else(|| dir.join("frames"));
-    let mut frame_files = Vec::new();
+    let mut thumbs = Vec::new();
     if !record.images.is_empty() {
         std::fs::create_dir_all(&fdir).map_err(werr(&fdir))?;
         for (f, img) in &record.images {
@@ -205,11 +340,45 @@ pub fn write(
                 file: p.clone(),
                 source,
             })?;
-            frame_files.push((*f, p.clone()));
+            let t = image::imageops::thumbnail(
+                img,
+                THUMB_SIZE.min(img.width()).max(1),
+                ((THUMB_SIZE.min(img.width()) as u64 * img.height() as u64
+                    / img.width().max(1) as u64) as u32)
+                    .max(1),
+            );
+            let mut bytes = Vec::new();
+            t.write_to(
+                &mut std::io::Cursor::new(&mut bytes),
+                image::ImageFormat::Png,
+            )
+            .map_err(|source| ReportError::Image {
+                file: p.clone(),
+                source,
+            })?;
+            thumbs.push((*f, data_url("image/png", &bytes)));
             written.push(p);
         }
     }
-    let page = html::page(record, dir, &plots, &frame_files);
+    let positions: Vec<glam::DVec2> = record
+        .cameras
+        .iter()
+        .map(|c| c.position.truncate())
+        .collect();
+    let markers: Vec<usize> = if record.images.is_empty() {
+        // No kept frames: mark about six evenly spaced frames.
+        let step = (positions.len() / 6).max(1);
+        (0..positions.len()).step_by(step).collect()
+    } else {
+        record.images.iter().map(|(f, _)| *f).collect()
+    };
+    let embedded = html::Embedded {
+        map_svg: map::route_map_svg(&ctx.plan, &positions, &markers),
+        plots,
+        far_plot,
+        thumbs,
+    };
+    let page = html::page(record, ctx, &embedded);
     let p = dir.join("report.html");
     std::fs::write(&p, page).map_err(werr(&p))?;
     written.push(p);
@@ -308,6 +477,140 @@ pub(crate) mod tests {
         assert_eq!(json["summary"].as_array().unwrap().len(), 4);
         assert_eq!(json["summary"][0]["structure"], "bqr");
         assert_eq!(json["summary"][1]["mode"], "frustum+occlusion");
+    }
+
+    /// A context with a one-block plan around the route, a machine and a command.
+    pub(crate) fn context() -> ReportContext {
+        let sq = |x: f64, y: f64, d: f64| {
+            vec![
+                glam::DVec2::new(x, y),
+                glam::DVec2::new(x + d, y),
+                glam::DVec2::new(x + d, y + d),
+                glam::DVec2::new(x, y + d),
+            ]
+        };
+        ReportContext {
+            plan: Plan {
+                blocks: vec![sq(-10.0, -10.0, 20.0)],
+                footprints: vec![sq(-5.0, 2.0, 3.0)],
+            },
+            machine: Some(Machine {
+                cpu: Some("Test CPU <9000>".into()),
+                cores: 7,
+                os: "TestOS".into(),
+                version: "0.0.1".into(),
+                commit: None,
+            }),
+            command: vec!["blockwalk".into(), "walk".into(), "data/my city".into()],
+        }
+    }
+
+    /// Every `src=` / `href=` value of `html`.
+    pub(crate) fn references(html: &str) -> Vec<String> {
+        let mut v = Vec::new();
+        for attr in ["src=\"", "href=\""] {
+            for part in html.split(attr).skip(1) {
+                v.push(part[..part.find('"').unwrap_or(part.len())].to_string());
+            }
+        }
+        v
+    }
+
+    #[test]
+    fn the_page_stands_alone_with_map_strip_machine_and_command() {
+        let dir = tempfile::tempdir().unwrap();
+        let mut r = record();
+        r.images.push((
+            2,
+            image::RgbaImage::from_pixel(640, 360, image::Rgba([9, 99, 199, 255])),
+        ));
+        write_with(&r, dir.path(), None, &context()).unwrap();
+        let h = std::fs::read_to_string(dir.path().join("report.html")).unwrap();
+        let refs = references(&h);
+        // 2 Fig.-4 plots per mode (2 modes) + 2 thumbnails, all embedded.
+        assert_eq!(refs.len(), 6, "{refs:?}");
+        for r in &refs {
+            assert!(
+                r.starts_with("data:image/png;base64,"),
+                "external reference {r}"
+            );
+        }
+        assert!(!h.contains("href="));
+        assert_eq!(h.matches("<svg").count(), 1, "the route map");
+        assert_eq!(
+            h.matches("class=\"marker\"").count(),
+            2,
+            "one marker per kept frame"
+        );
+        assert_eq!(h.matches("<figcaption>").count(), r.images.len());
+        assert!(h.contains("<b>frame 2</b>"));
+        assert!(h.contains("Test CPU &lt;9000&gt; (7 hardware threads)"));
+        assert!(h.contains("TestOS"));
+        assert!(h.contains("blockwalk walk 'data/my city'"));
+        assert!(h.contains("total 500 ms"));
+        // The thumbnail is downscaled to THUMB_SIZE wide.
+        use base64::Engine as _;
+        let sizes: Vec<(u32, u32)> = refs
+            .iter()
+            .map(|r| {
+                let b64 = r.trim_start_matches("data:image/png;base64,");
+                let png = base64::engine::general_purpose::STANDARD
+                    .decode(b64)
+                    .unwrap();
+                let t = image::load_from_memory(&png).unwrap();
+                (t.width(), t.height())
+            })
+            .collect();
+        assert!(sizes.contains(&(THUMB_SIZE, 180)), "{sizes:?}");
+        assert!(
+            sizes.contains(&(4, 3)),
+            "a small frame stays as it is: {sizes:?}"
+        );
+        // The full-size frame is still written beside the page.
+        assert!(dir.path().join("frames/frame_0002.png").is_file());
+    }
+
+    #[test]
+    fn report_json_has_the_machine_command_and_the_figures_of_the_page() {
+        let dir = tempfile::tempdir().unwrap();
+        let mut r = record();
+        r.frames[7].cull_s = 0.012_345; // frame 1, flat, frustum+occlusion
+        r.images.push((1, image::RgbaImage::new(8, 6)));
+        write_with(&r, dir.path(), None, &context()).unwrap();
+        let j: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(dir.path().join("report.json")).unwrap())
+                .unwrap();
+        let h = std::fs::read_to_string(dir.path().join("report.html")).unwrap();
+        assert_eq!(j["machine"]["cores"], 7);
+        assert_eq!(j["command"][2], "data/my city");
+        assert_eq!(j["per_frame"].as_array().unwrap().len(), r.frames.len());
+        assert_eq!(j["total_ms"], 500.0);
+        let kept = j["kept_frames"].as_array().unwrap();
+        assert_eq!(kept.len(), 2);
+        assert_eq!(kept[1]["frame"], 1);
+        assert_eq!(kept[1]["mode"], "frustum+occlusion");
+        assert_eq!(kept[1]["position"][0], 1.0);
+        let rows = kept[1]["structures"].as_array().unwrap();
+        assert_eq!(rows.len(), 2, "one row per structure");
+        let flat = rows.iter().find(|x| x["structure"] == "flat").unwrap();
+        let cull = flat["cull_ms"].as_f64().unwrap();
+        assert!((cull - 12.345).abs() < 1e-9);
+        // The same figure under the frame on the page.
+        let caption = h.split("<b>frame 1</b>").nth(1).unwrap();
+        let caption = &caption[..caption.find("</figcaption>").unwrap()];
+        assert!(caption.contains("<td>12.345</td>"), "{caption}");
+        assert!(caption.contains(&format!("<td>{}</td>", flat["triangles"])));
+    }
+
+    #[test]
+    fn without_a_context_the_page_says_what_is_missing() {
+        let dir = tempfile::tempdir().unwrap();
+        write(&record(), dir.path(), None).unwrap();
+        let h = std::fs::read_to_string(dir.path().join("report.html")).unwrap();
+        assert!(h.contains("No map"));
+        assert!(h.contains("<dt>machine</dt><dd>not recorded</dd>"));
+        assert!(h.contains("<dt>command</dt><dd>not recorded</dd>"));
+        assert!(!h.contains("<svg"));
     }
 
     #[test]
