@@ -1,0 +1,195 @@
+//! The walk report a person reads: a short rendered walk over Helsinki through the CLI, whose
+//! `report.html` is opened from a `file://` URL in headless Chromium (Debian `chromium`) by
+//! `tests/tools/report_screenshot.mjs` (puppeteer-core), with every request outside the page
+//! refused. The page must load without console errors, page errors or failed requests, every
+//! image must decode, the route map and one caption per kept frame must be there, and a
+//! screenshot is saved as `target/report-html/report.png` (or under `BLOCKWALK_SCREENSHOT_DIR`).
+//!
+//! Needs `node`, `chromium` and `npm ci --prefix tests/tools` (what `.ci/run` does). Without them
+//! the test prints why and passes, unless `BLOCKWALK_REQUIRE_VALIDATORS=1`, where it fails.
+
+use serde_json::{json, Value};
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+const REQUIRE: &str = "BLOCKWALK_REQUIRE_VALIDATORS";
+
+fn tools() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/tools")
+}
+
+/// `Some((node, chromium path))` when everything is installed; otherwise prints why and gives
+/// `None`, or panics when [`REQUIRE`] is set.
+fn tools_or_skip(test: &str) -> Option<(String, String)> {
+    let node = std::env::var("BLOCKWALK_NODE").unwrap_or_else(|_| "node".into());
+    let chromium = std::env::var("BLOCKWALK_CHROMIUM").unwrap_or_else(|_| "chromium".into());
+    let runs = |cmd: &str| {
+        Command::new(cmd)
+            .arg("--version")
+            .output()
+            .is_ok_and(|o| o.status.success())
+    };
+    let why = if !runs(&node) {
+        Some(format!("`{node}` cannot be run"))
+    } else if !runs(&chromium) {
+        Some(format!(
+            "`{chromium}` cannot be run (apt-get install chromium)"
+        ))
+    } else if !tools().join("node_modules/puppeteer-core").is_dir() {
+        Some(format!(
+            "puppeteer-core is not installed (run `npm ci --prefix {}`)",
+            tools().display()
+        ))
+    } else {
+        None
+    };
+    match why {
+        None => {
+            let path = Command::new("sh")
+                .arg("-c")
+                .arg(format!("command -v {chromium}"))
+                .output()
+                .ok()
+                .map(|o| String::from_utf8_lossy(&o.stdout).trim().to_string())
+                .filter(|p| !p.is_empty())
+                .unwrap_or(chromium);
+            Some((node, path))
+        }
+        Some(why) if std::env::var(REQUIRE).is_ok_and(|v| v == "1") => {
+            panic!("{test}: {why}, and {REQUIRE}=1")
+        }
+        Some(why) => {
+            eprintln!("{test}: skipped: {why} ({REQUIRE}=1 makes this a failure)");
+            None
+        }
+    }
+}
+
+fn screenshot_dir() -> PathBuf {
+    let d = std::env::var_os("BLOCKWALK_SCREENSHOT_DIR")
+        .map(PathBuf::from)
+        .unwrap_or_else(|| Path::new(env!("CARGO_MANIFEST_DIR")).join("target/report-html"));
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+#[test]
+fn the_helsinki_walk_report_opens_alone_in_chromium() {
+    let test = "the_helsinki_walk_report_opens_alone_in_chromium";
+    let Some((node, chromium)) = tools_or_skip(test) else {
+        return;
+    };
+    let data = Path::new(env!("CARGO_MANIFEST_DIR")).join("data/helsinki");
+    let out = tempfile::tempdir().unwrap();
+    let walk = out.path().join("walk");
+    let args: Vec<String> = [
+        "walk",
+        data.join("buildings.shp").to_str().unwrap(),
+        "--streets",
+        data.join("streets_blockclass.shp").to_str().unwrap(),
+        "--frames",
+        "6",
+        "--structures",
+        "bqr,flat",
+        "--render",
+        "--image-every",
+        "2",
+        "--size",
+        "192x108",
+        "--out",
+        walk.to_str().unwrap(),
+        "--json",
+    ]
+    .iter()
+    .map(|s| s.to_string())
+    .collect();
+    let o = Command::new(env!("CARGO_BIN_EXE_blockwalk"))
+        .args(&args)
+        .output()
+        .unwrap();
+    assert!(
+        o.status.success(),
+        "walk failed: {}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    let j: Value = serde_json::from_slice(&o.stdout).unwrap();
+    // The command line in report.json is the one that ran.
+    let command: Vec<String> = serde_json::from_value(j["command"].clone()).unwrap();
+    assert_eq!(&command[1..], &args[..]);
+    assert!(j["machine"]["cores"].as_u64().unwrap() >= 1);
+    let kept = j["kept_frames"].as_array().unwrap();
+    assert_eq!(kept.len(), 3, "frames 0, 2, 4");
+
+    let html = walk.join("report.html");
+    let page = std::fs::read_to_string(&html).unwrap();
+    assert!(page.contains(&format!("({} hardware threads)", j["machine"]["cores"])));
+    let shot = screenshot_dir().join("report.png");
+    let spec = out.path().join("spec.json");
+    std::fs::write(
+        &spec,
+        serde_json::to_string(&json!({
+            "chromium": chromium,
+            "html": html,
+            "screenshot": shot,
+            "width": 1280,
+        }))
+        .unwrap(),
+    )
+    .unwrap();
+    let run = Command::new(&node)
+        .arg(tools().join("report_screenshot.mjs"))
+        .arg(&spec)
+        .output()
+        .unwrap();
+    assert!(
+        run.status.success(),
+        "report_screenshot.mjs: {}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    let r: Value = serde_json::from_slice(&run.stdout).unwrap_or_else(|e| {
+        panic!(
+            "report_screenshot.mjs printed no JSON ({e}): {}",
+            String::from_utf8_lossy(&run.stdout)
+        )
+    });
+    eprintln!("{test}: {r}");
+    let errors: Vec<&Value> = r["console"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .filter(|m| m["type"] == "error" || m["type"] == "warn")
+        .collect();
+    assert!(errors.is_empty(), "console: {errors:?}");
+    assert_eq!(r["page_errors"], json!([]));
+    assert_eq!(r["failed_requests"], json!([]));
+    // The page was the only file requested: everything else is embedded.
+    let reqs = r["requests"].as_array().unwrap();
+    assert!(reqs[0].as_str().unwrap().starts_with("file://"));
+    for q in &reqs[1..] {
+        assert!(q.as_str().unwrap().starts_with("data:"), "{q}");
+    }
+    let imgs = r["images"].as_array().unwrap();
+    // Two Fig.-4 plots per culling mode (frustum and frustum+occlusion) and three thumbnails.
+    assert_eq!(imgs.len(), 2 * 2 + 3, "{imgs:?}");
+    for i in imgs {
+        assert!(i["data_url"].as_bool().unwrap(), "{i}");
+        assert!(i["complete"].as_bool().unwrap(), "{i}");
+        assert!(i["natural_width"].as_u64().unwrap() > 0, "not decoded: {i}");
+    }
+    let svgs = r["svgs"].as_array().unwrap();
+    assert_eq!(svgs.len(), 1, "the route map");
+    assert!(svgs[0]["width"].as_f64().unwrap() > 100.0);
+    assert!(
+        svgs[0]["paths"].as_u64().unwrap() >= 3,
+        "blocks, buildings, route"
+    );
+    assert_eq!(
+        r["captions"],
+        json!(["frame 0", "frame 2", "frame 4"]),
+        "one caption per kept frame"
+    );
+    let png = image::open(&shot).unwrap();
+    assert_eq!(png.width(), 1280);
+    assert!(png.height() > 900, "the whole page");
+    eprintln!("{test}: screenshot {}", shot.display());
+}
