@@ -1,4 +1,5 @@
-//! The walk report a person reads: a short rendered walk over Helsinki through the CLI, whose
+//! The walk report a person reads: a short rendered walk over Helsinki through the CLI, with the
+//! BlockMap far field and its image comparison, whose
 //! `report.html` is opened from a `file://` URL in headless Chromium (Debian `chromium`) by
 //! `tests/tools/report_screenshot.mjs` (puppeteer-core), with every request outside the page
 //! refused. The page must load without console errors, page errors or failed requests, every
@@ -98,6 +99,12 @@ fn the_helsinki_walk_report_opens_alone_in_chromium() {
         "192x108",
         "--out",
         walk.to_str().unwrap(),
+        "--far",
+        "blockmaps",
+        "--keep-far",
+        "--reference",
+        "--tau",
+        "8",
         "--json",
     ]
     .iter()
@@ -122,6 +129,24 @@ fn the_helsinki_walk_report_opens_alone_in_chromium() {
 
     let html = walk.join("report.html");
     let page = std::fs::read_to_string(&html).unwrap();
+    // Under each kept frame, its far-field figures, the same as in report.json.
+    for k in kept {
+        let f = k["frame"].as_u64().unwrap();
+        let caption = page
+            .split(&format!("<b>frame {f}</b>"))
+            .nth(1)
+            .and_then(|c| c.split("</figcaption>").next())
+            .unwrap_or_else(|| panic!("no caption for frame {f}"));
+        let far = &k["far"];
+        assert!(far["far_nodes"].is_u64(), "frame {f}: {k}");
+        assert!(
+            caption.contains(&format!("far field: {} nodes", far["far_nodes"])),
+            "frame {f}: {caption}"
+        );
+        if let Some(psnr) = far["psnr_db"].as_f64() {
+            assert!(caption.contains(&format!("PSNR {psnr:.1} dB")), "{caption}");
+        }
+    }
     assert!(page.contains(&format!("({} hardware threads)", j["machine"]["cores"])));
     let shot = screenshot_dir().join("report.png");
     let spec = out.path().join("spec.json");
@@ -169,8 +194,12 @@ fn the_helsinki_walk_report_opens_alone_in_chromium() {
         assert!(q.as_str().unwrap().starts_with("data:"), "{q}");
     }
     let imgs = r["images"].as_array().unwrap();
-    // Two Fig.-4 plots per culling mode (frustum and frustum+occlusion) and three thumbnails.
-    assert_eq!(imgs.len(), 2 * 2 + 3, "{imgs:?}");
+    // Three thumbnails, the far field's frame-time plot, and two Fig.-4 plots per culling mode
+    // (frustum and frustum+occlusion).
+    assert_eq!(imgs.len(), 3 + 1 + 2 * 2, "{imgs:?}");
+    assert!(imgs
+        .iter()
+        .any(|i| i["alt"] == "mesh-only against hybrid frame time"));
     for i in imgs {
         assert!(i["data_url"].as_bool().unwrap(), "{i}");
         assert!(i["complete"].as_bool().unwrap(), "{i}");

@@ -56,7 +56,7 @@ pub fn page(record: &WalkRecord, ctx: &ReportContext, e: &Embedded) -> String {
          table{{border-collapse:collapse}}td,th{{border:1px solid #bbb;padding:3px 8px;text-align:right}}\
          td:first-child,td:nth-child(2){{text-align:left}}img{{max-width:100%}}\
          .strip{{display:flex;gap:12px;overflow-x:auto;padding-bottom:8px}}\
-         .strip figure{{margin:0;flex:0 0 auto;width:330px}}.strip table{{font-size:12px;width:100%}}\
+         .strip figure{{margin:0;flex:0 0 auto;width:330px}}.strip img{{width:100%}}.strip table{{font-size:12px;width:100%}}\
          .strip figcaption{{font-size:12px}}dl.machine dt{{font-weight:bold;float:left;clear:left;width:9em}}\
          dl.machine dd{{margin-left:10em}}code{{word-break:break-all}}</style></head><body>\
          <h1>Walk through {city}</h1><p>Route <b>{route}</b>, {n} frames; total {t:.0} ms.</p>",
