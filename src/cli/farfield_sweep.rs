@@ -133,6 +133,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let mut rows = Vec::new();
     let mut notes = Vec::new();
     let mut files = Vec::new();
+    let mut reports = Vec::new();
     for &k in &args.ks {
         let t0 = std::time::Instant::now();
         let maps = super::walk::build_far_maps(&scene, k, args.json)?;
@@ -223,16 +224,31 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 };
                 if k == show_k && tau == show_t {
                     let dir = args.out.join(format!("walk_{rname}_k{k}_tau{tau}"));
-                    files.extend(
-                        blockwalk::report::walk::write(&rec, &dir, None)
-                            .with_context(|| format!("writing {}", dir.display()))?,
-                    );
+                    reports.push((rec, dir));
                 }
                 rows.push(row);
             }
         }
     }
     files.extend(write_outputs(&args.out, &scene.name, &rows)?);
+    // The walk reports, written last so that each embeds the sweep's error against time.
+    let ctx = blockwalk::report::walk::ReportContext {
+        plan: blockwalk::report::walk::Plan::from_scene(&scene),
+        machine: Some(blockwalk::report::walk::Machine::detect()),
+        command: std::env::args().collect(),
+        extra_plots: vec![(
+            "Coverage error against frame time over the whole sweep (every route, τ and K), with \
+             the Pareto front"
+                .into(),
+            args.out.join("pareto.png"),
+        )],
+    };
+    for (rec, dir) in &reports {
+        files.extend(
+            blockwalk::report::walk::write_with(rec, dir, None, &ctx)
+                .with_context(|| format!("writing {}", dir.display()))?,
+        );
+    }
     if args.json {
         outln!(
             "{}",

@@ -247,6 +247,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         plan: report::walk::Plan::from_scene(&scene),
         machine: Some(report::walk::Machine::detect()),
         command: std::env::args().collect(),
+        extra_plots: Vec::new(),
     };
     let files = report::walk::write_with(&record, &args.out, args.frames_dir.as_deref(), &ctx)
         .with_context(|| format!("writing the report to {}", args.out.display()))?;

@@ -92,4 +92,7 @@ pub struct ReportContext {
     pub machine: Option<Machine>,
     /// The command line that produced the walk (`std::env::args`), empty when unknown.
     pub command: Vec<String>,
+    /// Plots made beside the walk, embedded in the page under their caption: PNG files, e.g. a
+    /// far-field sweep's error against frame time (`blockwalk farfield-sweep`).
+    pub extra_plots: Vec<(String, std::path::PathBuf)>,
 }

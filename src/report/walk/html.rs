@@ -36,6 +36,8 @@ pub struct Embedded {
     pub far_plot: Option<String>,
     /// Thumbnails of the kept frames: frame number and `data:` URL.
     pub thumbs: Vec<(usize, String)>,
+    /// Plots made beside the walk: caption and `data:` URL.
+    pub extra: Vec<(String, String)>,
 }
 
 /// `v` with `d` decimals, or a dash.
@@ -102,6 +104,7 @@ pub fn page(record: &WalkRecord, ctx: &ReportContext, e: &Embedded) -> String {
     }
     strip(&mut h, record, e);
     far_section(&mut h, record, e);
+    extra_section(&mut h, e);
     for p in &e.plots {
         let _ = write!(
             h,
@@ -220,6 +223,17 @@ fn strip(h: &mut String, record: &WalkRecord, e: &Embedded) {
 }
 
 /// The far field's figures and its error-against-time plot.
+/// The plots made beside the walk, each under its caption.
+fn extra_section(h: &mut String, e: &Embedded) {
+    for (caption, url) in &e.extra {
+        let c = escape(caption);
+        let _ = write!(
+            h,
+            "<figure><img src=\"{url}\" alt=\"{c}\"><figcaption>{c}</figcaption></figure>"
+        );
+    }
+}
+
 fn far_section(h: &mut String, record: &WalkRecord, e: &Embedded) {
     let (Some(d), Some(o)) = (&record.far_decision, &record.far_options) else {
         return;

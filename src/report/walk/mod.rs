@@ -328,6 +328,11 @@ pub fn write_with(
         let bytes = std::fs::read(&p).map_err(werr(&p))?;
         far_plot = Some(data_url("image/png", &bytes));
     }
+    let mut extra = Vec::new();
+    for (caption, p) in &ctx.extra_plots {
+        let bytes = std::fs::read(p).map_err(werr(p))?;
+        extra.push((caption.clone(), data_url("image/png", &bytes)));
+    }
     let fdir = frames_dir
         .map(Path::to_path_buf)
         .unwrap_or_else(|| dir.join("frames"));
@@ -377,6 +382,7 @@ pub fn write_with(
         plots,
         far_plot,
         thumbs,
+        extra,
     };
     let page = html::page(record, ctx, &embedded);
     let p = dir.join("report.html");
@@ -502,6 +508,7 @@ pub(crate) mod tests {
                 commit: None,
             }),
             command: vec!["blockwalk".into(), "walk".into(), "data/my city".into()],
+            extra_plots: Vec::new(),
         }
     }
 
@@ -568,6 +575,31 @@ pub(crate) mod tests {
         );
         // The full-size frame is still written beside the page.
         assert!(dir.path().join("frames/frame_0002.png").is_file());
+    }
+
+    #[test]
+    fn plots_made_beside_the_walk_are_embedded_under_their_caption() {
+        use base64::Engine as _;
+        let dir = tempfile::tempdir().unwrap();
+        let png = dir.path().join("extra.png");
+        image::RgbaImage::from_pixel(3, 2, image::Rgba([1, 2, 3, 255]))
+            .save(&png)
+            .unwrap();
+        let mut ctx = context();
+        ctx.extra_plots = vec![("Error <against> time".into(), png.clone())];
+        let out = dir.path().join("report");
+        write_with(&record(), &out, None, &ctx).unwrap();
+        let h = std::fs::read_to_string(out.join("report.html")).unwrap();
+        assert!(h.contains("<figcaption>Error &lt;against&gt; time</figcaption>"));
+        let url = format!(
+            "data:image/png;base64,{}",
+            base64::engine::general_purpose::STANDARD.encode(std::fs::read(&png).unwrap())
+        );
+        assert!(references(&h).contains(&url));
+        // A missing plot is an error naming the file, not a silent gap.
+        ctx.extra_plots = vec![("gone".into(), dir.path().join("missing.png"))];
+        let e = write_with(&record(), &out, None, &ctx).unwrap_err();
+        assert!(e.to_string().contains("missing.png"), "{e}");
     }
 
     #[test]
