@@ -17,7 +17,8 @@
 //!   (counted for [`FarPass::far_pixels`]); misses `discard`.
 //! - Writing depth disables early depth tests; the proxy's own depth is not used.
 
-use super::mesh::{map_read, read_timestamps};
+use super::mesh::map_read;
+use super::{padded_row_bytes, PassTimer};
 use super::{Gpu, Readback, RenderError};
 use crate::blockmap::layout::ALLOWED_K;
 use crate::blockmap::{BlockMap, BlockMapMeta, FrameRays, MapXform};
@@ -123,7 +124,7 @@ pub struct BlockMapRenderer {
     ids: wgpu::Texture,
     readback: wgpu::Buffer,
     padded_row: u32,
-    queries: Option<(wgpu::QuerySet, wgpu::Buffer, wgpu::Buffer)>,
+    queries: Option<PassTimer>,
 }
 
 impl std::fmt::Debug for BlockMapRenderer {
@@ -407,8 +408,7 @@ impl BlockMapRenderer {
             usage: wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::COPY_SRC,
             view_formats: &[],
         });
-        let align = wgpu::COPY_BYTES_PER_ROW_ALIGNMENT;
-        let padded_row = (size.0 * 4).div_ceil(align) * align;
+        let padded_row = padded_row_bytes(size.0);
         // Three images of 4 bytes per pixel: map ids, colour, depth.
         let readback = device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("blockmap read-back"),
@@ -416,26 +416,7 @@ impl BlockMapRenderer {
             usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::MAP_READ,
             mapped_at_creation: false,
         });
-        let queries = gpu.timestamps.then(|| {
-            let set = device.create_query_set(&wgpu::QuerySetDescriptor {
-                label: Some("far pass time"),
-                ty: wgpu::QueryType::Timestamp,
-                count: 2,
-            });
-            let resolve = device.create_buffer(&wgpu::BufferDescriptor {
-                label: Some("far timestamps"),
-                size: 2 * wgpu::QUERY_SIZE as u64,
-                usage: wgpu::BufferUsages::QUERY_RESOLVE | wgpu::BufferUsages::COPY_SRC,
-                mapped_at_creation: false,
-            });
-            let read = device.create_buffer(&wgpu::BufferDescriptor {
-                label: Some("far timestamps read-back"),
-                size: 2 * wgpu::QUERY_SIZE as u64,
-                usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::MAP_READ,
-                mapped_at_creation: false,
-            });
-            (set, resolve, read)
-        });
+        let queries = PassTimer::new(gpu, "far pass");
         Ok(Self {
             size,
             pipeline,
@@ -572,13 +553,7 @@ impl BlockMapRenderer {
                     }),
                     stencil_ops: None,
                 }),
-                timestamp_writes: self.queries.as_ref().map(|(set, _, _)| {
-                    wgpu::RenderPassTimestampWrites {
-                        query_set: set,
-                        beginning_of_pass_write_index: Some(0),
-                        end_of_pass_write_index: Some(1),
-                    }
-                }),
+                timestamp_writes: self.queries.as_ref().map(PassTimer::writes),
                 occlusion_query_set: None,
                 multiview_mask: None,
             });
@@ -589,9 +564,8 @@ impl BlockMapRenderer {
                 pass.draw(0..36, r.clone());
             }
         }
-        if let Some((set, resolve, read)) = &self.queries {
-            encoder.resolve_query_set(set, 0..2, resolve, 0);
-            encoder.copy_buffer_to_buffer(resolve, 0, read, 0, 2 * wgpu::QUERY_SIZE as u64);
+        if let Some(t) = &self.queries {
+            t.resolve(&mut encoder);
         }
         let plane = self.padded_row as u64 * h as u64;
         let copy = |encoder: &mut wgpu::CommandEncoder,
@@ -663,10 +637,7 @@ impl BlockMapRenderer {
                 .map(f32::from_le_bytes)
                 .collect()
         });
-        let gpu_s = match &self.queries {
-            Some((_, _, read)) => Some(read_timestamps(gpu, read)?),
-            None => None,
-        };
+        let gpu_s = self.queries.as_ref().map(|t| t.seconds(gpu)).transpose()?;
         Ok(FarPass {
             gpu_s,
             wall_s: start.elapsed().as_secs_f64(),

@@ -1,7 +1,7 @@
 //! The block mesh renderer: one vertex and index buffer for the whole city, one indexed draw
 //! per visible block.
 
-use super::{Gpu, Readback, RenderError};
+use super::{padded_row_bytes, Gpu, PassTimer, Readback, RenderError};
 use crate::blocks::BlockId;
 use crate::city::appearance::{self, BuildingStyle};
 use crate::city::Mesh;
@@ -283,7 +283,7 @@ pub struct MeshRenderer {
     depth: wgpu::Texture,
     readback: wgpu::Buffer,
     padded_row: u32,
-    queries: Option<(wgpu::QuerySet, wgpu::Buffer, wgpu::Buffer)>,
+    queries: Option<PassTimer>,
 }
 
 impl std::fmt::Debug for MeshRenderer {
@@ -535,37 +535,14 @@ impl MeshRenderer {
         };
         let color = target("colour", COLOR_FORMAT);
         let depth = target("depth", DEPTH_FORMAT);
-        // Texture-to-buffer copies need every row to start at a multiple of 256 bytes
-        // (COPY_BYTES_PER_ROW_ALIGNMENT): rows are padded here and the padding is dropped on
-        // read-back.
-        let align = wgpu::COPY_BYTES_PER_ROW_ALIGNMENT;
-        let padded_row = (options.width * 4).div_ceil(align) * align;
+        let padded_row = padded_row_bytes(options.width);
         let readback = device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("read-back"),
             size: padded_row as u64 * options.height as u64,
             usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::MAP_READ,
             mapped_at_creation: false,
         });
-        let queries = gpu.timestamps.then(|| {
-            let set = device.create_query_set(&wgpu::QuerySetDescriptor {
-                label: Some("pass time"),
-                ty: wgpu::QueryType::Timestamp,
-                count: 2,
-            });
-            let resolve = device.create_buffer(&wgpu::BufferDescriptor {
-                label: Some("timestamps"),
-                size: 2 * wgpu::QUERY_SIZE as u64,
-                usage: wgpu::BufferUsages::QUERY_RESOLVE | wgpu::BufferUsages::COPY_SRC,
-                mapped_at_creation: false,
-            });
-            let read = device.create_buffer(&wgpu::BufferDescriptor {
-                label: Some("timestamps read-back"),
-                size: 2 * wgpu::QUERY_SIZE as u64,
-                usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::MAP_READ,
-                mapped_at_creation: false,
-            });
-            (set, resolve, read)
-        });
+        let queries = PassTimer::new(gpu, "mesh pass");
         Ok(Self {
             options,
             pipeline,
@@ -662,13 +639,7 @@ impl MeshRenderer {
                     }),
                     stencil_ops: None,
                 }),
-                timestamp_writes: self.queries.as_ref().map(|(set, _, _)| {
-                    wgpu::RenderPassTimestampWrites {
-                        query_set: set,
-                        beginning_of_pass_write_index: Some(0),
-                        end_of_pass_write_index: Some(1),
-                    }
-                }),
+                timestamp_writes: self.queries.as_ref().map(PassTimer::writes),
                 occlusion_query_set: None,
                 multiview_mask: None,
             });
@@ -703,9 +674,8 @@ impl MeshRenderer {
                 triangles += r.index_count as u64 / 3;
             }
         }
-        if let Some((set, resolve, read)) = &self.queries {
-            encoder.resolve_query_set(set, 0..2, resolve, 0);
-            encoder.copy_buffer_to_buffer(resolve, 0, read, 0, 2 * wgpu::QUERY_SIZE as u64);
+        if let Some(t) = &self.queries {
+            t.resolve(&mut encoder);
         }
         encoder.copy_texture_to_buffer(
             wgpu::TexelCopyTextureInfo {
@@ -718,7 +688,7 @@ impl MeshRenderer {
                 buffer: &self.readback,
                 layout: wgpu::TexelCopyBufferLayout {
                     offset: 0,
-                    // Padded to 256 bytes per row (see `padded_row`).
+                    // Padded to 256 bytes per row (see `padded_row_bytes`).
                     bytes_per_row: Some(self.padded_row),
                     rows_per_image: Some(self.options.height),
                 },
@@ -732,10 +702,7 @@ impl MeshRenderer {
         gpu.queue.submit([encoder.finish()]);
 
         let rgba = self.read_image(gpu)?;
-        let gpu_s = match &self.queries {
-            Some((_, _, read)) => Some(read_timestamps(gpu, read)?),
-            None => None,
-        };
+        let gpu_s = self.queries.as_ref().map(|t| t.seconds(gpu)).transpose()?;
         Ok(Frame {
             width: self.options.width,
             height: self.options.height,
@@ -784,22 +751,4 @@ pub(super) fn map_read(
         .to_vec();
     buffer.unmap();
     Ok(bytes)
-}
-
-/// Seconds between the two timestamps in `read`.
-pub(super) fn read_timestamps(gpu: &Gpu, read: &wgpu::Buffer) -> Result<f64, RenderError> {
-    let bytes = map_read(gpu, read, Readback::Timestamps)?;
-    let stamp = |i: usize| -> Result<u64, RenderError> {
-        bytes
-            .get(i * 8..i * 8 + 8)
-            .and_then(|b| b.try_into().ok())
-            .map(u64::from_le_bytes)
-            .ok_or(RenderError::ShortReadback {
-                what: Readback::Timestamps,
-                got: bytes.len(),
-                expected: 16,
-            })
-    };
-    let ticks = stamp(1)?.wrapping_sub(stamp(0)?);
-    Ok(ticks as f64 * gpu.queue.get_timestamp_period() as f64 * 1e-9)
 }

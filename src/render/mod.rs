@@ -348,3 +348,88 @@ impl Gpu {
         self.adapter.get_info().device_type == wgpu::DeviceType::Cpu
     }
 }
+
+/// Bytes per row of an RGBA8 (or other 4-byte) image `width` pixels wide in a read-back buffer:
+/// texture-to-buffer copies need every row to start at a multiple of 256 bytes
+/// (`COPY_BYTES_PER_ROW_ALIGNMENT`), so rows are padded and the padding is dropped on read-back.
+pub(crate) fn padded_row_bytes(width: u32) -> u32 {
+    let align = wgpu::COPY_BYTES_PER_ROW_ALIGNMENT;
+    (width * 4).div_ceil(align) * align
+}
+
+/// GPU time of one render pass from two timestamp queries (beginning and end of the pass).
+#[derive(Debug)]
+pub(crate) struct PassTimer {
+    set: wgpu::QuerySet,
+    resolve: wgpu::Buffer,
+    read: wgpu::Buffer,
+}
+
+impl PassTimer {
+    /// A timer for passes named `label`, or `None` when the device has no timestamp queries.
+    pub(crate) fn new(gpu: &Gpu, label: &str) -> Option<Self> {
+        gpu.timestamps.then(|| {
+            let size = 2 * wgpu::QUERY_SIZE as u64;
+            let set = gpu.device.create_query_set(&wgpu::QuerySetDescriptor {
+                label: Some(label),
+                ty: wgpu::QueryType::Timestamp,
+                count: 2,
+            });
+            let buffer = |what: &str, usage| {
+                gpu.device.create_buffer(&wgpu::BufferDescriptor {
+                    label: Some(&format!("{label} {what}")),
+                    size,
+                    usage,
+                    mapped_at_creation: false,
+                })
+            };
+            Self {
+                set,
+                resolve: buffer(
+                    "timestamps",
+                    wgpu::BufferUsages::QUERY_RESOLVE | wgpu::BufferUsages::COPY_SRC,
+                ),
+                read: buffer(
+                    "timestamps read-back",
+                    wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::MAP_READ,
+                ),
+            }
+        })
+    }
+
+    /// The pass's timestamp writes: query 0 at its beginning, 1 at its end.
+    pub(crate) fn writes(&self) -> wgpu::RenderPassTimestampWrites<'_> {
+        wgpu::RenderPassTimestampWrites {
+            query_set: &self.set,
+            beginning_of_pass_write_index: Some(0),
+            end_of_pass_write_index: Some(1),
+        }
+    }
+
+    /// Resolves the queries into the read-back buffer (after the pass, in the same encoder).
+    pub(crate) fn resolve(&self, encoder: &mut wgpu::CommandEncoder) {
+        encoder.resolve_query_set(&self.set, 0..2, &self.resolve, 0);
+        encoder.copy_buffer_to_buffer(&self.resolve, 0, &self.read, 0, 2 * wgpu::QUERY_SIZE as u64);
+    }
+
+    /// Seconds between the two timestamps (after the encoder was submitted).
+    ///
+    /// # Errors
+    /// Mapping the buffer failed, or it held fewer than two timestamps.
+    pub(crate) fn seconds(&self, gpu: &Gpu) -> Result<f64, RenderError> {
+        let bytes = mesh::map_read(gpu, &self.read, Readback::Timestamps)?;
+        let stamp = |i: usize| -> Result<u64, RenderError> {
+            bytes
+                .get(i * 8..i * 8 + 8)
+                .and_then(|b| b.try_into().ok())
+                .map(u64::from_le_bytes)
+                .ok_or(RenderError::ShortReadback {
+                    what: Readback::Timestamps,
+                    got: bytes.len(),
+                    expected: 16,
+                })
+        };
+        let ticks = stamp(1)?.wrapping_sub(stamp(0)?);
+        Ok(ticks as f64 * gpu.queue.get_timestamp_period() as f64 * 1e-9)
+    }
+}
