@@ -5,8 +5,7 @@
 //! print why and pass, unless `BLOCKWALK_REQUIRE_VALIDATORS=1` (set by `.ci/run`), where they
 //! fail.
 
-use std::path::{Path, PathBuf};
-use std::process::Command;
+use std::path::Path;
 
 use blockwalk::city::export::glb_bytes;
 use blockwalk::city::extrude::try_extrude_city;
@@ -15,51 +14,18 @@ use blockwalk::city::City;
 use blockwalk::scene::CitySource;
 use serde_json::Value;
 
-const REQUIRE: &str = "BLOCKWALK_REQUIRE_VALIDATORS";
-
-fn tools() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/tools")
-}
+#[path = "support/node_tools.rs"]
+mod node_tools;
 
 /// `Some(node)` when node and the validator are installed; otherwise prints why and gives
-/// `None`, or panics when [`REQUIRE`] is set.
+/// `None`, or panics under `BLOCKWALK_REQUIRE_VALIDATORS=1`.
 fn validator_or_skip(test: &str) -> Option<String> {
-    let node = std::env::var("BLOCKWALK_NODE").unwrap_or_else(|_| "node".into());
-    let why = match Command::new(&node).arg("--version").output() {
-        Err(e) => Some(format!("`{node}` cannot be run ({e})")),
-        Ok(o) if !o.status.success() => Some(format!("`{node} --version` failed")),
-        Ok(_) if !tools().join("node_modules/gltf-validator").is_dir() => Some(format!(
-            "the validator is not installed (run `npm ci --prefix {}`)",
-            tools().display()
-        )),
-        Ok(_) => None,
-    };
-    match why {
-        None => Some(node),
-        Some(why) if std::env::var(REQUIRE).is_ok_and(|v| v == "1") => {
-            panic!("{test}: {why}, and {REQUIRE}=1")
-        }
-        Some(why) => {
-            eprintln!("{test}: skipped: {why} ({REQUIRE}=1 makes this a failure)");
-            None
-        }
-    }
+    node_tools::or_skip(test, node_tools::node_with(&["gltf-validator"]))
 }
 
 /// The validator's JSON report on one file.
 fn validate(node: &str, file: &Path) -> Value {
-    let out = Command::new(node)
-        .arg(tools().join("validate_gltf.js"))
-        .arg(file)
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "{}: {}",
-        file.display(),
-        String::from_utf8_lossy(&out.stderr)
-    );
-    serde_json::from_slice(&out.stdout).unwrap()
+    node_tools::run_json(node, "validate_gltf.js", file)
 }
 
 fn counts(report: &Value) -> [u64; 4] {

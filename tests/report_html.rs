@@ -10,74 +10,19 @@
 //! the test prints why and passes, unless `BLOCKWALK_REQUIRE_VALIDATORS=1`, where it fails.
 
 use serde_json::{json, Value};
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::process::Command;
 
-const REQUIRE: &str = "BLOCKWALK_REQUIRE_VALIDATORS";
-
-fn tools() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/tools")
-}
-
-/// `Some((node, chromium path))` when everything is installed; otherwise prints why and gives
-/// `None`, or panics when [`REQUIRE`] is set.
-fn tools_or_skip(test: &str) -> Option<(String, String)> {
-    let node = std::env::var("BLOCKWALK_NODE").unwrap_or_else(|_| "node".into());
-    let chromium = std::env::var("BLOCKWALK_CHROMIUM").unwrap_or_else(|_| "chromium".into());
-    let runs = |cmd: &str| {
-        Command::new(cmd)
-            .arg("--version")
-            .output()
-            .is_ok_and(|o| o.status.success())
-    };
-    let why = if !runs(&node) {
-        Some(format!("`{node}` cannot be run"))
-    } else if !runs(&chromium) {
-        Some(format!(
-            "`{chromium}` cannot be run (apt-get install chromium)"
-        ))
-    } else if !tools().join("node_modules/puppeteer-core").is_dir() {
-        Some(format!(
-            "puppeteer-core is not installed (run `npm ci --prefix {}`)",
-            tools().display()
-        ))
-    } else {
-        None
-    };
-    match why {
-        None => {
-            let path = Command::new("sh")
-                .arg("-c")
-                .arg(format!("command -v {chromium}"))
-                .output()
-                .ok()
-                .map(|o| String::from_utf8_lossy(&o.stdout).trim().to_string())
-                .filter(|p| !p.is_empty())
-                .unwrap_or(chromium);
-            Some((node, path))
-        }
-        Some(why) if std::env::var(REQUIRE).is_ok_and(|v| v == "1") => {
-            panic!("{test}: {why}, and {REQUIRE}=1")
-        }
-        Some(why) => {
-            eprintln!("{test}: skipped: {why} ({REQUIRE}=1 makes this a failure)");
-            None
-        }
-    }
-}
-
-fn screenshot_dir() -> PathBuf {
-    let d = std::env::var_os("BLOCKWALK_SCREENSHOT_DIR")
-        .map(PathBuf::from)
-        .unwrap_or_else(|| Path::new(env!("CARGO_MANIFEST_DIR")).join("target/report-html"));
-    std::fs::create_dir_all(&d).unwrap();
-    d
-}
+#[path = "support/node_tools.rs"]
+mod node_tools;
 
 #[test]
 fn the_helsinki_walk_report_opens_alone_in_chromium() {
     let test = "the_helsinki_walk_report_opens_alone_in_chromium";
-    let Some((node, chromium)) = tools_or_skip(test) else {
+    let Some((node, chromium)) = node_tools::or_skip(
+        test,
+        node_tools::node_with(&["puppeteer-core"]).and_then(|n| Ok((n, node_tools::chromium()?))),
+    ) else {
         return;
     };
     let data = Path::new(env!("CARGO_MANIFEST_DIR")).join("data/helsinki");
@@ -148,7 +93,7 @@ fn the_helsinki_walk_report_opens_alone_in_chromium() {
         }
     }
     assert!(page.contains(&format!("({} hardware threads)", j["machine"]["cores"])));
-    let shot = screenshot_dir().join("report.png");
+    let shot = node_tools::screenshot_dir("report-html").join("report.png");
     let spec = out.path().join("spec.json");
     std::fs::write(
         &spec,
@@ -161,22 +106,7 @@ fn the_helsinki_walk_report_opens_alone_in_chromium() {
         .unwrap(),
     )
     .unwrap();
-    let run = Command::new(&node)
-        .arg(tools().join("report_screenshot.mjs"))
-        .arg(&spec)
-        .output()
-        .unwrap();
-    assert!(
-        run.status.success(),
-        "report_screenshot.mjs: {}",
-        String::from_utf8_lossy(&run.stderr)
-    );
-    let r: Value = serde_json::from_slice(&run.stdout).unwrap_or_else(|e| {
-        panic!(
-            "report_screenshot.mjs printed no JSON ({e}): {}",
-            String::from_utf8_lossy(&run.stdout)
-        )
-    });
+    let r = node_tools::run_json(&node, "report_screenshot.mjs", &spec);
     eprintln!("{test}: {r}");
     let errors: Vec<&Value> = r["console"]
         .as_array()

@@ -8,7 +8,6 @@
 
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Path, PathBuf};
-use std::process::Command;
 
 use blockwalk::city::extrude::extrude_city;
 use blockwalk::city::Mesh;
@@ -468,45 +467,24 @@ fn same_city_same_bytes() {
     assert!(fa == fb, "two exports of the same city differ");
 }
 
-const REQUIRE: &str = "BLOCKWALK_REQUIRE_VALIDATORS";
-
-fn tools() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/tools")
-}
+#[path = "support/node_tools.rs"]
+mod node_tools;
 
 #[test]
 fn every_tile_is_valid_gltf() {
-    let node = std::env::var("BLOCKWALK_NODE").unwrap_or_else(|_| "node".into());
-    let have = Command::new(&node)
-        .arg("--version")
-        .output()
-        .is_ok_and(|o| o.status.success())
-        && tools().join("node_modules/gltf-validator").is_dir();
-    if !have {
-        let why = "node or the glTF validator is missing (npm ci --prefix tests/tools)";
-        if std::env::var(REQUIRE).is_ok_and(|v| v == "1") {
-            panic!("every_tile_is_valid_gltf: {why}, and {REQUIRE}=1");
-        }
-        eprintln!("every_tile_is_valid_gltf: skipped: {why}");
+    let Some(node) = node_tools::or_skip(
+        "every_tile_is_valid_gltf",
+        node_tools::node_with(&["gltf-validator"]),
+    ) else {
         return;
-    }
+    };
     for (name, b) in [("helsinki", helsinki()), ("bubenec", bubenec())] {
         let mut totals = [0u64; 4];
         let mut files = 0;
         for t in &b.set.tiles {
             let Some(uri) = &t.content else { continue };
             let f = b.dir.path().join(uri);
-            let out = Command::new(&node)
-                .arg(tools().join("validate_gltf.js"))
-                .arg(&f)
-                .output()
-                .unwrap();
-            assert!(
-                out.status.success(),
-                "{uri}: {}",
-                String::from_utf8_lossy(&out.stderr)
-            );
-            let r: Value = serde_json::from_slice(&out.stdout).unwrap();
+            let r = node_tools::run_json(&node, "validate_gltf.js", &f);
             let i = &r["issues"];
             let c = ["numErrors", "numWarnings", "numInfos", "numHints"]
                 .map(|k| i[k].as_u64().unwrap());

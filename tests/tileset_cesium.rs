@@ -10,8 +10,7 @@
 //! Needs `node`, `chromium` and `npm ci --prefix tests/tools` (what `.ci/run` does). Without them
 //! the test prints why and passes, unless `BLOCKWALK_REQUIRE_VALIDATORS=1`, where it fails.
 
-use std::path::{Path, PathBuf};
-use std::process::Command;
+use std::path::Path;
 
 use blockwalk::city::appearance;
 use blockwalk::city::extrude::extrude_city;
@@ -22,72 +21,11 @@ use blockwalk::visibility::oracle::shade;
 use glam::DVec3;
 use serde_json::{json, Value};
 
-const REQUIRE: &str = "BLOCKWALK_REQUIRE_VALIDATORS";
+#[path = "support/node_tools.rs"]
+mod node_tools;
+
 const W: u32 = 480;
 const H: u32 = 270;
-
-fn tools() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/tools")
-}
-
-/// `Some((node, chromium))` when everything is installed; otherwise prints why and gives
-/// `None`, or panics when [`REQUIRE`] is set.
-fn tools_or_skip(test: &str) -> Option<(String, String)> {
-    let node = std::env::var("BLOCKWALK_NODE").unwrap_or_else(|_| "node".into());
-    let chromium = std::env::var("BLOCKWALK_CHROMIUM").unwrap_or_else(|_| "chromium".into());
-    let runs = |cmd: &str| {
-        Command::new(cmd)
-            .arg("--version")
-            .output()
-            .is_ok_and(|o| o.status.success())
-    };
-    let why = if !runs(&node) {
-        Some(format!("`{node}` cannot be run"))
-    } else if !runs(&chromium) {
-        Some(format!(
-            "`{chromium}` cannot be run (apt-get install chromium)"
-        ))
-    } else if !["cesium", "puppeteer-core"]
-        .iter()
-        .all(|p| tools().join("node_modules").join(p).is_dir())
-    {
-        Some(format!(
-            "cesium / puppeteer-core are not installed (run `npm ci --prefix {}`)",
-            tools().display()
-        ))
-    } else {
-        None
-    };
-    match why {
-        None => {
-            // puppeteer wants the executable's path.
-            let path = Command::new("sh")
-                .arg("-c")
-                .arg(format!("command -v {chromium}"))
-                .output()
-                .ok()
-                .map(|o| String::from_utf8_lossy(&o.stdout).trim().to_string())
-                .filter(|p| !p.is_empty())
-                .unwrap_or(chromium);
-            Some((node, path))
-        }
-        Some(why) if std::env::var(REQUIRE).is_ok_and(|v| v == "1") => {
-            panic!("{test}: {why}, and {REQUIRE}=1")
-        }
-        Some(why) => {
-            eprintln!("{test}: skipped: {why} ({REQUIRE}=1 makes this a failure)");
-            None
-        }
-    }
-}
-
-fn screenshot_dir() -> PathBuf {
-    let d = std::env::var_os("BLOCKWALK_SCREENSHOT_DIR")
-        .map(PathBuf::from)
-        .unwrap_or_else(|| Path::new(env!("CARGO_MANIFEST_DIR")).join("target/tileset-cesium"));
-    std::fs::create_dir_all(&d).unwrap();
-    d
-}
 
 /// Share of pixels on which both images agree about "sky" (the sky colour, ±12 per channel).
 fn sky_agreement(a: &image::RgbaImage, b: &image::RgbaImage) -> f64 {
@@ -103,8 +41,11 @@ fn sky_agreement(a: &image::RgbaImage, b: &image::RgbaImage) -> f64 {
 
 #[test]
 fn cesium_loads_the_helsinki_tileset_and_refines_it() {
-    let Some((node, chromium)) = tools_or_skip("cesium_loads_the_helsinki_tileset_and_refines_it")
-    else {
+    let Some((node, chromium)) = node_tools::or_skip(
+        "cesium_loads_the_helsinki_tileset_and_refines_it",
+        node_tools::node_with(&["cesium", "puppeteer-core"])
+            .and_then(|n| Ok((n, node_tools::chromium()?))),
+    ) else {
         return;
     };
     let source = CitySource::parse(
@@ -147,7 +88,7 @@ fn cesium_loads_the_helsinki_tileset_and_refines_it() {
         ("far", centre + DVec3::new(0.0, -2600.0, 1500.0)),
         ("near", centre + DVec3::new(0.0, -220.0, 80.0)),
     ];
-    let out = screenshot_dir();
+    let out = node_tools::screenshot_dir("tileset-cesium");
     let spec = json!({
         "chromium": chromium,
         "tileset_dir": tiles_dir,
@@ -164,17 +105,7 @@ fn cesium_loads_the_helsinki_tileset_and_refines_it() {
     });
     let spec_path = work.path().join("spec.json");
     std::fs::write(&spec_path, serde_json::to_vec_pretty(&spec).unwrap()).unwrap();
-    let run = Command::new(&node)
-        .arg(tools().join("cesium_tileset.mjs"))
-        .arg(&spec_path)
-        .output()
-        .unwrap();
-    assert!(
-        run.status.success(),
-        "cesium_tileset.mjs: {}",
-        String::from_utf8_lossy(&run.stderr)
-    );
-    let report: Value = serde_json::from_slice(&run.stdout).unwrap();
+    let report = node_tools::run_json(&node, "cesium_tileset.mjs", &spec_path);
     std::fs::write(
         out.join("cesium_report.json"),
         serde_json::to_vec_pretty(&report).unwrap(),
