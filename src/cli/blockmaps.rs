@@ -15,7 +15,7 @@ pub struct Args {
     #[command(flatten)]
     pub city: CityArgs,
     /// Height-map side K: 32, 64 or 128.
-    #[arg(long, default_value_t = 64)]
+    #[arg(long, value_parser = super::common::parse_k, default_value_t = 64)]
     pub k: u32,
     /// Maps for the first N levels of the quadtree.
     #[arg(long, conflicts_with = "leaf_blocks")]
@@ -53,11 +53,6 @@ pub struct Args {
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
-    anyhow::ensure!(
-        blockwalk::blockmap::layout::ALLOWED_K.contains(&args.k),
-        "--k {}: expected 32, 64 or 128",
-        args.k
-    );
     if let Some(l) = args.levels {
         anyhow::ensure!(l >= 1, "--levels must be at least 1");
     }

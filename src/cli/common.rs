@@ -138,3 +138,15 @@ pub fn peak_memory_bytes() -> Option<u64> {
     let kb: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
     Some(kb * 1024)
 }
+
+/// `--k`: a BlockMap height-map side the layout allows (32, 64 or 128, seed 002 §4.2.1).
+pub fn parse_k(s: &str) -> Result<u32, String> {
+    let k: u32 = s
+        .parse()
+        .map_err(|_| format!("{s}: expected 32, 64 or 128"))?;
+    if blockwalk::blockmap::layout::ALLOWED_K.contains(&k) {
+        Ok(k)
+    } else {
+        Err(format!("{k}: expected 32, 64 or 128"))
+    }
+}

@@ -25,7 +25,7 @@ pub struct Args {
     #[arg(long, value_delimiter = ',', default_value = "0.5,1,2,4,8,16")]
     pub taus: Vec<f64>,
     /// Height-map sides K.
-    #[arg(long, value_delimiter = ',', default_value = "32,64,128")]
+    #[arg(long, value_parser = super::common::parse_k, value_delimiter = ',', default_value = "32,64,128")]
     pub ks: Vec<u32>,
     /// Routes: `paper`, `orbit`, `flyover` (high, the whole city in view), `street`, or files.
     #[arg(long, value_delimiter = ',', default_value = "paper,orbit,flyover")]

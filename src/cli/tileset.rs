@@ -16,7 +16,7 @@ pub struct Args {
     #[command(flatten)]
     pub city: CityArgs,
     /// Height-map side K of the inner tiles' BlockMaps: 32, 64 or 128.
-    #[arg(long, default_value_t = 64)]
+    #[arg(long, value_parser = super::common::parse_k, default_value_t = 64)]
     pub k: u32,
     /// Inner tiles for the first N levels of the quadtree (default: a map where it costs fewer
     /// bytes than the meshes, seed 000 §4).
@@ -31,11 +31,6 @@ pub struct Args {
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
-    anyhow::ensure!(
-        blockwalk::blockmap::layout::ALLOWED_K.contains(&args.k),
-        "--k {}: expected 32, 64 or 128",
-        args.k
-    );
     if let Some(l) = args.levels {
         anyhow::ensure!(l >= 1, "--levels must be at least 1");
     }

@@ -72,7 +72,7 @@ pub struct Args {
     #[arg(long, default_value_t = 1.0)]
     pub tau: f64,
     /// BlockMap height-map side K (32, 64 or 128).
-    #[arg(long, default_value_t = 64)]
+    #[arg(long, value_parser = super::common::parse_k, default_value_t = 64)]
     pub k: u32,
     /// Hysteresis h: a map stays a map until its error exceeds τ·(1 + h).
     #[arg(long, default_value_t = blockwalk::blockmap::select::DEFAULT_HYSTERESIS)]
