@@ -4,6 +4,12 @@
 //! §2 / seed 003 §4), optionally through the occlusion culler (occluder shadows and a cull map,
 //! seed 004 §3), draws the survivors with [`MeshRenderer`] and shows the image in the window.
 //!
+//! With a far field ([`ViewerScene::far`]) the frame is the walk's hybrid frame instead: a
+//! [`Selector`] picks, coarse to fine and front to back, the BlockMaps whose projected error is
+//! at most τ (seed 000 §4, seed 002 §4.4) and the blocks left to draw as meshes; the meshes are
+//! drawn first and the maps are ray-cast into the same colour and depth targets
+//! ([`BlockMapRenderer`]), as `blockwalk walk --far blockmaps` draws them.
+//!
 //! The frame is drawn by the same [`MeshRenderer`] as the headless tools (so what the window shows
 //! is exactly what `blockwalk walk --render` writes), read back and written into the surface
 //! texture with `Queue::write_texture`, swapping red and blue for `Bgra8` surfaces. This costs a
@@ -25,14 +31,16 @@
 //!   --streets data/bubenec/streets.shp --route orbit --frames 3 --screenshot view.png
 //! ```
 
+use super::blockmap::{BlockMapRenderer, FarReadback};
 use super::{Gpu, MeshRenderer, RenderError, RenderOptions};
+use crate::blockmap::{MapTree, SelectOptions, Selector};
 use crate::blocks::BlockId;
 use crate::city::Mesh;
 use crate::geom::Camera;
 use crate::index::{CullQuery, Structure};
 use crate::route::CameraRoute;
 use crate::scene::Scene;
-use crate::visibility::OcclusionCulling;
+use crate::visibility::{CullMap, OcclusionCulling};
 use glam::DVec3;
 use std::collections::HashSet;
 use std::path::PathBuf;
@@ -128,6 +136,17 @@ pub struct ViewerScene {
     pub occlusion: bool,
     /// The route that P plays (and the start pose).
     pub route: CameraRoute,
+    /// Far field: BlockMaps drawn where their projected error is at most τ.
+    pub far: Option<ViewerFar>,
+}
+
+/// The far field of the viewer: the city's map tree and the selection settings.
+#[derive(Clone, Debug)]
+pub struct ViewerFar {
+    /// The maps (built for the scene's blocks).
+    pub maps: MapTree,
+    /// τ and hysteresis.
+    pub select: SelectOptions,
 }
 
 impl std::fmt::Debug for ViewerScene {
@@ -137,6 +156,7 @@ impl std::fmt::Debug for ViewerScene {
             .field("structure", &self.structure)
             .field("occlusion", &self.occlusion)
             .field("route", &self.route.name)
+            .field("far_maps", &self.far.as_ref().map(|f| f.maps.maps.len()))
             .finish()
     }
 }
@@ -180,6 +200,12 @@ pub struct ViewerSummary {
     pub blocks: u32,
     /// Triangles drawn in the last frame.
     pub triangles: u64,
+    /// Maps drawn in the last frame (0 without a far field).
+    pub far_nodes: usize,
+    /// Mean maps drawn per frame over the session.
+    pub far_nodes_mean: f64,
+    /// Pixels the maps won in the last frame.
+    pub far_pixels: u64,
     /// Adapter used.
     pub adapter: String,
     /// The screenshot written, if any.
@@ -197,6 +223,19 @@ pub fn run_viewer(
             height: options.height,
         });
     }
+    let selector = match &scene.far {
+        Some(f) => Some(
+            Selector::new(&f.maps, &scene.scene.bounds, f.select)
+                .map_err(|e| WindowError::Scene(format!("far field: {e}")))?,
+        ),
+        None => None,
+    };
+    let cull_map = scene
+        .scene
+        .occlusion
+        .as_ref()
+        .filter(|_| scene.occlusion)
+        .map(|c| c.new_map());
     let event_loop = EventLoop::new().map_err(|source| WindowError::EventLoop { source })?;
     event_loop.set_control_flow(ControlFlow::Poll);
     let mut camera = scene.route.camera_at(scene.route.start());
@@ -217,6 +256,10 @@ pub fn run_viewer(
         title_at: Instant::now(),
         title_frames: 0,
         visible: Vec::new(),
+        far: Vec::new(),
+        selector,
+        cull_map,
+        far_total: 0,
         summary: ViewerSummary::default(),
     };
     app.route_t = app.scene.route.start();
@@ -225,6 +268,9 @@ pub fn run_viewer(
         .map_err(|source| WindowError::EventLoop { source })?;
     if let Some(e) = app.error {
         return Err(e);
+    }
+    if app.summary.frames > 0 {
+        app.summary.far_nodes_mean = app.far_total as f64 / app.summary.frames as f64;
     }
     let secs = app.started.elapsed().as_secs_f64();
     app.summary.fps = if secs > 0.0 {
@@ -242,6 +288,8 @@ struct GpuState {
     config: wgpu::SurfaceConfiguration,
     gpu: Gpu,
     renderer: MeshRenderer,
+    /// The far-field maps on the GPU, when the scene has a far field.
+    far: Option<BlockMapRenderer>,
     /// Swap red and blue when writing into the surface.
     bgra: bool,
 }
@@ -262,6 +310,13 @@ struct App {
     title_at: Instant,
     title_frames: usize,
     visible: Vec<BlockId>,
+    /// Maps to draw this frame (indices into the far field's maps).
+    far: Vec<usize>,
+    selector: Option<Selector>,
+    /// The occlusion culler's map, rebuilt every frame, that prunes the far field's nodes.
+    cull_map: Option<CullMap>,
+    /// Maps drawn, summed over frames.
+    far_total: u64,
     summary: ViewerSummary,
 }
 
@@ -329,12 +384,14 @@ impl App {
         config.present_mode = wgpu::PresentMode::Fifo;
         surface.configure(&gpu.device, &config);
         let renderer = self.make_renderer(&gpu, width, height)?;
+        let far = self.make_far(&gpu, width, height)?;
         Ok(GpuState {
             window,
             surface,
             config,
             gpu,
             renderer,
+            far,
             bgra,
         })
     }
@@ -360,6 +417,20 @@ impl App {
         )
     }
 
+    /// The far-field renderer at `width × height`, when the scene has a far field.
+    fn make_far(
+        &self,
+        gpu: &Gpu,
+        width: u32,
+        height: u32,
+    ) -> Result<Option<BlockMapRenderer>, RenderError> {
+        let Some(f) = &self.scene.far else {
+            return Ok(None);
+        };
+        let maps: Vec<&crate::blockmap::BlockMap> = f.maps.maps.iter().map(|n| &n.map).collect();
+        BlockMapRenderer::new(gpu, &maps, (width, height)).map(Some)
+    }
+
     fn resize(&mut self, size: PhysicalSize<u32>) -> Result<(), WindowError> {
         if size.width == 0 || size.height == 0 {
             return Ok(());
@@ -371,9 +442,11 @@ impl App {
             return Ok(());
         }
         let renderer = self.make_renderer(&state.gpu, size.width, size.height)?;
+        let far = self.make_far(&state.gpu, size.width, size.height)?;
         let Some(state) = self.state.as_mut() else {
             return Ok(());
         };
+        state.far = far;
         state.config.width = size.width;
         state.config.height = size.height;
         state.surface.configure(&state.gpu.device, &state.config);
@@ -442,10 +515,56 @@ impl App {
         let dt = (now - self.last_tick).as_secs_f64().min(0.25);
         self.last_tick = now;
         self.update_camera(dt);
-        let Some(state) = self.state.as_ref() else {
+        let Some(height) = self.state.as_ref().map(|s| s.config.height) else {
             return Ok(());
         };
         self.visible.clear();
+        self.far.clear();
+        if let Some(selector) = self.selector.as_mut() {
+            // The far field replaces the structure's culling: the selector prunes map nodes and
+            // the blocks left as meshes by the frustum and, with occlusion, the cull map.
+            let map = match (&self.scene.scene.occlusion, self.cull_map.as_mut()) {
+                (Some(c), Some(m)) => {
+                    let st = c.build(&self.camera, m);
+                    (st.skipped.is_none() && st.cells_covered > 0).then_some(&*m)
+                }
+                _ => None,
+            };
+            let sel = selector.select(&self.camera, height, map);
+            self.visible = sel.meshes;
+            self.far = sel.maps;
+        } else {
+            self.cull_structure()?;
+        }
+        let Some(state) = self.state.as_ref() else {
+            return Ok(());
+        };
+        let mut frame = state
+            .renderer
+            .draw(&state.gpu, &self.camera, &self.visible)?;
+        let mut far_pixels = 0;
+        if let (Some(far), false) = (&state.far, self.far.is_empty()) {
+            let pass = far.draw(
+                &state.gpu,
+                &self.camera,
+                &self.far,
+                state.renderer.color_texture(),
+                state.renderer.depth_texture(),
+                FarReadback {
+                    color: true,
+                    depth: false,
+                },
+            )?;
+            far_pixels = pass.far_pixels;
+            if let Some(rgba) = pass.rgba {
+                frame.rgba = rgba;
+            }
+        }
+        self.present(event_loop, &frame, far_pixels)
+    }
+
+    /// Frustum (and occlusion) culling of the blocks through the viewer's structure.
+    fn cull_structure(&mut self) -> Result<(), WindowError> {
         let Some(index) = self.scene.scene.index(self.scene.structure) else {
             return Err(WindowError::Scene(format!(
                 "the scene has no {} structure",
@@ -471,9 +590,20 @@ impl App {
                 );
             }
         }
-        let frame = state
-            .renderer
-            .draw(&state.gpu, &self.camera, &self.visible)?;
+        Ok(())
+    }
+
+    /// Shows `frame` in the window, updates the title and the summary, and in screenshot mode
+    /// saves the last frame and quits.
+    fn present(
+        &mut self,
+        event_loop: &ActiveEventLoop,
+        frame: &super::Frame,
+        far_pixels: u64,
+    ) -> Result<(), WindowError> {
+        let Some(state) = self.state.as_ref() else {
+            return Ok(());
+        };
         let texture = match state.surface.get_current_texture() {
             wgpu::CurrentSurfaceTexture::Success(t)
             | wgpu::CurrentSurfaceTexture::Suboptimal(t) => t,
@@ -517,17 +647,29 @@ impl App {
         self.summary.frames += 1;
         self.summary.blocks = frame.timings.blocks;
         self.summary.triangles = frame.timings.triangles;
+        self.summary.far_nodes = self.far.len();
+        self.summary.far_pixels = far_pixels;
+        self.far_total += self.far.len() as u64;
         self.title_frames += 1;
         let since = self.title_at.elapsed().as_secs_f64();
         if since >= 0.5 {
             let fps = self.title_frames as f64 / since;
             state.window.set_title(&format!(
-                "blockwalk — {} — {:.1} fps — {} blocks, {} triangles — {}{}{}",
+                "blockwalk — {} — {:.1} fps — {} blocks, {} triangles{} — {}{}{}",
                 self.scene.scene.name,
                 fps,
                 frame.timings.blocks,
                 frame.timings.triangles,
-                self.scene.structure,
+                if self.selector.is_some() {
+                    format!(", {} far maps", self.far.len())
+                } else {
+                    String::new()
+                },
+                if self.selector.is_some() {
+                    "BlockMaps".to_string()
+                } else {
+                    self.scene.structure.to_string()
+                },
                 if self.scene.occlusion {
                     " + occlusion"
                 } else {

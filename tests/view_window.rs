@@ -1,0 +1,140 @@
+//! `blockwalk view` in a real window: an X server (Xvfb through `xvfb-run`), a wgpu surface on
+//! lavapipe, the route played for a few frames and the last one saved. With `--far blockmaps` the
+//! window draws the hybrid frame (near meshes, far BlockMaps ray-cast into the same targets), as
+//! `blockwalk walk --far blockmaps` does.
+//!
+//! Without `xvfb-run` or a Vulkan driver the tests print why and pass, unless
+//! `BLOCKWALK_REQUIRE_GPU` is set (CI), in which case they fail.
+#![cfg(feature = "window")]
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+fn required() -> bool {
+    std::env::var("BLOCKWALK_REQUIRE_GPU").is_ok_and(|v| v == "1")
+}
+
+fn xvfb_run() -> Option<PathBuf> {
+    std::env::var_os("PATH").and_then(|paths| {
+        std::env::split_paths(&paths)
+            .map(|d| d.join("xvfb-run"))
+            .find(|p| p.is_file())
+    })
+}
+
+fn out_dir() -> PathBuf {
+    let d = Path::new(env!("CARGO_TARGET_TMPDIR")).join("view-window");
+    std::fs::create_dir_all(&d).expect("create the test folder");
+    d
+}
+
+/// Runs `blockwalk view` on Helsinki under Xvfb with `extra` arguments, saving the last of three
+/// orbit frames to `shot`; returns its JSON summary, or `None` (skip) without a display server or
+/// a GPU.
+fn view(extra: &[&str], shot: &Path) -> Option<serde_json::Value> {
+    let Some(xvfb) = xvfb_run() else {
+        assert!(
+            !required(),
+            "xvfb-run is not installed (apt-get install xvfb)"
+        );
+        eprintln!("skipped: xvfb-run is not installed");
+        return None;
+    };
+    let city = Path::new(env!("CARGO_MANIFEST_DIR")).join("data/helsinki");
+    let out = Command::new(xvfb)
+        .args(["-a", "-s", "-screen 0 1280x720x24"])
+        .arg(env!("CARGO_BIN_EXE_blockwalk"))
+        .arg("view")
+        .arg(&city)
+        .args(["--route", "orbit", "--frames", "3", "--size", "320x180"])
+        .arg("--screenshot")
+        .arg(shot)
+        .arg("--json")
+        .args(extra)
+        .env("NODEVICE_SELECT", "1")
+        .env("WGPU_BACKEND", "vulkan")
+        .output()
+        .expect("run xvfb-run blockwalk view");
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    if !out.status.success() {
+        let no_gpu = stderr.contains("adapter") || stderr.contains("surface");
+        assert!(
+            no_gpu && !required(),
+            "blockwalk view {extra:?} failed: {}\n{stderr}",
+            out.status
+        );
+        eprintln!("skipped: no GPU surface: {stderr}");
+        return None;
+    }
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    let line = stdout.lines().last().unwrap_or_default();
+    Some(serde_json::from_str(line).unwrap_or_else(|e| panic!("summary {line:?}: {e}")))
+}
+
+fn load(p: &Path) -> image::RgbaImage {
+    image::open(p)
+        .unwrap_or_else(|e| panic!("{}: {e}", p.display()))
+        .to_rgba8()
+}
+
+#[test]
+fn the_window_draws_the_far_field_where_the_walk_would() {
+    let dir = out_dir();
+    let (mesh_png, far_png) = (dir.join("meshes.png"), dir.join("blockmaps.png"));
+    let Some(mesh) = view(&["--far", "none"], &mesh_png) else {
+        return;
+    };
+    let Some(far) = view(&["--far", "blockmaps", "--tau", "4", "--k", "64"], &far_png) else {
+        return;
+    };
+    assert_eq!(mesh["frames"], 3);
+    assert_eq!(far["frames"], 3);
+    assert_eq!(mesh["far_nodes"], 0, "meshes only: {mesh}");
+    assert_eq!(far["far"], "blockmaps");
+    let nodes = far["far_nodes"].as_u64().expect("far_nodes");
+    let pixels = far["far_pixels"].as_u64().expect("far_pixels");
+    assert!(
+        nodes > 0 && pixels > 0,
+        "the orbit at τ = 4 px must draw maps: {far}"
+    );
+    // The maps replace meshes: fewer triangles than the mesh-only frame of the same camera.
+    let (tm, tf) = (
+        mesh["triangles"].as_u64().expect("triangles"),
+        far["triangles"].as_u64().expect("triangles"),
+    );
+    assert!(tf < tm, "hybrid {tf} triangles, meshes only {tm}");
+    let (a, b) = (load(&mesh_png), load(&far_png));
+    assert_eq!(a.dimensions(), (320, 180));
+    assert_eq!(b.dimensions(), (320, 180));
+    // The same city from the same camera: the maps stand where the meshes stood, so only a
+    // small share of the pixels change, and at most as many as the maps won plus their
+    // silhouettes' neighbours (a map drawn in the wrong place changes far more).
+    let changed = a
+        .pixels()
+        .zip(b.pixels())
+        .filter(|(p, q)| p.0.iter().zip(q.0.iter()).any(|(x, y)| x.abs_diff(*y) > 24))
+        .count();
+    let total = (320 * 180) as usize;
+    eprintln!("{changed} pixels changed, maps won {pixels}, {nodes} maps, {tf} of {tm} triangles");
+    assert!(
+        changed * 10 < total,
+        "{changed} of {total} pixels differ between the mesh-only and the hybrid window frames"
+    );
+    assert!(
+        changed as u64 <= 2 * pixels,
+        "{changed} pixels differ but the maps won only {pixels}"
+    );
+}
+
+#[test]
+fn a_bad_tau_is_refused_before_a_window_opens() {
+    let out = Command::new(env!("CARGO_BIN_EXE_blockwalk"))
+        .arg("view")
+        .arg(Path::new(env!("CARGO_MANIFEST_DIR")).join("data/helsinki"))
+        .args(["--far", "blockmaps", "--tau", "0"])
+        .output()
+        .expect("run blockwalk view");
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("--tau 0"), "{err}");
+}
