@@ -6,7 +6,7 @@ use blockwalk::blockmap::{MapTree, SelectOptions};
 use blockwalk::index::Structure;
 use blockwalk::report;
 use blockwalk::route::{RouteChoice, RouteContext};
-use blockwalk::scene::{Scene, SceneOptions};
+use blockwalk::scene::{BuildingsMode, Scene, SceneOptions};
 use blockwalk::visibility::{CullerOptions, FrameRenderer};
 use blockwalk::walk::{
     run_walk_with_far, Drawing, FarField, FarMode, OcclusionMode, WalkParams, WalkRecord,
@@ -40,6 +40,11 @@ pub struct Args {
     /// Occlusion culling: on, off, or auto (both modes side by side).
     #[arg(long, value_enum, default_value_t = OcclusionMode::Auto)]
     pub occlusion: OcclusionMode,
+    /// Test each building of the blocks that survive (frustum, and the cull map with
+    /// occlusion; seed 004 §3.2.8): on, off, or auto (with and without, side by side, and
+    /// which pays).
+    #[arg(long, value_enum, default_value_t = BuildingsMode::Auto)]
+    pub buildings: BuildingsMode,
     /// Render every frame (GPU with the `render` feature and an adapter, else the CPU shader).
     #[arg(long)]
     pub render: bool,
@@ -143,8 +148,9 @@ pub fn gpu_renderer(
     size: Size,
     far: Option<&MapTree>,
 ) -> Result<Box<dyn FrameRenderer>, String> {
-    let r = blockwalk::render::GpuFrameRenderer::new(&scene.meshes, &scene.ground, size.pair())
-        .map_err(|e| e.to_string())?;
+    let r =
+        blockwalk::render::GpuFrameRenderer::new(scene.draw_meshes(), &scene.ground, size.pair())
+            .map_err(|e| e.to_string())?;
     match far {
         None => Ok(Box::new(r)),
         Some(m) => {
@@ -172,7 +178,15 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         occlusion: (args.occlusion != OcclusionMode::Off).then(CullerOptions::default),
         ..SceneOptions::default()
     };
-    let scene = load_scene(&args.city, args.seed, &opts)?;
+    let mut scene = load_scene(&args.city, args.seed, &opts)?;
+    // Pages (the scene graph asked for) and buildings as draw units.
+    match scene.units.as_mut() {
+        Some(u) => u.mode = args.buildings,
+        None if args.buildings != BuildingsMode::Off => scene
+            .build_units(&Default::default(), args.buildings)
+            .with_context(|| format!("splitting {} into buildings", scene.name))?,
+        None => {}
+    }
     let (route, file_frames) = resolve_route(&args.route, &scene, args.size)?;
     let frames = args
         .frames
