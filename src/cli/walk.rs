@@ -22,8 +22,9 @@ pub const MAX_FRAMES: usize = 100_000;
 pub struct Args {
     #[command(flatten)]
     pub city: CityArgs,
-    /// The route: `paper` (seed 003 §5), `orbit`, `street` (a walk across the street graph), or a
-    /// route file (.toml / .json, see examples/routes/).
+    /// The route: `paper` (seed 003 §5), `orbit`, `street` (a walk across the street graph),
+    /// `flyover` (high, most of the city in view), or a route file (.toml / .json, see
+    /// examples/routes/).
     #[arg(long, default_value = "paper")]
     pub route: RouteChoice,
     /// Frames along the route (default: the file's setting, else 300).
@@ -45,6 +46,9 @@ pub struct Args {
     /// which pays).
     #[arg(long, value_enum, default_value_t = BuildingsMode::Auto)]
     pub buildings: BuildingsMode,
+    /// Buildings per leaf of the `scenegraph` structure (its pages, drawn whole).
+    #[arg(long, default_value_t = 8, value_parser = clap::value_parser!(u32).range(1..=4096))]
+    pub page_capacity: u32,
     /// Render every frame (GPU with the `render` feature and an adapter, else the CPU shader).
     #[arg(long)]
     pub render: bool,
@@ -180,14 +184,43 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     };
     let mut scene = load_scene(&args.city, args.seed, &opts)?;
     // Pages (the scene graph asked for) and buildings as draw units.
+    let pages = blockwalk::index::SceneGraphParams {
+        leaf_capacity: args.page_capacity as usize,
+        ..Default::default()
+    };
+    let default_pages = scene
+        .units
+        .as_ref()
+        .is_some_and(|u| *u.scene_graph.params() == pages);
     match scene.units.as_mut() {
-        Some(u) => u.mode = args.buildings,
-        None if args.buildings != BuildingsMode::Off => scene
-            .build_units(&Default::default(), args.buildings)
-            .with_context(|| format!("splitting {} into buildings", scene.name))?,
+        Some(u) if default_pages => u.mode = args.buildings,
+        Some(_) => {
+            // Rebuilt with the asked page size; the scene-graph index must be the same tree.
+            scene
+                .build_units(&pages, args.buildings)
+                .with_context(|| format!("splitting {} into pages", scene.name))?;
+            let tree = scene.units.as_ref().map(|u| u.scene_graph.clone());
+            for index in scene.indexes.iter_mut() {
+                if let (Structure::SceneGraph, Some(t)) = (index.structure(), tree.clone()) {
+                    *index = Box::new(t);
+                }
+            }
+        }
+        None if args.buildings != BuildingsMode::Off => {
+            scene
+                .build_units(&pages, args.buildings)
+                .with_context(|| format!("splitting {} into buildings", scene.name))?
+        }
         None => {}
     }
-    let (route, file_frames) = resolve_route(&args.route, &scene, args.size)?;
+    // `flyover` (the far-field sweep's high fly-over) unless a file of that name exists.
+    let (route, file_frames) = match &args.route {
+        RouteChoice::File(p) if p.as_os_str() == "flyover" && !p.exists() => (
+            super::farfield_sweep::flyover_route(scene.city_bounds(), args.size.aspect())?,
+            None,
+        ),
+        choice => resolve_route(choice, &scene, args.size)?,
+    };
     let frames = args
         .frames
         .map(|f| f as usize)
