@@ -72,6 +72,8 @@ pub struct BlockBuildings {
     /// `starts[b]..starts[b + 1]` is block `b`'s range in `entries`.
     starts: Vec<u32>,
     entries: Vec<BuildingBox>,
+    /// Per block, the union of its buildings' boxes.
+    boxes: Vec<Aabb3>,
 }
 
 impl BlockBuildings {
@@ -95,7 +97,19 @@ impl BlockBuildings {
             }
         }
         starts.push(entries.len() as u32);
-        Self { starts, entries }
+        let boxes = starts
+            .windows(2)
+            .map(|w| {
+                entries[w[0] as usize..w[1] as usize]
+                    .iter()
+                    .fold(Aabb3::EMPTY, |a, b| a.union(b.aabb))
+            })
+            .collect();
+        Self {
+            starts,
+            entries,
+            boxes,
+        }
     }
 
     /// The buildings of `block` (empty for an unknown block).
@@ -120,6 +134,7 @@ impl BlockBuildings {
     /// Pushes to `out` the buildings of `blocks` whose box is not outside `frustum` and, when
     /// `map` is given (drawn for the same camera, see [`super::OcclusionCuller::build`]), not
     /// hidden by it; in the order of `blocks` (front to back when the structure gave them so).
+    /// A block whose buildings lie inside the frustum skips the per-building frustum test.
     pub fn refine(
         &self,
         frustum: &Frustum,
@@ -129,10 +144,16 @@ impl BlockBuildings {
     ) -> BuildingCullStats {
         let mut st = BuildingCullStats::default();
         for &b in blocks {
+            // A block whose buildings' box is inside the frustum needs no test per building
+            // against it (and none at all without a cull map).
+            let inside = self
+                .boxes
+                .get(b.0 as usize)
+                .is_some_and(|bx| !bx.is_empty() && frustum.test_aabb(bx) == Containment::Inside);
             for bb in self.of(b) {
                 st.tested += 1;
                 st.triangles_tested += u64::from(bb.triangles);
-                if frustum.test_aabb(&bb.aabb) == Containment::Outside {
+                if !inside && frustum.test_aabb(&bb.aabb) == Containment::Outside {
                     st.outside_frustum += 1;
                     continue;
                 }
@@ -189,6 +210,47 @@ mod tests {
         assert_eq!(st.outside_frustum, 1);
         assert_eq!(st.triangles_kept, 12);
         assert_eq!(st.triangles_tested, 24);
+    }
+
+    #[test]
+    fn the_inside_shortcut_keeps_what_the_test_per_building_keeps() {
+        // Blocks of ten buildings in a row; cameras all around: the kept set must be exactly
+        // the buildings not outside the frustum.
+        let blocks: Vec<(BlockId, Vec<BuildingBox>)> = (0..20u32)
+            .map(|k| {
+                let v = (0..10u32)
+                    .map(|i| bb(k * 10 + i, f64::from(k) * 120.0 + f64::from(i) * 11.0))
+                    .collect();
+                (BlockId(k), v)
+            })
+            .collect();
+        let set = BlockBuildings::new(blocks.clone());
+        let ids: Vec<BlockId> = (0..20).map(BlockId).collect();
+        let mut inside_blocks = 0;
+        for step in 0..40 {
+            let t = f64::from(step);
+            let cam = Camera::new(
+                DVec3::new(t * 60.0 - 100.0, -150.0 + t * 3.0, 5.0 + t * 10.0),
+                0.3 + t * 0.15,
+                -0.2 - t * 0.01,
+            );
+            let f = cam.frustum();
+            let mut out = Vec::new();
+            set.refine(&f, None, &ids, &mut out);
+            let truth: Vec<BuildingId> = blocks
+                .iter()
+                .flat_map(|(_, v)| v.iter())
+                .filter(|b| f.test_aabb(&b.aabb) != Containment::Outside)
+                .map(|b| b.id)
+                .collect();
+            assert_eq!(out, truth, "camera {step}");
+            inside_blocks += set
+                .boxes
+                .iter()
+                .filter(|b| f.test_aabb(b) == Containment::Inside)
+                .count();
+        }
+        assert!(inside_blocks > 0, "the shortcut was never taken");
     }
 
     #[test]
