@@ -89,11 +89,7 @@ fn far_frame_json(r: &crate::walk::FarRecord) -> serde_json::Value {
 /// The culling mode the kept images were drawn in (the last block culling mode walked: the
 /// per-building modes keep no image).
 pub fn image_mode(record: &WalkRecord) -> Option<CullMode> {
-    record
-        .modes()
-        .into_iter()
-        .filter(|m| !m.buildings())
-        .next_back()
+    record.modes().into_iter().rfind(|m| !m.buildings())
 }
 
 /// The per-frame figures shown under a kept frame: one row per structure in
