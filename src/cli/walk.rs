@@ -6,7 +6,7 @@ use blockwalk::blockmap::{MapTree, SelectOptions};
 use blockwalk::index::Structure;
 use blockwalk::report;
 use blockwalk::route::{RouteChoice, RouteContext};
-use blockwalk::scene::{Scene, SceneOptions};
+use blockwalk::scene::{BuildingsMode, Scene, SceneOptions};
 use blockwalk::visibility::{CullerOptions, FrameRenderer};
 use blockwalk::walk::{
     run_walk_with_far, Drawing, FarField, FarMode, OcclusionMode, WalkParams, WalkRecord,
@@ -22,8 +22,9 @@ pub const MAX_FRAMES: usize = 100_000;
 pub struct Args {
     #[command(flatten)]
     pub city: CityArgs,
-    /// The route: `paper` (seed 003 §5), `orbit`, `street` (a walk across the street graph), or a
-    /// route file (.toml / .json, see examples/routes/).
+    /// The route: `paper` (seed 003 §5), `orbit`, `street` (a walk across the street graph),
+    /// `flyover` (high, most of the city in view), or a route file (.toml / .json, see
+    /// examples/routes/).
     #[arg(long, default_value = "paper")]
     pub route: RouteChoice,
     /// Frames along the route (default: the file's setting, else 300).
@@ -40,6 +41,14 @@ pub struct Args {
     /// Occlusion culling: on, off, or auto (both modes side by side).
     #[arg(long, value_enum, default_value_t = OcclusionMode::Auto)]
     pub occlusion: OcclusionMode,
+    /// Test each building of the blocks that survive (frustum, and the cull map with
+    /// occlusion; seed 004 §3.2.8): on, off, or auto (with and without, side by side, and
+    /// which pays).
+    #[arg(long, value_enum, default_value_t = BuildingsMode::Auto)]
+    pub buildings: BuildingsMode,
+    /// Buildings per leaf of the `scenegraph` structure (its pages, drawn whole).
+    #[arg(long, default_value_t = 8, value_parser = clap::value_parser!(u32).range(1..=4096))]
+    pub page_capacity: u32,
     /// Render every frame (GPU with the `render` feature and an adapter, else the CPU shader).
     #[arg(long)]
     pub render: bool,
@@ -143,8 +152,9 @@ pub fn gpu_renderer(
     size: Size,
     far: Option<&MapTree>,
 ) -> Result<Box<dyn FrameRenderer>, String> {
-    let r = blockwalk::render::GpuFrameRenderer::new(&scene.meshes, &scene.ground, size.pair())
-        .map_err(|e| e.to_string())?;
+    let r =
+        blockwalk::render::GpuFrameRenderer::new(scene.draw_meshes(), &scene.ground, size.pair())
+            .map_err(|e| e.to_string())?;
     match far {
         None => Ok(Box::new(r)),
         Some(m) => {
@@ -172,8 +182,45 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         occlusion: (args.occlusion != OcclusionMode::Off).then(CullerOptions::default),
         ..SceneOptions::default()
     };
-    let scene = load_scene(&args.city, args.seed, &opts)?;
-    let (route, file_frames) = resolve_route(&args.route, &scene, args.size)?;
+    let mut scene = load_scene(&args.city, args.seed, &opts)?;
+    // Pages (the scene graph asked for) and buildings as draw units.
+    let pages = blockwalk::index::SceneGraphParams {
+        leaf_capacity: args.page_capacity as usize,
+        ..Default::default()
+    };
+    let default_pages = scene
+        .units
+        .as_ref()
+        .is_some_and(|u| *u.scene_graph.params() == pages);
+    match scene.units.as_mut() {
+        Some(u) if default_pages => u.mode = args.buildings,
+        Some(_) => {
+            // Rebuilt with the asked page size; the scene-graph index must be the same tree.
+            scene
+                .build_units(&pages, args.buildings)
+                .with_context(|| format!("splitting {} into pages", scene.name))?;
+            let tree = scene.units.as_ref().map(|u| u.scene_graph.clone());
+            for index in scene.indexes.iter_mut() {
+                if let (Structure::SceneGraph, Some(t)) = (index.structure(), tree.clone()) {
+                    *index = Box::new(t);
+                }
+            }
+        }
+        None if args.buildings != BuildingsMode::Off => {
+            scene
+                .build_units(&pages, args.buildings)
+                .with_context(|| format!("splitting {} into buildings", scene.name))?
+        }
+        None => {}
+    }
+    // `flyover` (the far-field sweep's high fly-over) unless a file of that name exists.
+    let (route, file_frames) = match &args.route {
+        RouteChoice::File(p) if p.as_os_str() == "flyover" && !p.exists() => (
+            super::farfield_sweep::flyover_route(scene.city_bounds(), args.size.aspect())?,
+            None,
+        ),
+        choice => resolve_route(choice, &scene, args.size)?,
+    };
     let frames = args
         .frames
         .map(|f| f as usize)

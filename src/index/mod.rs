@@ -17,6 +17,7 @@ mod bounds;
 mod bqr;
 mod flat;
 mod rstar_index;
+mod scene_graph;
 mod sphere;
 pub mod synthetic;
 mod vamsplit;
@@ -25,6 +26,7 @@ pub use bounds::{block_bounds, extruded_triangles};
 pub use bqr::{BqrNodeKind, BqrNodeView, BqrParams, BqrTree, ObjectId};
 pub use flat::{FlatList, NoStructure};
 pub use rstar_index::RstarIndex;
+pub use scene_graph::{SceneGraphParams, SceneGraphTree};
 pub use sphere::enclosing_sphere;
 pub use vamsplit::{VamSplitParams, VamSplitTree};
 
@@ -222,10 +224,18 @@ pub enum Structure {
     Bqr,
     /// An R*-tree from the `rstar` crate, as an external anchor.
     Rstar,
+    /// The VAMSplit R-tree over buildings with leaves (pages of buildings) drawn whole, the
+    /// scene-graph semantics of seed 003 §5.1 ([`SceneGraphTree`]). Its output ids are *page*
+    /// ids, not block ids, so it is not in [`Structure::ALL`]; [`crate::scene::Scene`] builds it
+    /// over the buildings.
+    #[value(name = "scenegraph")]
+    #[serde(rename = "scenegraph")]
+    SceneGraph,
 }
 
 impl Structure {
-    /// Every structure, in the order reports list them.
+    /// Every structure over blocks, in the order reports list them (not
+    /// [`Structure::SceneGraph`], whose output ids are pages).
     pub const ALL: [Structure; 5] = [
         Structure::None,
         Structure::Flat,
@@ -271,6 +281,10 @@ impl Structure {
             Structure::Flat => Box::new(FlatList::build(bounds)?),
             Structure::None => Box::new(NoStructure::build(bounds)?),
             Structure::Rstar => Box::new(RstarIndex::build(bounds)?),
+            // The items are whatever `bounds` holds (the scene passes buildings).
+            Structure::SceneGraph => {
+                Box::new(SceneGraphTree::build(bounds, &SceneGraphParams::default())?)
+            }
         })
     }
 }

@@ -3,6 +3,8 @@
 //! that walks, views or benchmarks a city builds its scene here, and nowhere else.
 //!
 //! - [`source`]: where a city comes from ([`CitySource`]: files, a city folder, a synthetic grid).
+//! - [`units`]: pages of the scene-graph tree and single buildings as draw units
+//!   ([`DrawUnits`], [`Scene::build_units`]).
 //!
 //! # Examples
 //! ```
@@ -23,14 +25,16 @@
 //! ```
 
 pub mod source;
+pub mod units;
 
 pub use source::{CitySource, LoadedCity, SourceError};
+pub use units::{BuildingsMode, DrawUnits};
 
 use crate::blocks::{detect, BlockError, BlockId, BlockLayout, BlockOptions};
 use crate::city::extrude::extrude_city;
 use crate::city::{City, Mesh};
 use crate::geom::Aabb3;
-use crate::index::{block_bounds, BlockBounds, CityIndex, IndexError, Structure};
+use crate::index::{block_bounds, BlockBounds, CityIndex, IndexError, SceneGraphParams, Structure};
 use crate::visibility::{CullerOptions, OcclusionCuller, VisibilityError};
 
 /// What a scene is built with.
@@ -112,6 +116,9 @@ pub struct Scene {
     pub indexes: Vec<Box<dyn CityIndex>>,
     /// The occlusion culler, when asked for.
     pub occlusion: Option<OcclusionCuller>,
+    /// Pages and buildings as draw units, when asked for ([`Scene::build_units`]; always with
+    /// [`Structure::SceneGraph`]).
+    pub units: Option<DrawUnits>,
 }
 
 impl std::fmt::Debug for Scene {
@@ -189,6 +196,7 @@ impl Scene {
         let indexes = opts
             .structures
             .iter()
+            .filter(|&&s| s != Structure::SceneGraph)
             .map(|&s| {
                 s.build(&bounds).map_err(|source| SceneError::Index {
                     city: city.name.clone(),
@@ -211,7 +219,7 @@ impl Scene {
             }
             None => None,
         };
-        Ok(Self {
+        let mut scene = Self {
             name: city.name.clone(),
             city,
             layout,
@@ -220,7 +228,52 @@ impl Scene {
             bounds,
             indexes,
             occlusion,
-        })
+            units: None,
+        };
+        if let Some(at) = opts
+            .structures
+            .iter()
+            .position(|&s| s == Structure::SceneGraph)
+        {
+            progress("building the scene graph over the buildings");
+            scene.build_units(&SceneGraphParams::default(), BuildingsMode::Off)?;
+            let tree = scene
+                .units
+                .as_ref()
+                .map(|u| u.scene_graph.clone())
+                .expect("units were just built");
+            scene
+                .indexes
+                .insert(at.min(scene.indexes.len()), Box::new(tree));
+        }
+        Ok(scene)
+    }
+
+    /// Builds the scene's [`DrawUnits`] (pages of a scene graph made with `params`, single
+    /// buildings) with the walk's per-building `mode`; a second call rebuilds them. The
+    /// [`Structure::SceneGraph`] index, when the scene has one, keeps the tree it was built with.
+    ///
+    /// # Errors
+    /// [`SceneError::Index`] for bad scene-graph parameters.
+    pub fn build_units(
+        &mut self,
+        params: &SceneGraphParams,
+        mode: BuildingsMode,
+    ) -> Result<(), SceneError> {
+        let units = DrawUnits::build(&self.city, &self.layout, &self.meshes, params, mode)
+            .map_err(|source| SceneError::Index {
+                city: self.name.clone(),
+                structure: Structure::SceneGraph,
+                source,
+            })?;
+        self.units = Some(units);
+        Ok(())
+    }
+
+    /// The meshes a renderer of this scene must hold: [`DrawUnits::meshes`] when the scene has
+    /// units, else [`Scene::meshes`].
+    pub fn draw_meshes(&self) -> &[(BlockId, Mesh)] {
+        self.units.as_ref().map_or(&self.meshes, |u| &u.meshes)
     }
 
     /// The structure `s`, when it was built.

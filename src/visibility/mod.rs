@@ -13,10 +13,12 @@
 //! - [`adversarial`]: seeded adversarial views (eyes at the near plane's distance from corners
 //!   and walls, on wall planes, over roofs, straight up and down).
 //! - [`synthetic`]: a synthetic grid city with exact meshes, for tests and benches.
+//! - [`buildings`]: per-building culling inside the blocks that survived (seed 004 §3.2.8).
 //! - [`bench`]: the culler against the oracle over random views, per cull map resolution.
 
 pub mod adversarial;
 pub mod bench;
+pub mod buildings;
 pub mod culler;
 pub mod cullmap;
 pub mod frame;

@@ -19,7 +19,7 @@ use crate::blocks::BlockId;
 use crate::geom::Camera;
 use crate::index::{CityIndex, CullQuery, CullStats, Structure};
 use crate::route::CameraRoute;
-use crate::scene::Scene;
+use crate::scene::{BuildingsMode, DrawUnits, Scene};
 use crate::visibility::{
     CpuFrameRenderer, FrameRenderer, MeshOracle, OcclusionCulling, VisibilityOracle,
 };
@@ -49,6 +49,14 @@ pub enum CullMode {
     /// View-frustum and occlusion culling.
     #[serde(rename = "frustum+occlusion")]
     FrustumOcclusion,
+    /// View-frustum culling of the blocks, then of each building of the surviving blocks
+    /// (seed 004 §3.2.8, [`crate::visibility::buildings`]).
+    #[serde(rename = "frustum+buildings")]
+    FrustumBuildings,
+    /// Frustum and occlusion culling of the blocks, then of each building of the surviving
+    /// blocks against the frustum and the same cull map.
+    #[serde(rename = "frustum+occlusion+buildings")]
+    FrustumOcclusionBuildings,
 }
 
 impl CullMode {
@@ -57,6 +65,44 @@ impl CullMode {
         match self {
             CullMode::Frustum => "frustum",
             CullMode::FrustumOcclusion => "frustum+occlusion",
+            CullMode::FrustumBuildings => "frustum+buildings",
+            CullMode::FrustumOcclusionBuildings => "frustum+occlusion+buildings",
+        }
+    }
+
+    /// Whether the mode uses the cull map.
+    pub fn occlusion(self) -> bool {
+        matches!(
+            self,
+            CullMode::FrustumOcclusion | CullMode::FrustumOcclusionBuildings
+        )
+    }
+
+    /// Whether the mode tests the buildings inside the surviving blocks.
+    pub fn buildings(self) -> bool {
+        matches!(
+            self,
+            CullMode::FrustumBuildings | CullMode::FrustumOcclusionBuildings
+        )
+    }
+
+    /// The same block culling with the per-building test added.
+    pub fn with_buildings(self) -> Self {
+        match self {
+            CullMode::Frustum | CullMode::FrustumBuildings => CullMode::FrustumBuildings,
+            CullMode::FrustumOcclusion | CullMode::FrustumOcclusionBuildings => {
+                CullMode::FrustumOcclusionBuildings
+            }
+        }
+    }
+
+    /// The same block culling without the per-building test.
+    pub fn blocks_only(self) -> Self {
+        match self {
+            CullMode::Frustum | CullMode::FrustumBuildings => CullMode::Frustum,
+            CullMode::FrustumOcclusion | CullMode::FrustumOcclusionBuildings => {
+                CullMode::FrustumOcclusion
+            }
         }
     }
 }
@@ -114,11 +160,14 @@ pub struct FrameRecord {
     pub frame_s: f64,
     /// Work counters of the cull.
     pub stats: CullStats,
-    /// Blocks kept.
+    /// Blocks kept (pages for [`Structure::SceneGraph`]).
     pub blocks: usize,
-    /// Triangles of the kept blocks.
+    /// Buildings kept by the per-building test, in the modes that run it.
+    pub buildings: Option<usize>,
+    /// Triangles drawn: of the kept blocks (pages), or of the kept buildings.
     pub triangles: u64,
-    /// Oracle-visible blocks the structure dropped (must be 0), when checked.
+    /// Oracle-visible blocks the structure dropped (must be 0), when checked; oracle-visible
+    /// *buildings* dropped for [`Structure::SceneGraph`] and the per-building modes.
     pub false_culls: Option<usize>,
 }
 
@@ -151,6 +200,35 @@ pub struct WalkRecord {
     pub far_options: Option<crate::blockmap::SelectOptions>,
     /// Whether occlusion culling saved time on this route (both modes walked).
     pub occlusion_decision: Option<OcclusionDecision>,
+    /// Whether testing the buildings inside the surviving blocks paid, per block culling mode
+    /// (both walked).
+    pub buildings_decision: Vec<BuildingsDecision>,
+}
+
+/// Whether the per-building test paid on the route, for one block culling mode: the reference
+/// structure's mean frame time and triangles with and without it.
+#[derive(Clone, Debug, Serialize)]
+pub struct BuildingsDecision {
+    /// The block culling mode (without the per-building test).
+    pub mode: CullMode,
+    /// Mean seconds per frame without / with the per-building test.
+    pub blocks_s: f64,
+    /// Mean seconds per frame with it.
+    pub buildings_s: f64,
+    /// Mean culling seconds per frame without / with it.
+    pub blocks_cull_s: f64,
+    /// Mean culling seconds per frame with it.
+    pub buildings_cull_s: f64,
+    /// Mean triangles drawn per frame without it.
+    pub blocks_triangles: f64,
+    /// Mean triangles drawn per frame with it.
+    pub buildings_triangles: f64,
+    /// Whether frames were drawn (else only triangles can decide).
+    pub drawn: bool,
+    /// Keep it: drawn frames are faster with it, or (nothing drawn) it removes triangles.
+    pub pays: bool,
+    /// The sentence for the report.
+    pub note: String,
 }
 
 impl WalkRecord {
@@ -286,7 +364,8 @@ pub fn run_walk_with_far(
     };
     let cameras = params.route.sample(params.frames);
     let triangles = scene.triangles_by_block();
-    let cpu = CpuFrameRenderer::new(&scene.meshes, params.size).with_ground(&scene.ground);
+    let units = scene.units.as_ref();
+    let cpu = CpuFrameRenderer::new(scene.draw_meshes(), params.size).with_ground(&scene.ground);
     let renderer: Option<&dyn FrameRenderer> = match &drawing {
         Drawing::Off => None,
         Drawing::With(r) => Some(*r),
@@ -371,7 +450,10 @@ pub fn run_walk_with_far(
     }
     let mut far_records: Vec<FarRecord> = Vec::new();
     let mut cull_map = scene.occlusion.as_ref().map(|c| c.new_map());
+    // The per-building modes draw their own cull map (the block culling's is the culler's).
+    let mut building_map = scene.occlusion.as_ref().map(|c| c.new_map());
     let oracle = MeshOracle::new(&scene.meshes);
+    let building_oracle = units.map(|u| MeshOracle::new(u.building_meshes()));
     // The oracle judges the frames at their own resolution (the renderer's, when one draws).
     let oracle_size = renderer.map_or(params.size, |r| r.size());
     if params.oracle {
@@ -385,39 +467,101 @@ pub fn run_walk_with_far(
     let mut frames = Vec::with_capacity(cameras.len() * scene.indexes.len() * modes.len());
     let mut images = Vec::new();
     let mut visible: Vec<BlockId> = Vec::new();
+    let mut kept_buildings: Vec<crate::city::BuildingId> = Vec::new();
+    let mut draw_ids: Vec<BlockId> = Vec::new();
     for (f, cam) in cameras.iter().enumerate() {
         let frustum = cam.frustum();
         let truth: Option<HashSet<BlockId>> = params
             .oracle
             .then(|| oracle.visible(cam, oracle_size.0, oracle_size.1));
+        let building_truth: Option<HashSet<BlockId>> = building_oracle
+            .as_ref()
+            .filter(|_| params.oracle)
+            .map(|o| o.visible(cam, oracle_size.0, oracle_size.1));
         for index in &scene.indexes {
             let index: &dyn CityIndex = index.as_ref();
-            for &mode in &modes {
+            let pages = index.structure() == Structure::SceneGraph;
+            for mode in index_modes(&modes, units, pages) {
                 visible.clear();
+                kept_buildings.clear();
                 let t0 = Instant::now();
-                let stats = match (mode, culler) {
-                    (CullMode::FrustumOcclusion, Some(c)) => c.cull_frame(index, cam, &mut visible),
-                    _ => index.cull(
-                        &CullQuery::with_eye(&frustum, cam.position),
+                let (stats, buildings_kept) = match (units, mode.buildings()) {
+                    (Some(u), true) => {
+                        // Blocks through the structure (and the cull map), then each building
+                        // of the surviving blocks against the frustum and the same map.
+                        let map = match (mode.occlusion(), scene.occlusion.as_ref()) {
+                            (true, Some(c)) => building_map.as_mut().map(|m| {
+                                let st = c.build(cam, m);
+                                let usable = st.skipped.is_none() && st.cells_covered > 0;
+                                let st = c.traverse(index, cam, m, st, &mut visible);
+                                (st.cull, usable)
+                            }),
+                            _ => None,
+                        };
+                        let (stats, map) = match map {
+                            Some((stats, usable)) => {
+                                (stats, building_map.as_ref().filter(|_| usable))
+                            }
+                            None => (
+                                index.cull(
+                                    &CullQuery::with_eye(&frustum, cam.position),
+                                    None,
+                                    &mut visible,
+                                ),
+                                None,
+                            ),
+                        };
+                        u.buildings
+                            .refine(&frustum, map, &visible, &mut kept_buildings);
+                        (stats, Some(kept_buildings.len()))
+                    }
+                    _ => (
+                        match (mode, culler) {
+                            (CullMode::FrustumOcclusion, Some(c)) => {
+                                c.cull_frame(index, cam, &mut visible)
+                            }
+                            _ => index.cull(
+                                &CullQuery::with_eye(&frustum, cam.position),
+                                None,
+                                &mut visible,
+                            ),
+                        },
                         None,
-                        &mut visible,
                     ),
                 };
                 let cull_s = t0.elapsed().as_secs_f64();
-                let tri: u64 = visible
-                    .iter()
-                    .map(|b| triangles.get(b.0 as usize).copied().unwrap_or(0))
-                    .sum();
+                // What the renderer draws: blocks, pages or buildings (unit ids, see
+                // `scene::units`).
+                draw_ids.clear();
+                match (units, buildings_kept.is_some(), pages) {
+                    (Some(u), true, _) => {
+                        draw_ids.extend(kept_buildings.iter().map(|&b| u.building_id(b)))
+                    }
+                    (Some(u), false, true) => {
+                        draw_ids.extend(visible.iter().map(|&p| u.page_id(p)))
+                    }
+                    _ => draw_ids.extend_from_slice(&visible),
+                }
+                let tri: u64 = match units {
+                    Some(u) => draw_ids.iter().map(|&d| u.unit_triangles(d)).sum(),
+                    None => draw_ids
+                        .iter()
+                        .map(|b| triangles.get(b.0 as usize).copied().unwrap_or(0))
+                        .sum(),
+                };
+                let kept_blocks = visible.len();
+                let visible = &draw_ids;
                 let keep_image = params.image_every > 0
                     && f % params.image_every == 0
                     && index.structure() == reference
                     && mode == last_mode;
-                let far_here = index.structure() == reference && !selectors.is_empty();
+                let far_here =
+                    index.structure() == reference && !selectors.is_empty() && !mode.buildings();
                 let want_reference = far_here && far.as_ref().is_some_and(|x| x.reference);
                 let mut render_s = None;
                 let mut mesh_image = None;
                 if let Some(r) = renderer {
-                    match r.draw(cam, &visible, keep_image || want_reference) {
+                    match r.draw(cam, visible, keep_image || want_reference) {
                         Ok(drawn) => {
                             render_s = Some(drawn.seconds);
                             if let Some(img) = drawn.image {
@@ -462,10 +606,29 @@ pub fn run_walk_with_far(
                     );
                     far_records.push(rec);
                 }
-                let false_culls = truth.as_ref().map(|t| {
-                    let kept: HashSet<BlockId> = visible.iter().copied().collect();
-                    t.iter().filter(|b| !kept.contains(b)).count()
-                });
+                let false_culls = match (units, buildings_kept.is_some() || pages) {
+                    // Building level: the oracle's buildings against the buildings drawn.
+                    (Some(u), true) => building_truth.as_ref().map(|t| {
+                        let kept: HashSet<BlockId> = if pages {
+                            draw_ids
+                                .iter()
+                                .flat_map(|&d| {
+                                    u.scene_graph
+                                        .page_items((d.0 - u.page_offset) as usize)
+                                        .iter()
+                                        .map(|&b| u.building_id(crate::city::BuildingId(b.0)))
+                                })
+                                .collect()
+                        } else {
+                            draw_ids.iter().copied().collect()
+                        };
+                        t.iter().filter(|b| !kept.contains(b)).count()
+                    }),
+                    _ => truth.as_ref().map(|t| {
+                        let kept: HashSet<BlockId> = draw_ids.iter().copied().collect();
+                        t.iter().filter(|b| !kept.contains(b)).count()
+                    }),
+                };
                 frames.push(FrameRecord {
                     frame: f,
                     structure: index.structure(),
@@ -474,7 +637,8 @@ pub fn run_walk_with_far(
                     render_s,
                     frame_s: cull_s + render_s.unwrap_or(0.0),
                     stats,
-                    blocks: visible.len(),
+                    blocks: kept_blocks,
+                    buildings: buildings_kept,
                     triangles: tri,
                     false_culls,
                 });
@@ -518,6 +682,8 @@ pub fn run_walk_with_far(
     if let Some(d) = &occlusion_decision {
         notes.push(d.note.clone());
     }
+    let buildings_decision = buildings_decisions(&frames, reference);
+    notes.extend(buildings_decision.iter().map(|d| d.note.clone()));
     Ok(WalkRecord {
         city: scene.name.clone(),
         route: params.route.name.clone(),
@@ -532,7 +698,88 @@ pub fn run_walk_with_far(
         far_decision,
         far_options: far.map(|f| f.select),
         occlusion_decision,
+        buildings_decision,
     })
+}
+
+/// The culling modes one index is walked in: the block modes, and with the scene's units the
+/// per-building modes ([`BuildingsMode`]); pages (the scene graph) are drawn whole, never refined.
+fn index_modes(modes: &[CullMode], units: Option<&DrawUnits>, pages: bool) -> Vec<CullMode> {
+    let bm = match units {
+        Some(u) if !pages => u.mode,
+        _ => BuildingsMode::Off,
+    };
+    match bm {
+        BuildingsMode::Off => modes.to_vec(),
+        BuildingsMode::On => modes.iter().map(|m| m.with_buildings()).collect(),
+        BuildingsMode::Auto => modes
+            .iter()
+            .flat_map(|&m| [m, m.with_buildings()])
+            .collect(),
+    }
+}
+
+/// Per block culling mode walked with and without the per-building test: whether the test paid
+/// for the reference structure (drawn frames: mean frame time; nothing drawn: triangles).
+fn buildings_decisions(frames: &[FrameRecord], reference: Structure) -> Vec<BuildingsDecision> {
+    let per = |m: CullMode| -> Option<(f64, f64, f64, bool)> {
+        let v: Vec<&FrameRecord> = frames
+            .iter()
+            .filter(|r| r.structure == reference && r.mode == m)
+            .collect();
+        (!v.is_empty()).then(|| {
+            let n = v.len() as f64;
+            (
+                v.iter().map(|r| r.frame_s).sum::<f64>() / n,
+                v.iter().map(|r| r.cull_s).sum::<f64>() / n,
+                v.iter().map(|r| r.triangles as f64).sum::<f64>() / n,
+                v.iter().all(|r| r.render_s.is_some()),
+            )
+        })
+    };
+    let mut out = Vec::new();
+    for base in [CullMode::Frustum, CullMode::FrustumOcclusion] {
+        let (Some((bs, bc, bt, bd)), Some((ws, wc, wt, wd))) =
+            (per(base), per(base.with_buildings()))
+        else {
+            continue;
+        };
+        let drawn = bd && wd;
+        let pays = if drawn { ws < bs } else { wt < bt };
+        let saved = if bt > 0.0 { 1.0 - wt / bt } else { 0.0 };
+        let note = format!(
+            "per-building test after {base} ({reference}): {:.0} → {:.0} triangles per frame ({:.1} % fewer), cull {:.3} → {:.3} ms{}: {}",
+            bt,
+            wt,
+            saved * 100.0,
+            bc * 1e3,
+            wc * 1e3,
+            if drawn {
+                format!(", frame {:.3} → {:.3} ms", bs * 1e3, ws * 1e3)
+            } else {
+                String::new()
+            },
+            match (pays, drawn) {
+                (true, true) => "it pays (faster frames): keep it",
+                (false, true) => "it does not pay here (no faster frames): leave it out",
+                (true, false) => "it removes triangles (nothing drawn to time)",
+                (false, false) => "it removes nothing: leave it out",
+            }
+        );
+        out.push(BuildingsDecision {
+            mode: base,
+            blocks_s: bs,
+            buildings_s: ws,
+            blocks_cull_s: bc,
+            buildings_cull_s: wc,
+            blocks_triangles: bt,
+            buildings_triangles: wt,
+            drawn,
+            pays,
+            note,
+        });
+    }
+    out
 }
 
 /// What one hybrid frame needs.

@@ -22,8 +22,11 @@ pub struct SummaryRow {
     pub ratio: f64,
     /// Mean triangles drawn per frame.
     pub triangles: f64,
-    /// Mean blocks drawn per frame.
+    /// Mean blocks drawn per frame (pages for the scene graph; blocks that survived for the
+    /// per-building modes).
     pub blocks: f64,
+    /// Mean buildings drawn per frame, in the per-building modes.
+    pub buildings: Option<f64>,
     /// Mean nodes visited per frame.
     pub nodes_visited: f64,
     /// Total false culls over the route, when checked.
@@ -62,6 +65,9 @@ pub fn summarise(rows: &[FrameRecord], reference: Structure) -> Vec<SummaryRow> 
                 ratio: 0.0,
                 triangles: mean(sel().map(|r| r.triangles as f64)),
                 blocks: mean(sel().map(|r| r.blocks as f64)),
+                buildings: sel()
+                    .all(|r| r.buildings.is_some())
+                    .then(|| mean(sel().map(|r| r.buildings.unwrap_or(0) as f64))),
                 nodes_visited: mean(sel().map(|r| r.stats.nodes_visited as f64)),
                 false_culls: sel()
                     .map(|r| r.false_culls)
@@ -105,6 +111,7 @@ mod tests {
             },
             blocks: 3,
             triangles: tri,
+            buildings: None,
             false_culls: Some(frame % 2),
         }
     }

@@ -4,7 +4,7 @@ use crate::walk::WalkRecord;
 use std::fmt::Write as _;
 
 /// The CSV header, one column per [`crate::walk::FrameRecord`] field and the camera.
-pub const HEADER: &str = "frame,structure,mode,cull_s,render_s,frame_s,nodes_visited,plane_tests,blocks,triangles,false_culls,x,y,z,yaw_deg,pitch_deg";
+pub const HEADER: &str = "frame,structure,mode,cull_s,render_s,frame_s,nodes_visited,plane_tests,blocks,buildings,triangles,false_culls,x,y,z,yaw_deg,pitch_deg";
 
 /// Per-frame records as CSV (empty cells for values not measured).
 pub fn frames_csv(record: &WalkRecord) -> String {
@@ -14,7 +14,7 @@ pub fn frames_csv(record: &WalkRecord) -> String {
         let c = &record.cameras[r.frame];
         let _ = writeln!(
             s,
-            "{},{},{},{:.9},{},{:.9},{},{},{},{},{},{:.3},{:.3},{:.3},{:.3},{:.3}",
+            "{},{},{},{:.9},{},{:.9},{},{},{},{},{},{},{:.3},{:.3},{:.3},{:.3},{:.3}",
             r.frame,
             r.structure,
             r.mode,
@@ -24,6 +24,7 @@ pub fn frames_csv(record: &WalkRecord) -> String {
             r.stats.nodes_visited,
             r.stats.plane_tests,
             r.blocks,
+            r.buildings.map(|v| v.to_string()).unwrap_or_default(),
             r.triangles,
             r.false_culls.map(|v| v.to_string()).unwrap_or_default(),
             c.position.x,

@@ -8,13 +8,13 @@ pub fn summary_markdown(summary: &[SummaryRow]) -> String {
     let mut s = String::new();
     let _ = writeln!(
         s,
-        "| structure | culling | seconds/frame | ratio BqR/structure | cull s/frame | render s/frame | triangles/frame | blocks/frame | nodes/frame | false culls |"
+        "| structure | culling | seconds/frame | ratio BqR/structure | cull s/frame | render s/frame | triangles/frame | blocks/frame | buildings/frame | nodes/frame | false culls |"
     );
-    let _ = writeln!(s, "|---|---|---:|---:|---:|---:|---:|---:|---:|---:|");
+    let _ = writeln!(s, "|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|");
     for r in summary {
         let _ = writeln!(
             s,
-            "| {} | {} | {:.6} | {:.3} | {:.6} | {} | {:.0} | {:.1} | {:.1} | {} |",
+            "| {} | {} | {:.6} | {:.3} | {:.6} | {} | {:.0} | {:.1} | {} | {:.1} | {} |",
             r.structure,
             r.mode,
             r.seconds_per_frame,
@@ -23,6 +23,7 @@ pub fn summary_markdown(summary: &[SummaryRow]) -> String {
             r.render_s.map(|v| format!("{v:.6}")).unwrap_or("–".into()),
             r.triangles,
             r.blocks,
+            r.buildings.map(|v| format!("{v:.1}")).unwrap_or("–".into()),
             r.nodes_visited,
             r.false_culls.map(|v| v.to_string()).unwrap_or("–".into()),
         );

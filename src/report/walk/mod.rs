@@ -61,6 +61,7 @@ fn frame_json(r: &FrameRecord) -> serde_json::Value {
         "render_ms": r.render_s.map(|v| v * 1e3),
         "frame_ms": r.frame_s * 1e3,
         "blocks": r.blocks,
+        "buildings": r.buildings,
         "triangles": r.triangles,
         "nodes_visited": r.stats.nodes_visited,
         "false_culls": r.false_culls,
@@ -85,9 +86,10 @@ fn far_frame_json(r: &crate::walk::FarRecord) -> serde_json::Value {
     })
 }
 
-/// The culling mode the kept images were drawn in (the last one walked).
+/// The culling mode the kept images were drawn in (the last block culling mode walked: the
+/// per-building modes keep no image).
 pub fn image_mode(record: &WalkRecord) -> Option<CullMode> {
-    record.modes().last().copied()
+    record.modes().into_iter().rfind(|m| !m.buildings())
 }
 
 /// The per-frame figures shown under a kept frame: one row per structure in
@@ -123,6 +125,7 @@ pub fn json_with(record: &WalkRecord, ctx: &ReportContext) -> serde_json::Value 
         "notes": record.notes,
         "total_s": record.total_s,
         "occlusion_decision": record.occlusion_decision,
+        "buildings_decision": record.buildings_decision,
     });
     // The far field: its object, and its headline figures at the top level (`coverage_error_max`,
     // `psnr_min`, `silhouette_px_max`, `far_nodes`, `frame_time_ratio_vs_mesh`, …).
@@ -414,6 +417,7 @@ pub(crate) mod tests {
                         frame_s: 2e-3 + 1e-5,
                         stats: CullStats::default(),
                         blocks: 4,
+                        buildings: None,
                         triangles: 120 + f as u64,
                         false_culls: Some(0),
                     });
@@ -436,6 +440,7 @@ pub(crate) mod tests {
             far_decision: None,
             far_options: None,
             occlusion_decision: None,
+            buildings_decision: Vec::new(),
         }
     }
 

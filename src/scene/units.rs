@@ -1,0 +1,165 @@
+//! Draw units finer than a block: the pages of the scene-graph VAMSplit tree (seed 003 §5.1,
+//! [`crate::index::SceneGraphTree`]) and single buildings (per-building culling, seed 004
+//! §3.2.8, [`crate::visibility::buildings`]).
+//!
+//! One renderer draws every kind of unit: [`DrawUnits::meshes`] holds the blocks' meshes (ids as
+//! in [`super::Scene::meshes`]), then one mesh per page at [`DrawUnits::page_id`], then one mesh
+//! per building at [`DrawUnits::building_id`]. The three id ranges are disjoint.
+
+use crate::blocks::{BlockId, BlockLayout};
+use crate::city::extrude::extrude_city;
+use crate::city::{BuildingId, City, Mesh};
+use crate::index::{BlockBounds, IndexError, SceneGraphParams, SceneGraphTree};
+use crate::visibility::buildings::{BlockBuildings, BuildingBox};
+use glam::DVec2;
+
+/// Whether the walk tests the buildings of the surviving blocks.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, clap::ValueEnum)]
+#[serde(rename_all = "snake_case")]
+pub enum BuildingsMode {
+    /// Blocks are drawn whole.
+    Off,
+    /// The buildings of every surviving block are tested (frustum, and cull map with occlusion).
+    On,
+    /// Both, side by side, with a decision which pays.
+    #[default]
+    Auto,
+}
+
+/// Pages and buildings as draw units (see the module docs).
+#[derive(Debug)]
+pub struct DrawUnits {
+    /// Every unit's mesh: blocks, pages, buildings.
+    pub meshes: Vec<(BlockId, Mesh)>,
+    /// Triangles of every unit, indexed by unit id.
+    pub triangles: Vec<u64>,
+    /// The first page's unit id.
+    pub page_offset: u32,
+    /// The first building's unit id.
+    pub building_offset: u32,
+    /// Per block, its buildings' boxes (per-building culling).
+    pub buildings: BlockBuildings,
+    /// The scene-graph tree over the buildings (the items' ids are building ids).
+    pub scene_graph: SceneGraphTree,
+    /// Where the building meshes start in [`DrawUnits::meshes`].
+    building_start: usize,
+    /// The walk tests buildings inside blocks.
+    pub mode: BuildingsMode,
+}
+
+impl DrawUnits {
+    /// The units of `city` split into `layout`'s blocks whose meshes are `block_meshes`
+    /// (cloned: the block units draw exactly the scene's meshes), the scene graph built with
+    /// `params`.
+    ///
+    /// # Errors
+    /// [`IndexError`] from the scene graph's build (bad parameters).
+    pub fn build(
+        city: &City,
+        layout: &BlockLayout,
+        block_meshes: &[(BlockId, Mesh)],
+        params: &SceneGraphParams,
+        mode: BuildingsMode,
+    ) -> Result<Self, IndexError> {
+        let per_building = extrude_city(city);
+        let mut boxes: Vec<Option<BuildingBox>> = per_building
+            .iter()
+            .enumerate()
+            .map(|(i, m)| BuildingBox::from_mesh(BuildingId(i as u32), m))
+            .collect();
+        // Only buildings that belong to a block are units (the block meshes hold only those).
+        let mut in_block = vec![false; boxes.len()];
+        let buildings = BlockBuildings::new(layout.blocks.iter().map(|b| {
+            let v: Vec<BuildingBox> = b
+                .buildings
+                .iter()
+                .filter_map(|id| {
+                    let slot = in_block.get_mut(id.0 as usize)?;
+                    *slot = true;
+                    boxes.get(id.0 as usize).copied().flatten()
+                })
+                .collect();
+            (b.id, v)
+        }));
+        for (b, inb) in boxes.iter_mut().zip(&in_block) {
+            if !inb {
+                *b = None;
+            }
+        }
+        let items: Vec<BlockBounds> = boxes
+            .iter()
+            .flatten()
+            .map(|b| {
+                BlockBounds::from_box(
+                    BlockId(b.id.0),
+                    b.aabb,
+                    DVec2::new(b.aabb.center().x, b.aabb.center().y),
+                    b.triangles,
+                )
+            })
+            .collect();
+        let scene_graph = SceneGraphTree::build(&items, params)?;
+        let page_offset = block_meshes.iter().map(|(b, _)| b.0 + 1).max().unwrap_or(0);
+        let building_offset = page_offset + scene_graph.page_count() as u32;
+        let mut meshes: Vec<(BlockId, Mesh)> = block_meshes.to_vec();
+        for p in 0..scene_graph.page_count() {
+            let mut m = Mesh::default();
+            for id in scene_graph.page_items(p) {
+                if let Some(part) = per_building.get(id.0 as usize) {
+                    m.append(part);
+                }
+            }
+            meshes.push((BlockId(page_offset + p as u32), m));
+        }
+        let building_start = meshes.len();
+        for (i, m) in per_building.into_iter().enumerate() {
+            if boxes[i].is_some() {
+                meshes.push((BlockId(building_offset + i as u32), m));
+            }
+        }
+        let n = meshes
+            .iter()
+            .map(|(b, _)| b.0 as usize + 1)
+            .max()
+            .unwrap_or(0);
+        let mut triangles = vec![0u64; n];
+        for (b, m) in &meshes {
+            triangles[b.0 as usize] = m.triangle_count() as u64;
+        }
+        Ok(Self {
+            meshes,
+            triangles,
+            page_offset,
+            building_offset,
+            buildings,
+            scene_graph,
+            building_start,
+            mode,
+        })
+    }
+
+    /// The unit id of page `p`.
+    pub fn page_id(&self, p: BlockId) -> BlockId {
+        BlockId(self.page_offset + p.0)
+    }
+
+    /// The unit id of building `b`.
+    pub fn building_id(&self, b: BuildingId) -> BlockId {
+        BlockId(self.building_offset + b.0)
+    }
+
+    /// The building of a unit id in the building range.
+    pub fn building_of(&self, unit: BlockId) -> Option<BuildingId> {
+        unit.0.checked_sub(self.building_offset).map(BuildingId)
+    }
+
+    /// The buildings' meshes alone, by unit id (for a building-level oracle).
+    pub fn building_meshes(&self) -> &[(BlockId, Mesh)] {
+        &self.meshes[self.building_start..]
+    }
+
+    /// Triangles of unit `u` (0 for an unknown unit).
+    pub fn unit_triangles(&self, u: BlockId) -> u64 {
+        self.triangles.get(u.0 as usize).copied().unwrap_or(0)
+    }
+}
