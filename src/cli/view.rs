@@ -92,6 +92,13 @@ pub fn run(args: Args) -> anyhow::Result<()> {
 
     let occlusion = args.occlusion == Switch::On;
     anyhow::ensure!(
+        args.structure.culls_blocks(),
+        "--structure {}: the viewer draws blocks, and `{}` culls pages of buildings (use `blockwalk walk --structures {}`)",
+        args.structure,
+        args.structure,
+        args.structure
+    );
+    anyhow::ensure!(
         args.speed.is_finite() && args.speed > 0.0,
         "--speed {}: expected a positive number",
         args.speed

@@ -244,6 +244,12 @@ impl Structure {
         Structure::Rstar,
     ];
 
+    /// True when the structure's output ids are blocks (every structure but
+    /// [`Structure::SceneGraph`], whose ids are pages of buildings).
+    pub fn culls_blocks(self) -> bool {
+        self != Structure::SceneGraph
+    }
+
     /// The structure's name (its command-line value).
     pub fn name(self) -> String {
         use clap::ValueEnum as _;
