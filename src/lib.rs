@@ -28,6 +28,7 @@ pub mod blocks;
 pub mod city;
 pub mod geom;
 pub mod index;
+pub mod jobs;
 #[cfg(feature = "render")]
 pub mod render;
 pub mod report;
