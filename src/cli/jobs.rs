@@ -6,6 +6,7 @@ use std::path::PathBuf;
 use std::time::Instant;
 
 use anyhow::Context;
+use blockwalk::blockmap::{BuildOptions, CityMapsOptions, Stop, TreeOptions};
 use blockwalk::jobs::{city_files, merge, plan, run_tile, write_plan, PlanOptions};
 use serde_json::json;
 
@@ -44,6 +45,10 @@ enum Step {
         /// The tile (0-based; the index of a job array).
         #[arg(long)]
         tile: usize,
+        /// Build the tile's BlockMaps too, at this height-map side K (32, 64 or 128); maps
+        /// stop where a node's meshes take fewer bytes than a map.
+        #[arg(long, value_parser = super::common::parse_k)]
+        blockmaps: Option<u32>,
         /// Print one JSON object instead of the summary.
         #[arg(long)]
         json: bool,
@@ -119,9 +124,25 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 }
             }
         }
-        Step::Run { plan, tile, json } => {
+        Step::Run {
+            plan,
+            tile,
+            blockmaps,
+            json,
+        } => {
             let pb = spinner(format!("tile {tile}"));
-            let r = run_tile(&plan, tile);
+            let maps = blockmaps.map(|k| CityMapsOptions {
+                tree: TreeOptions {
+                    build: BuildOptions {
+                        k,
+                        ..BuildOptions::default()
+                    },
+                    stop: Stop::Competitive,
+                },
+                checks: 0,
+                ..CityMapsOptions::default()
+            });
+            let r = run_tile(&plan, tile, maps.as_ref());
             pb.finish_and_clear();
             let r = r?;
             let m = &r.manifest;
@@ -129,13 +150,14 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 outln!("{}", serde_json::to_string(m).context("manifest as JSON")?);
             } else {
                 outln!(
-                    "tile {} (key {}): {} blocks, {} buildings ({} read), {} triangles, {} in {:.1} s, peak {} MiB",
+                    "tile {} (key {}): {} blocks, {} buildings ({} read), {} triangles, {} BlockMaps, {} in {:.1} s, peak {} MiB",
                     m.tile,
                     m.key,
                     m.blocks.len(),
                     m.buildings,
                     m.buildings_read,
                     m.triangles,
+                    m.blockmaps.as_ref().map_or(0, |b| b["maps"].as_u64().unwrap_or(0)),
                     r.manifest_path.display(),
                     m.seconds,
                     m.peak_rss_bytes.unwrap_or(0) / (1 << 20)

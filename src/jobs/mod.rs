@@ -41,6 +41,7 @@ use geo_types::{Coord, LineString, Polygon};
 use glam::DVec3;
 use serde::{Deserialize, Serialize};
 
+use crate::blockmap::{build_city_maps, CityMapsOptions};
 use crate::blocks::assign::{assign, outskirts_groups, DEFAULT_OUTSKIRTS_LINK};
 use crate::blocks::{
     detect_geometry, Block, BlockError, BlockId, BlockKind, BlockLayout, BlockOptions, BlockSource,
@@ -852,8 +853,11 @@ pub struct TileManifest {
     pub extrusion_failures: Vec<String>,
     /// Its blocks.
     pub blocks: Vec<TileBlock>,
-    /// Its files (the `.glb`; none for a tile without buildings).
+    /// Its files (the `.glb` and the BlockMaps; none for a tile without buildings).
     pub files: Vec<TileFile>,
+    /// The BlockMaps' figures (maps, K, bytes, measured ε, thin features, seconds), when built.
+    #[serde(default)]
+    pub blockmaps: Option<serde_json::Value>,
     /// Seconds the job took.
     pub seconds: f64,
     /// Peak resident memory of the job's process, bytes (`VmHWM`), where the system tells.
@@ -921,13 +925,21 @@ fn check_stamp(plan_path: &Path, want: &FileStamp) -> Result<(), JobsError> {
 }
 
 /// Step 2: runs tile `tile` of the plan at `plan_path`, writing beside it in `tiles/` (see the
-/// module documentation). Deterministic: the same plan and inputs give the same files.
+/// module documentation). Deterministic: the same plan and inputs give the same files. With
+/// `maps`, the tile's BlockMaps too ([`build_city_maps`] over the tile's blocks: the block
+/// quadtree of the tile is the subtree of the city's under the tile's node, as long as the
+/// tile's region is that node's quadrant), written as `tiles/tile_NNNNN_maps/node_KEY.png` +
+/// `.json`.
 ///
 /// # Errors
 /// [`JobsError::TileOutOfRange`], [`JobsError::InputChanged`] when the footprint file is not
 /// the plan's, [`JobsError::TileMismatch`] when the buildings found disagree with the plan's
 /// counts, reading, building and export errors naming their file.
-pub fn run_tile(plan_path: &Path, tile: usize) -> Result<TileRun, JobsError> {
+pub fn run_tile(
+    plan_path: &Path,
+    tile: usize,
+    maps: Option<&CityMapsOptions>,
+) -> Result<TileRun, JobsError> {
     let t0 = Instant::now();
     let plan = Plan::read(plan_path)?;
     let Some(pt) = plan.tiles.get(tile) else {
@@ -1099,6 +1111,65 @@ pub fn run_tile(plan_path: &Path, tile: usize) -> Result<TileRun, JobsError> {
             crc32: st.crc32,
         });
     }
+    let mut blockmaps = None;
+    if let (Some(mo), false) = (maps, city.buildings.is_empty()) {
+        // The map builder indexes blocks by id: give it the tile's blocks numbered 0..n.
+        let dense = BlockLayout {
+            blocks: layout
+                .blocks
+                .iter()
+                .enumerate()
+                .map(|(i, b)| Block {
+                    id: BlockId(i as u32),
+                    ..b.clone()
+                })
+                .collect(),
+            ..layout.clone()
+        };
+        let bounds = crate::index::block_bounds(&city, &dense);
+        let cm = build_city_maps(&city, &dense, &bounds, mo, &|_, _| {}).map_err(|e| {
+            JobsError::TileMismatch {
+                tile,
+                file: plan_path.to_path_buf(),
+                why: format!("BlockMaps: {e}"),
+            }
+        })?;
+        let mdir = dir.join(format!("tile_{tile:05}_maps"));
+        std::fs::create_dir_all(&mdir).map_err(|source| JobsError::Io {
+            file: mdir.clone(),
+            source,
+        })?;
+        cm.write(&mdir).map_err(|e| JobsError::TileMismatch {
+            tile,
+            file: mdir.clone(),
+            why: format!("writing BlockMaps: {e}"),
+        })?;
+        let mut names: Vec<String> = std::fs::read_dir(&mdir)
+            .map_err(|source| JobsError::Io {
+                file: mdir.clone(),
+                source,
+            })?
+            .filter_map(|e| e.ok().map(|e| e.file_name().to_string_lossy().into_owned()))
+            .collect();
+        names.sort();
+        for n in names {
+            let st = FileStamp::of(&mdir.join(&n))?;
+            files.push(TileFile {
+                path: format!("tiles/tile_{tile:05}_maps/{n}"),
+                bytes: st.bytes,
+                crc32: st.crc32,
+            });
+        }
+        let s = cm.summary();
+        blockmaps = Some(serde_json::json!({
+            "maps": s["maps"],
+            "k": s["k"],
+            "bytes": s["bytes"],
+            "eps_measured_max_m": s["eps_measured_max_m"],
+            "thin_features": s["thin_features"],
+            "build_s": s["build_s"],
+        }));
+    }
     let tri = |b: &crate::city::BuildingId| meshes[b.0 as usize].indices.len() as u64 / 3;
     let blocks: Vec<TileBlock> = layout
         .blocks
@@ -1127,6 +1198,7 @@ pub fn run_tile(plan_path: &Path, tile: usize) -> Result<TileRun, JobsError> {
         extrusion_failures: failures.iter().map(|e| e.to_string()).collect(),
         blocks,
         files,
+        blockmaps,
         seconds: t0.elapsed().as_secs_f64(),
         peak_rss_bytes: peak_rss_bytes(),
     };
