@@ -35,7 +35,10 @@ fn glb_nodes(bytes: &[u8]) -> Nodes {
             }
             None => (Vec::new(), Vec::new()),
         };
-        assert!(out.insert(name, (pos, idx)).is_none(), "one node per building");
+        assert!(
+            out.insert(name, (pos, idx)).is_none(),
+            "one node per building"
+        );
     }
     out
 }
@@ -91,7 +94,11 @@ fn tiles_equal_one_job(
     .unwrap();
     let plan_path = write_plan(&p, dir).unwrap();
     let (want_blocks, want_nodes, origin) = whole_city(footprints, streets);
-    assert_eq!(p.frame().origin, origin, "the plan's frame is the whole city's");
+    assert_eq!(
+        p.frame().origin,
+        origin,
+        "the plan's frame is the whole city's"
+    );
     assert_eq!(p.blocks.len(), want_blocks.len());
     assert!(p.tiles.len() >= 4, "{} tiles", p.tiles.len());
 
@@ -116,11 +123,16 @@ fn tiles_equal_one_job(
             }
         }
     }
-    assert_eq!(got_blocks, want_blocks, "same blocks, same buildings per block");
+    assert_eq!(
+        got_blocks, want_blocks,
+        "same blocks, same buildings per block"
+    );
     assert_eq!(got_nodes.len(), want_nodes.len());
     let mut triangles = 0;
     for (name, (pos, idx)) in &want_nodes {
-        let (gp, gi) = got_nodes.get(name).unwrap_or_else(|| panic!("{name} missing"));
+        let (gp, gi) = got_nodes
+            .get(name)
+            .unwrap_or_else(|| panic!("{name} missing"));
         assert_eq!(gi, idx, "{name}: indices");
         let same = gp.len() == pos.len()
             && gp
@@ -212,7 +224,10 @@ fn merge_names_a_missing_tile() {
         other => panic!("expected MissingTile, got {other:?}"),
     }
     let msg = merge(&tmp.path().join("jobs")).unwrap_err().to_string();
-    assert!(msg.contains("tile 1") && msg.contains("tile_00001.json"), "{msg}");
+    assert!(
+        msg.contains("tile 1") && msg.contains("tile_00001.json"),
+        "{msg}"
+    );
     // Once it has run, the merge passes.
     run_tile(&plan_path, 1, None).unwrap();
     merge(&tmp.path().join("jobs")).unwrap();

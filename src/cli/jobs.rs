@@ -88,7 +88,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             let p = p?;
             let path = write_plan(&p, &output)?;
             let secs = t0.elapsed().as_secs_f64();
-            let exe = std::env::args().next().unwrap_or_else(|| "blockwalk".into());
+            let exe = std::env::args()
+                .next()
+                .unwrap_or_else(|| "blockwalk".into());
             if json {
                 outln!(
                     "{}",

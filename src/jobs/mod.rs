@@ -281,7 +281,14 @@ impl PlanBlock {
     /// The outline as a polygon.
     pub fn polygon(&self) -> Polygon<f64> {
         let ring = |r: &Vec<[ExactF64; 2]>| {
-            LineString::new(r.iter().map(|c| Coord { x: c[0].0, y: c[1].0 }).collect())
+            LineString::new(
+                r.iter()
+                    .map(|c| Coord {
+                        x: c[0].0,
+                        y: c[1].0,
+                    })
+                    .collect(),
+            )
         };
         let mut rings = self.rings.iter();
         let exterior = rings.next().map(ring).unwrap_or(LineString::new(vec![]));
@@ -348,10 +355,11 @@ impl Plan {
             file: path.to_path_buf(),
             source,
         })?;
-        let v: serde_json::Value = serde_json::from_str(&text).map_err(|source| JobsError::Json {
-            file: path.to_path_buf(),
-            source,
-        })?;
+        let v: serde_json::Value =
+            serde_json::from_str(&text).map_err(|source| JobsError::Json {
+                file: path.to_path_buf(),
+                source,
+            })?;
         if v.get("format").and_then(|f| f.as_str()) != Some(PLAN_FORMAT) {
             return Err(JobsError::Format {
                 file: path.to_path_buf(),
@@ -408,7 +416,12 @@ fn bbox_of(p: &Polygon<f64>) -> Option<[f64; 4]> {
 fn union(a: Option<[f64; 4]>, b: [f64; 4]) -> [f64; 4] {
     match a {
         None => b,
-        Some(a) => [a[0].min(b[0]), a[1].min(b[1]), a[2].max(b[2]), a[3].max(b[3])],
+        Some(a) => [
+            a[0].min(b[0]),
+            a[1].min(b[1]),
+            a[2].max(b[2]),
+            a[3].max(b[3]),
+        ],
     }
 }
 
@@ -525,7 +538,11 @@ pub fn plan(
                 geo_types::Geometry::MultiPolygon(m) => m.0.iter().collect(),
                 _ => Vec::new(),
             };
-            centres.extend(polys.into_iter().filter_map(|p| bbox_of(p).map(|b| centre_of(&b))));
+            centres.extend(
+                polys
+                    .into_iter()
+                    .filter_map(|p| bbox_of(p).map(|b| centre_of(&b))),
+            );
         }
     })
     .map_err(read_err(footprints))?;
@@ -559,10 +576,12 @@ pub fn plan(
         .map(|s| s.line.clone())
         .collect();
     drop(scity);
-    let faces = detect_geometry(BlockSource::Streets, &lines, &[], &[], &bopts)
-        .map_err(|source| JobsError::Blocks {
-            file: streets.to_path_buf(),
-            source,
+    let faces =
+        detect_geometry(BlockSource::Streets, &lines, &[], &[], &bopts).map_err(|source| {
+            JobsError::Blocks {
+                file: streets.to_path_buf(),
+                source,
+            }
         })?;
     drop(lines);
     let face_polys: Vec<Polygon<f64>> = faces.blocks.into_iter().map(|b| b.polygon).collect();
@@ -881,10 +900,7 @@ pub struct TileRun {
 
 /// The folder of a plan's tile outputs.
 pub fn tiles_dir(plan_path: &Path) -> PathBuf {
-    plan_path
-        .parent()
-        .unwrap_or(Path::new("."))
-        .join("tiles")
+    plan_path.parent().unwrap_or(Path::new(".")).join("tiles")
 }
 
 /// A tile's manifest path.
@@ -905,8 +921,8 @@ fn check_stamp(plan_path: &Path, want: &FileStamp) -> Result<(), JobsError> {
         file: want.path.clone(),
         why,
     };
-    let meta = std::fs::metadata(&want.path)
-        .map_err(|e| changed(format!("cannot be read ({e})")))?;
+    let meta =
+        std::fs::metadata(&want.path).map_err(|e| changed(format!("cannot be read ({e})")))?;
     if meta.len() != want.bytes {
         return Err(changed(format!(
             "has {} bytes, the plan's had {}",
@@ -995,11 +1011,18 @@ pub fn run_tile(
         .map_err(read_err(fp))?;
     }
     let features_read = layer.features.len();
-    let city = build_city_in_frame(&layer, None, None, &BuildOptions::default(), transform, frame)
-        .map_err(|source| JobsError::Build {
-            file: fp.to_path_buf(),
-            source,
-        })?;
+    let city = build_city_in_frame(
+        &layer,
+        None,
+        None,
+        &BuildOptions::default(),
+        transform,
+        frame,
+    )
+    .map_err(|source| JobsError::Build {
+        file: fp.to_path_buf(),
+        source,
+    })?;
     drop(layer);
 
     // Assign with the one-job rule against every face whose box meets the buildings read: any
@@ -1049,10 +1072,7 @@ pub fn run_tile(
         if let Some(id) = w {
             let mut b = b;
             b.id = crate::city::BuildingId(city.buildings.len() as u32);
-            by_block
-                .get_mut(id)
-                .expect("a tile block")
-                .push(b.id);
+            by_block.get_mut(id).expect("a tile block").push(b.id);
             city.buildings.push(b);
         }
     }
@@ -1297,7 +1317,12 @@ pub fn merge(dir: &Path) -> Result<(TileIndex, PathBuf), JobsError> {
                     file: mpath,
                 })
             }
-            Err(source) => return Err(JobsError::Io { file: mpath, source }),
+            Err(source) => {
+                return Err(JobsError::Io {
+                    file: mpath,
+                    source,
+                })
+            }
         };
         let m: TileManifest = serde_json::from_str(&text).map_err(|source| JobsError::Json {
             file: mpath.clone(),

@@ -195,7 +195,7 @@ pub fn build_city_in_frame(
     frame: LocalFrame,
 ) -> Result<City, BuildError> {
     let hf = &opts.heights;
-    if !(hf.storey_m.is_finite() && hf.storey_m > 0.0) || !heights::usable(hf.default_height_m) {
+    if !(hf.storey_m.is_finite() && hf.storey_m > 0.0 && heights::usable(hf.default_height_m)) {
         return Err(BuildError::Options(format!(
             "storey height {} m / default height {} m out of range",
             hf.storey_m, hf.default_height_m
