@@ -300,3 +300,52 @@ fn a_tile_out_of_range_is_refused() {
         Err(JobsError::Format { file, .. }) if file == not_plan
     ));
 }
+
+#[test]
+fn streaming_reader_gives_the_features_of_the_whole_reader() {
+    use blockwalk::importers::shp;
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("data/helsinki/buildings.shp");
+    let whole = shp::read(&path).unwrap();
+    // Everything, in chunks of 100: the same features in the same order, the same refusals.
+    let mut chunks = Vec::new();
+    let n = shp::read_streaming(&path, &mut |_, _| true, 100, &mut |l| chunks.push(l)).unwrap();
+    assert_eq!(n, whole.report.read);
+    assert!(chunks.len() >= 5 && chunks.iter().all(|c| c.features.len() <= 100));
+    let fids: Vec<u64> = chunks
+        .iter()
+        .flat_map(|c| c.features.iter().map(|f| f.fid))
+        .collect();
+    let want: Vec<u64> = whole.features.iter().map(|f| f.fid).collect();
+    assert_eq!(fids, want);
+    let streamed: Vec<_> = chunks.iter().flat_map(|c| &c.features).collect();
+    for (a, b) in streamed.iter().zip(&whole.features) {
+        assert_eq!(a.geometry, b.geometry);
+        assert_eq!(a.attributes, b.attributes);
+    }
+    let refused: usize = chunks.iter().map(|c| c.report.refused.len()).sum();
+    assert_eq!(refused, whole.report.refused.len());
+    // A box: exactly the features whose box meets it, checked against the whole layer.
+    let (x0, y0) = (385_900.0, 6_672_200.0);
+    let meets = |b: [f64; 4]| b[0] <= x0 + 250.0 && x0 <= b[2] && b[1] <= y0 + 250.0 && y0 <= b[3];
+    let mut kept = Vec::new();
+    shp::read_streaming(&path, &mut |_, b| meets(b), usize::MAX, &mut |l| {
+        kept.extend(l.features.into_iter().map(|f| f.fid))
+    })
+    .unwrap();
+    let brute: Vec<u64> = whole
+        .features
+        .iter()
+        .filter(|f| {
+            use geo::BoundingRect;
+            let r = f.geometry.bounding_rect().unwrap();
+            meets([r.min().x, r.min().y, r.max().x, r.max().y])
+        })
+        .map(|f| f.fid)
+        .collect();
+    assert!(
+        !brute.is_empty() && brute.len() < whole.features.len() / 2,
+        "{}",
+        brute.len()
+    );
+    assert_eq!(kept, brute);
+}
