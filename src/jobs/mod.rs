@@ -942,10 +942,10 @@ fn check_stamp(plan_path: &Path, want: &FileStamp) -> Result<(), JobsError> {
 
 /// Step 2: runs tile `tile` of the plan at `plan_path`, writing beside it in `tiles/` (see the
 /// module documentation). Deterministic: the same plan and inputs give the same files. With
-/// `maps`, the tile's BlockMaps too ([`build_city_maps`] over the tile's blocks: the block
-/// quadtree of the tile is the subtree of the city's under the tile's node, as long as the
-/// tile's region is that node's quadrant), written as `tiles/tile_NNNNN_maps/node_KEY.png` +
-/// `.json`.
+/// `maps`, the tile's BlockMaps too ([`build_city_maps`] over the tile's blocks, written as
+/// `tiles/tile_NNNNN_maps/node_KEY.png` + `.json`). Their quadtree is built over the tile's own
+/// blocks, whose box is the region it splits: below the tile its nodes are not the nodes of a
+/// quadtree over the whole city, and no map covers more than one tile.
 ///
 /// # Errors
 /// [`JobsError::TileOutOfRange`], [`JobsError::InputChanged`] when the footprint file is not
@@ -1185,7 +1185,8 @@ pub fn run_tile(
             "maps": s["maps"],
             "k": s["k"],
             "bytes": s["bytes"],
-            "eps_measured_max_m": s["eps_measured_max_m"],
+            "eps_declared_max_m": s["eps_declared_max"],
+            "eps_measured_max_m": s["eps_measured_max"],
             "thin_features": s["thin_features"],
             "build_s": s["build_s"],
         }));
