@@ -349,3 +349,30 @@ fn streaming_reader_gives_the_features_of_the_whole_reader() {
     );
     assert_eq!(kept, brute);
 }
+
+#[test]
+fn a_tile_with_blockmaps_lists_and_merges_its_maps() {
+    use blockwalk::blockmap::CityMapsOptions;
+    let tmp = tempfile::tempdir().unwrap();
+    let city = generated(&tmp.path().join("city"), 300, 1);
+    let (p, plan_path) = small_plan(&tmp.path().join("jobs"), &city);
+    let opts = CityMapsOptions {
+        checks: 0,
+        ..Default::default()
+    };
+    let r = run_tile(&plan_path, 0, Some(&opts)).unwrap();
+    let maps = r.manifest.blockmaps.as_ref().expect("map figures");
+    let n = maps["maps"].as_u64().unwrap() as usize;
+    assert!(n >= 1);
+    // The .glb, then a PNG and a JSON per map, each listed with its size and hash.
+    assert_eq!(r.manifest.files.len(), 1 + 2 * n);
+    for f in &r.manifest.files {
+        let bytes = std::fs::read(tmp.path().join("jobs").join(&f.path)).unwrap();
+        assert_eq!(bytes.len() as u64, f.bytes, "{}", f.path);
+    }
+    for t in 1..p.tiles.len() {
+        run_tile(&plan_path, t, None).unwrap();
+    }
+    let (index, _) = merge(&tmp.path().join("jobs")).unwrap();
+    assert_eq!(index.tiles[0].files.len(), 1 + 2 * n);
+}
