@@ -413,3 +413,197 @@ fn convert_shape(shape: Shape, fid: u64, report: &mut ImportReport) -> Result<Ge
         }
     }
 }
+
+/// Reads a Shapefile layer in a streaming way: the records are read in sequence from the `.shp`
+/// (never the whole file at once), `keep(fid, [xmin, ymin, xmax, ymax])` decides from each
+/// shape's box (in the file's own coordinates) whether its feature is wanted, and only the
+/// wanted features' `.dbf` records are read and converted. The kept features are handed to
+/// `sink` in file order, in layers of at most `chunk` features (every chunk carries the CRS and
+/// its own share of the refusals); memory is bounded by one chunk, not by the file.
+///
+/// Features are the same as [`read`] gives for the same records (same `fid`, geometry and
+/// attributes). A record whose shape cannot be converted is refused in the chunk it falls in.
+///
+/// Returns the number of records in the file.
+///
+/// # Errors
+/// As [`read`]: [`ImportError::Io`], [`ImportError::MissingCompanion`],
+/// [`ImportError::Shapefile`], [`ImportError::Dbase`], [`ImportError::Format`] (the `.shp` and
+/// `.dbf` disagree on the number of records), [`ImportError::Crs`].
+pub fn read_streaming(
+    path: &Path,
+    keep: &mut dyn FnMut(u64, [f64; 4]) -> bool,
+    chunk: usize,
+    sink: &mut dyn FnMut(Layer),
+) -> Result<usize, ImportError> {
+    let chunk = chunk.max(1);
+    let dbf_path = companion(path, "dbf").ok_or_else(|| ImportError::MissingCompanion {
+        file: path.to_path_buf(),
+        missing: path.with_extension("dbf"),
+        why: "the .dbf holds the attribute table of the features".into(),
+    })?;
+    let mut head = ImportReport::default();
+    let crs = read_prj(path, &mut head)?;
+    let dbf_bytes_head = {
+        use std::io::Read;
+        let mut f = std::fs::File::open(&dbf_path).map_err(|source| ImportError::Io {
+            file: dbf_path.clone(),
+            source,
+        })?;
+        let mut b = Vec::new();
+        f.by_ref()
+            .take(32 * 1024)
+            .read_to_end(&mut b)
+            .map_err(|source| ImportError::Io {
+                file: dbf_path.clone(),
+                source,
+            })?;
+        b
+    };
+    let decimals = dbf_decimals(&dbf_bytes_head);
+    let mut dbf = dbase::Reader::from_path(&dbf_path).map_err(|source| ImportError::Dbase {
+        file: dbf_path.clone(),
+        what: "not a readable dBase table".into(),
+        source,
+    })?;
+    let declared = dbf.header().num_records as usize;
+    let mut shp = ShapeReader::from_path(path).map_err(|source| ImportError::Shapefile {
+        file: path.to_path_buf(),
+        what: "not a readable Shapefile header".into(),
+        source,
+    })?;
+    let name = path
+        .file_stem()
+        .map(|s| s.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    let new_layer = |report: ImportReport| Layer {
+        name: name.clone(),
+        source: path.to_path_buf(),
+        crs: crs.clone(),
+        features: Vec::new(),
+        report,
+    };
+    let mut layer = new_layer(head);
+    let mut next_record = 0usize;
+    let mut count = 0usize;
+    let flush = |layer: &mut Layer, sink: &mut dyn FnMut(Layer)| {
+        let mut done = std::mem::replace(layer, new_layer(ImportReport::default()));
+        done.report.imported = done.features.len();
+        done.report.group_refusals();
+        sink(done);
+    };
+    for (i, s) in shp.iter_shapes().enumerate() {
+        let shape = s.map_err(|source| ImportError::Shapefile {
+            file: path.to_path_buf(),
+            what: format!("record {i} cannot be read (truncated or corrupt file)"),
+            source,
+        })?;
+        count = i + 1;
+        let fid = i as u64;
+        layer.report.read += 1;
+        let geometry = match convert_shape(shape, fid, &mut layer.report) {
+            Ok(g) => g,
+            Err(reason) => {
+                layer.report.refuse(fid, reason);
+                continue;
+            }
+        };
+        if !keep(fid, geometry_box(&geometry)) {
+            layer.report.read -= 1;
+            continue;
+        }
+        if i >= declared {
+            return Err(ImportError::Format {
+                file: path.to_path_buf(),
+                message: format!(
+                    "more shapes in the .shp than the {declared} records in {}",
+                    dbf_path.display()
+                ),
+            });
+        }
+        if next_record != i {
+            dbf.seek(i).map_err(|source| ImportError::Dbase {
+                file: dbf_path.clone(),
+                what: format!("record {i} of {declared} cannot be reached"),
+                source,
+            })?;
+        }
+        let record = dbf.iter_records().next();
+        next_record = i + 1;
+        match record {
+            Some(Ok(r)) => layer.features.push(Feature {
+                fid,
+                geometry,
+                attributes: convert_record(r, &decimals),
+            }),
+            Some(Err(e)) if matches!(e.kind(), dbase::ErrorKind::IoError(_)) => {
+                return Err(ImportError::Dbase {
+                    file: dbf_path.clone(),
+                    what: format!("record {i} of {declared} cannot be read (truncated file)"),
+                    source: e,
+                })
+            }
+            Some(Err(e)) => layer.report.refuse(
+                fid,
+                format!(
+                    "attribute record cannot be read from {}: {e}",
+                    dbf_path.display()
+                ),
+            ),
+            None => {
+                return Err(ImportError::Format {
+                    file: path.to_path_buf(),
+                    message: format!("record {i} is missing from {}", dbf_path.display()),
+                })
+            }
+        }
+        if layer.features.len() >= chunk {
+            flush(&mut layer, sink);
+        }
+    }
+    if count != declared {
+        return Err(ImportError::Format {
+            file: path.to_path_buf(),
+            message: format!(
+                "{count} shapes in the .shp but {declared} records in {}",
+                dbf_path.display()
+            ),
+        });
+    }
+    if !layer.features.is_empty() || layer.report.read > 0 || !layer.report.notes.is_empty() {
+        flush(&mut layer, sink);
+    }
+    Ok(count)
+}
+
+/// The box `[xmin, ymin, xmax, ymax]` of a converted geometry (finite by construction); NaN for
+/// a kind the reader never produces.
+fn geometry_box(g: &Geometry) -> [f64; 4] {
+    let mut b = [
+        f64::INFINITY,
+        f64::INFINITY,
+        f64::NEG_INFINITY,
+        f64::NEG_INFINITY,
+    ];
+    let mut add = |c: &Coord<f64>| {
+        b = [b[0].min(c.x), b[1].min(c.y), b[2].max(c.x), b[3].max(c.y)];
+    };
+    match g {
+        Geometry::Point(p) => add(&p.0),
+        Geometry::MultiPoint(m) => m.0.iter().for_each(|p| add(&p.0)),
+        Geometry::LineString(l) => l.0.iter().for_each(add),
+        Geometry::MultiLineString(m) => m.0.iter().flat_map(|l| &l.0).for_each(add),
+        Geometry::Polygon(p) => p.exterior().0.iter().for_each(add),
+        Geometry::MultiPolygon(m) => m.0.iter().flat_map(|p| &p.exterior().0).for_each(add),
+        _ => return [f64::NAN; 4],
+    }
+    b
+}
+
+/// The CRS of a Shapefile layer, from its `.prj` alone (as [`read`] finds it).
+///
+/// # Errors
+/// [`ImportError::Io`] or [`ImportError::Crs`] for a `.prj` that cannot be read or understood.
+pub fn read_crs(path: &Path) -> Result<Crs, ImportError> {
+    read_prj(path, &mut ImportReport::default())
+}

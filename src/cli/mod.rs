@@ -41,6 +41,7 @@ mod demo;
 mod farfield_sweep;
 mod generate;
 mod import;
+mod jobs;
 mod occlusion_bench;
 mod tileset;
 mod view;
@@ -68,6 +69,8 @@ enum Command {
     Tileset(tileset::Args),
     /// Compare spatial structures on frustum culling.
     CullBench(cull_bench::Args),
+    /// A city in tiles: plan, run one tile (a batch job), merge.
+    Jobs(jobs::Args),
     /// Occlusion culling with the cull map, checked against the visibility oracle.
     OcclusionBench(occlusion_bench::Args),
     /// Walk a camera route through the city with every structure; report and render.
@@ -123,6 +126,7 @@ fn dispatch(command: Command) -> anyhow::Result<()> {
         Command::Blockmaps(a) => blockmaps::run(a),
         Command::Tileset(a) => tileset::run(a),
         Command::CullBench(a) => cull_bench::run(a),
+        Command::Jobs(a) => jobs::run(a),
         Command::OcclusionBench(a) => occlusion_bench::run(a),
         Command::Walk(a) => walk::run(a),
         Command::FarfieldSweep(a) => farfield_sweep::run(a),

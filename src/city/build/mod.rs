@@ -35,10 +35,10 @@
 
 use std::collections::BTreeMap;
 
-use blockwalk_importers::{format_groups, CrsError, Layer, ReasonGroup};
+use blockwalk_importers::{format_groups, CrsError, Layer, MetricTransform, ReasonGroup};
 use serde::Serialize;
 
-use super::model::{Building, City, CityReport};
+use super::model::{Building, City, CityReport, LocalFrame};
 
 pub mod frame;
 pub mod geometry;
@@ -171,6 +171,59 @@ pub fn build_city(
         name: footprints.name.clone(),
         transform,
         frame: local,
+        buildings,
+        streets: streets_out,
+        parcels: parcels_out,
+        report,
+    })
+}
+
+/// [`build_city`] with the metric transform and the local frame given instead of derived from
+/// the footprints, for a part of a city read on its own (a tile of `jobs`): its buildings get
+/// exactly the world coordinates and f32 local coordinates they have in the whole city. A part
+/// with no building is not an error here: it gives a city without buildings.
+///
+/// # Errors
+/// [`BuildError::Crs`] when a street or parcel layer's CRS cannot be set up;
+/// [`BuildError::Options`] as [`build_city`].
+pub fn build_city_in_frame(
+    footprints: &Layer,
+    streets: Option<&Layer>,
+    parcels: Option<&Layer>,
+    opts: &BuildOptions,
+    transform: MetricTransform,
+    frame: LocalFrame,
+) -> Result<City, BuildError> {
+    let hf = &opts.heights;
+    if !(hf.storey_m.is_finite() && hf.storey_m > 0.0 && heights::usable(hf.default_height_m)) {
+        return Err(BuildError::Options(format!(
+            "storey height {} m / default height {} m out of range",
+            hf.storey_m, hf.default_height_m
+        )));
+    }
+    let mut report = CityReport {
+        crs: transform.describe(),
+        ..Default::default()
+    };
+    let buildings = repair_report::build_footprints(footprints, &transform, hf, &mut report);
+    let streets_out = match streets {
+        Some(l) => {
+            let t = frame::layer_transform(&transform, l, &mut report.notes)?;
+            layers::build_streets(l, &t, opts, &mut report)
+        }
+        None => Vec::new(),
+    };
+    let parcels_out = match parcels {
+        Some(l) => {
+            let t = frame::layer_transform(&transform, l, &mut report.notes)?;
+            layers::build_parcels(l, &t, &mut report)
+        }
+        None => Vec::new(),
+    };
+    Ok(City {
+        name: footprints.name.clone(),
+        transform,
+        frame,
         buildings,
         streets: streets_out,
         parcels: parcels_out,
