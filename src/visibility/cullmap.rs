@@ -148,12 +148,18 @@ impl Grid {
 /// that rounding to the nearest f32 cannot end above `z`: `w + |w| 2^-24 < z`. Branch-free, so
 /// that the span loop vectorises (rounding to nearest and stepping down where that went up would branch).
 /// Heights above f32's range are clamped to its largest value, still below them; those below
-/// it become −∞ (the conversion's own overflow).
+/// it become −∞ (the conversion's own overflow); NaN stays NaN.
 #[inline]
 fn stored_height(z: f64) -> f32 {
     const LOWER: f64 = 1e-9 + f32::EPSILON as f64;
     let w = z - LOWER * z.abs() - 1e-30;
-    w.min(f32::MAX as f64) as f32
+    // Not `min`, which would turn NaN into the largest height; NaN stays NaN, and the span
+    // loop's `max` then keeps the cell as it was.
+    (if w > f32::MAX as f64 {
+        f32::MAX as f64
+    } else {
+        w
+    }) as f32
 }
 
 /// f64 → f32 rounded towards +∞ (for the heights of boxes under test).
