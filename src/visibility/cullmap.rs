@@ -467,7 +467,7 @@ impl CullMap {
                 return false;
             }
             let v = self.values[fj as usize * g.nx + fi as usize];
-            if !(v as f64 >= height) {
+            if (v as f64) < height || height.is_nan() {
                 return false;
             }
         }
@@ -810,6 +810,34 @@ mod tests {
                 let _ = drawn;
             }
         }
+    }
+
+    #[test]
+    fn segment_hidden_reads_the_drawn_cells() {
+        // The wall x = 10, y ∈ [−20, 20], 15 m high, seen from the origin at 1.7 m: its shadow
+        // plane rises behind it (about 28 m at x = 20).
+        let mut m = map(64);
+        let v = DVec3::new(0.0, 0.0, 1.7);
+        m.draw(&OccluderShadow::new(v, &wall()).unwrap());
+        let (a, b) = (DVec2::new(30.0, -5.0), DVec2::new(30.0, 5.0));
+        assert!(m.segment_hidden(a, b, 15.0), "a lower wall behind it");
+        assert!(
+            !m.segment_hidden(a, b, 80.0),
+            "a wall rising above the shadow"
+        );
+        assert!(
+            !m.segment_hidden(DVec2::new(5.0, -5.0), DVec2::new(5.0, 5.0), 1.0),
+            "a wall in front of it"
+        );
+        assert!(
+            !m.segment_hidden(DVec2::new(30.0, -80.0), DVec2::new(30.0, 5.0), 1.0),
+            "a wall reaching out of the shadow's wedge"
+        );
+        assert!(
+            !m.segment_hidden(DVec2::new(30.0, 0.0), DVec2::new(130.0, 0.0), 1.0),
+            "a wall leaving the map"
+        );
+        assert!(!m.segment_hidden(a, b, f64::NAN));
     }
 
     #[test]

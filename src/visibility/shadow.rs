@@ -367,7 +367,8 @@ impl RowBounds {
                 Bound::Lower { a, b } => lo = lo.max(a + b * y),
                 Bound::Upper { a, b } => hi = hi.min(a + b * y),
                 Bound::Y { ny, c } => {
-                    if !(ny * y + c >= 0.0) {
+                    let t = ny * y + c;
+                    if t.is_nan() || t < 0.0 {
                         return None;
                     }
                 }
