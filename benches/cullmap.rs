@@ -6,7 +6,7 @@ use blockwalk::index::{block_bounds, CityIndex, CullQuery, FlatList};
 use blockwalk::visibility::synthetic::SyntheticCity;
 use blockwalk::visibility::views::{random_views, ViewKind, ViewOptions};
 use blockwalk::visibility::{CullerOptions, OccluderShadow, OcclusionCuller, Resolution};
-use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion};
+use criterion::{criterion_group, BenchmarkId, Criterion};
 use glam::DVec2;
 
 fn cullmap(c: &mut Criterion) {
@@ -108,5 +108,139 @@ fn cullmap(c: &mut Criterion) {
     g.finish();
 }
 
-criterion_group!(benches, cullmap);
-criterion_main!(benches);
+/// The street-level frames (eye at most 2 m up) of the paper route (300 frames, 1280×720, as
+/// `blockwalk walk --route paper` samples it) over the city directory in `BLOCKWALK_CULLMAP_CITY`
+/// (e.g. `blockwalk generate --buildings 80000 --seed 1 -o city80k/`), and its scene (BqR-tree
+/// and the occlusion culler at its defaults).
+fn paper_route_street_frames() -> Option<(blockwalk::scene::Scene, Vec<blockwalk::geom::Camera>)> {
+    use blockwalk::index::Structure;
+    use blockwalk::route::{RouteChoice, RouteContext};
+    use blockwalk::scene::{CitySource, Scene, SceneOptions};
+    let dir = std::env::var_os("BLOCKWALK_CULLMAP_CITY")?;
+    let source = CitySource::parse(std::path::Path::new(&dir), None, None, &[], 1).ok()?;
+    let opts = SceneOptions {
+        structures: vec![Structure::Bqr],
+        occlusion: Some(CullerOptions::default()),
+        ..SceneOptions::default()
+    };
+    let scene = Scene::load(&source, &opts, &mut |_| {}).ok()?;
+    let ctx = RouteContext {
+        city: &scene.name,
+        bounds: scene.city_bounds(),
+        street_edges: &scene.layout.street_edges,
+        buildings: &scene.city.buildings,
+        frame: &scene.city.frame,
+        aspect: 1280.0 / 720.0,
+    };
+    let (route, _) = RouteChoice::Paper.resolve(&ctx).ok()?;
+    let cams: Vec<_> = route
+        .sample(300)
+        .into_iter()
+        .filter(|c| c.position.z <= 2.0)
+        .collect();
+    Some((scene, cams))
+}
+
+/// Cull map build and build + traversal on the paper route's street frames (see
+/// [`paper_route_street_frames`]); nothing without `BLOCKWALK_CULLMAP_CITY`.
+fn paper_route(c: &mut Criterion) {
+    let Some((scene, cams)) = paper_route_street_frames() else {
+        eprintln!("cullmap_paper_route: set BLOCKWALK_CULLMAP_CITY to a generated city directory");
+        return;
+    };
+    let culler = scene.occlusion.as_ref().expect("asked for");
+    let index = scene.indexes[0].as_ref();
+    let mut g = c.benchmark_group("cullmap_paper_route_street");
+    g.sample_size(20);
+    let mut map = culler.new_map();
+    g.bench_function("build_256", |b| {
+        let mut k = 0;
+        b.iter(|| {
+            let st = culler.build(&cams[k % cams.len()], &mut map);
+            k += 1;
+            st.cells_covered
+        })
+    });
+    g.bench_function("build_and_cull_256", |b| {
+        let mut k = 0;
+        let mut out = Vec::new();
+        b.iter(|| {
+            out.clear();
+            let st = culler.cull(index, &cams[k % cams.len()], &mut out);
+            k += 1;
+            st.blocks_out
+        })
+    });
+    g.finish();
+}
+
+/// `BLOCKWALK_CULLMAP_PASSES=N`: instead of criterion, N passes of build + traversal over the
+/// paper route's street frames, for instruction counts (`valgrind --tool=callgrind
+/// --toggle-collect='*OcclusionCuller*build*'`), with the mean per frame of the culler's own
+/// timers and counters.
+fn passes(n: usize) {
+    let Some((scene, cams)) = paper_route_street_frames() else {
+        eprintln!("set BLOCKWALK_CULLMAP_CITY to a generated city directory");
+        std::process::exit(2);
+    };
+    let culler = scene.occlusion.as_ref().expect("asked for");
+    let index = scene.indexes[0].as_ref();
+    let mut out = Vec::new();
+    let (mut build, mut test, mut used, mut cells, mut blocks) = (0.0, 0.0, 0u64, 0u64, 0u64);
+    let mut skipped = 0u64;
+    let cpu0 = thread_cpu_ns();
+    for _ in 0..n {
+        for cam in &cams {
+            out.clear();
+            let st = culler.cull(index, cam, &mut out);
+            build += st.build_ms;
+            test += st.test_ms;
+            used += st.occluders_used;
+            skipped += st.occluders_covered;
+            cells += st.cells_covered;
+            blocks += st.blocks_out;
+        }
+    }
+    let cpu = thread_cpu_ns()
+        .zip(cpu0)
+        .map(|(b, a)| (b - a) as f64 * 1e-6);
+    let f = (n * cams.len()) as f64;
+    println!(
+        "{} street frames x {n}: build {:.3} ms, traversal {:.3} ms (wall), build + traversal \
+         {:.3} ms on the CPU; occluders drawn {:.1}, skipped {:.1}, cells {:.0}, blocks out {:.1} \
+         per frame",
+        cams.len(),
+        build / f,
+        test / f,
+        cpu.map_or(f64::NAN, |c| c / f),
+        used as f64 / f,
+        skipped as f64 / f,
+        cells as f64 / f,
+        blocks as f64 / f
+    );
+}
+
+/// Nanoseconds this thread has run on a CPU (`/proc/thread-self/schedstat`, Linux), which a
+/// loaded machine's waiting does not inflate.
+fn thread_cpu_ns() -> Option<u64> {
+    std::fs::read_to_string("/proc/thread-self/schedstat")
+        .ok()?
+        .split_whitespace()
+        .next()?
+        .parse()
+        .ok()
+}
+
+criterion_group!(benches, cullmap, paper_route);
+
+fn main() {
+    if let Some(n) = std::env::var("BLOCKWALK_CULLMAP_PASSES")
+        .ok()
+        .and_then(|v| v.parse().ok())
+    {
+        passes(n);
+        return;
+    }
+    benches();
+    Criterion::default().configure_from_args().final_summary();
+}

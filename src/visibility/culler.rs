@@ -84,6 +84,9 @@ pub struct OcclusionStats {
     pub occluder_candidates: u64,
     /// Occluders whose shadows were drawn.
     pub occluders_used: u64,
+    /// Occluders not drawn because their wall stood in shadows drawn before (nearer walls hid
+    /// it, see [`CullMap::segment_hidden`]).
+    pub occluders_covered: u64,
     /// Shadows that covered at least one cell.
     pub shadows_drawn: u64,
     /// Cells written (summed over shadows).
@@ -229,7 +232,8 @@ impl OcclusionCuller {
     }
 
     /// The occluders chosen for `camera` (seed 004 §3.2.5): facade edges facing the viewer, of
-    /// blocks within the local radius whose box meets the frustum, the `max_occluders` largest.
+    /// blocks within the local radius whose box meets the frustum, the `max_occluders` largest,
+    /// nearest first.
     ///
     /// Each edge is cut to its parts at least [`near_plane_reach`] (plus the f32 rounding of the
     /// mesh, [`Slack::f32_mesh`]) from the eye in plan view: the renderer and the oracle clip
@@ -285,9 +289,14 @@ impl OcclusionCuller {
             scored.select_nth_unstable_by(n, |a, b| b.0.total_cmp(&a.0));
             scored.truncate(n);
         }
-        // Deterministic order (the result does not depend on it; the timing might).
-        scored.sort_by(|a, b| b.0.total_cmp(&a.0));
-        out.extend(scored.into_iter().map(|(_, o)| o));
+        // Nearest first, so that [`Self::build`] can skip walls that nearer ones hide; ties by
+        // score, for a deterministic order.
+        let mut keyed: Vec<(f64, f64, Occluder)> = scored
+            .into_iter()
+            .map(|(score, o)| (o.distance_to(v2), score, o))
+            .collect();
+        keyed.sort_by(|a, b| a.0.total_cmp(&b.0).then(b.1.total_cmp(&a.1)));
+        out.extend(keyed.into_iter().map(|(_, _, o)| o));
         (candidates, None)
     }
 
@@ -314,6 +323,12 @@ impl OcclusionCuller {
         };
         if skipped.is_none() {
             for o in &occ {
+                // Drawn nearest first, a wall standing inside the shadows drawn so far adds
+                // nothing they do not hide already (see [`CullMap::segment_hidden`]).
+                if map.segment_hidden(o.a, o.b, o.height) {
+                    st.occluders_covered += 1;
+                    continue;
+                }
                 if let Ok(s) = OccluderShadow::with_slack(camera.position, o, self.slack(o)) {
                     st.occluders_used += 1;
                     let c = map.draw(&s);

@@ -142,15 +142,24 @@ impl Grid {
     }
 }
 
-/// f64 → f32 rounded towards −∞ (so a stored height never exceeds the proven one).
+/// The f32 stored for a plane height `z` (f64): never above `z`, at most a few parts in 10⁷
+/// below. `z` is first lowered by `1e-9 |z|` (the rounding of the plane's evaluation), then by
+/// `2^-23 |z| + 1e-30`, more than half an f32 ulp of `z` (or the smallest subnormal's), so
+/// that rounding to the nearest f32 cannot end above `z`: `w + |w| 2^-24 < z`. Branch-free, so
+/// that the span loop vectorises (rounding to nearest and stepping down where that went up would branch).
+/// Heights above f32's range are clamped to its largest value, still below them; those below
+/// it become −∞ (the conversion's own overflow); NaN stays NaN.
 #[inline]
-pub(crate) fn f32_down(v: f64) -> f32 {
-    let f = v as f32;
-    if (f as f64) > v {
-        f.next_down()
+fn stored_height(z: f64) -> f32 {
+    const LOWER: f64 = 1e-9 + f32::EPSILON as f64;
+    let w = z - LOWER * z.abs() - 1e-30;
+    // Not `min`, which would turn NaN into the largest height; NaN stays NaN, and the span
+    // loop's `max` then keeps the cell as it was.
+    (if w > f32::MAX as f64 {
+        f32::MAX as f64
     } else {
-        f
-    }
+        w
+    }) as f32
 }
 
 /// f64 → f32 rounded towards +∞ (for the heights of boxes under test).
@@ -409,9 +418,10 @@ impl CullMap {
         // Column boundary offset (0 or 1) holding the plane's minimum over a cell.
         let right = (p.zx < 0.0) as usize;
         let mut covered = 0u64;
-        let mut prev = s.row_interval(g.y(j0), self.margin, x_lo, x_hi);
+        let rb = s.row_bounds(self.margin);
+        let mut prev = rb.interval(g.y(j0), x_lo, x_hi);
         for j in j0..j1 {
-            let next = s.row_interval(g.y(j + 1), self.margin, x_lo, x_hi);
+            let next = rb.interval(g.y(j + 1), x_lo, x_hi);
             if let (Some((a0, a1)), Some((b0, b1))) = (prev, next) {
                 let lo = a0.max(b0);
                 let hi = a1.min(b1);
@@ -426,11 +436,7 @@ impl CullMap {
                             let row = &mut self.values[j * g.nx..(j + 1) * g.nx];
                             for (i, cell) in row.iter_mut().enumerate().take(i1).skip(i0) {
                                 let z = base + p.zx * g.x(i + right);
-                                let z = z - 1e-9 * z.abs();
-                                let zf = f32_down(z);
-                                if zf > *cell {
-                                    *cell = zf;
-                                }
+                                *cell = cell.max(stored_height(z));
                             }
                             covered += (i1 - i0) as u64;
                             self.dirty.include(i0, i1, j);
@@ -441,6 +447,31 @@ impl CullMap {
             prev = next;
         }
         covered
+    }
+
+    /// True when every cell met by the segment `a`–`b` (sampled every half cell) already holds
+    /// at least `height`: a wall standing there up to `height` lies inside shadows drawn before
+    /// it, so everything it hides is hidden by their walls too (the ray from the eye to a point
+    /// behind it crosses the wall at a hidden point, hence crosses an earlier wall before).
+    /// Used to skip such occluders; a wrong answer either way only costs effectiveness or time,
+    /// never correctness, since drawing fewer shadows only hides less.
+    pub fn segment_hidden(&self, a: DVec2, b: DVec2, height: f64) -> bool {
+        let g = &self.grid;
+        let d = b - a;
+        let n = ((d.length() / (0.5 * g.cell)).ceil()).clamp(1.0, 1e6) as usize;
+        let inv = 1.0 / g.cell;
+        for k in 0..=n {
+            let p = a + d * (k as f64 / n as f64);
+            let (fi, fj) = ((p.x - g.origin.x) * inv, (p.y - g.origin.y) * inv);
+            if !(fi >= 0.0 && fj >= 0.0 && fi < g.nx as f64 && fj < g.ny as f64) {
+                return false;
+            }
+            let v = self.values[fj as usize * g.nx + fi as usize];
+            if (v as f64) < height || height.is_nan() {
+                return false;
+            }
+        }
+        true
     }
 
     /// Reference rasterisation: the same cells and values as [`CullMap::draw`] over the whole
@@ -481,12 +512,7 @@ impl CullMap {
                         let row = &mut self.values[j * g.nx..(j + 1) * g.nx];
                         for (i, cell) in row.iter_mut().enumerate().take(i1).skip(i0) {
                             let zx = (p.zx * g.x(i)).min(p.zx * g.x(i + 1));
-                            let z = base + zx;
-                            let z = z - 1e-9 * z.abs();
-                            let zf = f32_down(z);
-                            if zf > *cell {
-                                *cell = zf;
-                            }
+                            *cell = cell.max(stored_height(base + zx));
                         }
                         covered += (i1 - i0) as u64;
                     }
@@ -787,6 +813,34 @@ mod tests {
     }
 
     #[test]
+    fn segment_hidden_reads_the_drawn_cells() {
+        // The wall x = 10, y ∈ [−20, 20], 15 m high, seen from the origin at 1.7 m: its shadow
+        // plane rises behind it (about 28 m at x = 20).
+        let mut m = map(64);
+        let v = DVec3::new(0.0, 0.0, 1.7);
+        m.draw(&OccluderShadow::new(v, &wall()).unwrap());
+        let (a, b) = (DVec2::new(30.0, -5.0), DVec2::new(30.0, 5.0));
+        assert!(m.segment_hidden(a, b, 15.0), "a lower wall behind it");
+        assert!(
+            !m.segment_hidden(a, b, 80.0),
+            "a wall rising above the shadow"
+        );
+        assert!(
+            !m.segment_hidden(DVec2::new(5.0, -5.0), DVec2::new(5.0, 5.0), 1.0),
+            "a wall in front of it"
+        );
+        assert!(
+            !m.segment_hidden(DVec2::new(30.0, -80.0), DVec2::new(30.0, 5.0), 1.0),
+            "a wall reaching out of the shadow's wedge"
+        );
+        assert!(
+            !m.segment_hidden(DVec2::new(30.0, 0.0), DVec2::new(130.0, 0.0), 1.0),
+            "a wall leaving the map"
+        );
+        assert!(!m.segment_hidden(a, b, f64::NAN));
+    }
+
+    #[test]
     fn viewer_cell_and_front_are_never_drawn() {
         let mut m = map(64);
         let v = DVec3::new(0.0, 0.0, 1.7);
@@ -973,9 +1027,37 @@ mod tests {
     #[test]
     fn rounding_helpers_are_directed() {
         for v in [0.1f64, 1.0 / 3.0, 12345.678901, -7.3, 1e30] {
-            assert!(f32_down(v) as f64 <= v);
             assert!(f32_up(v) as f64 >= v);
         }
+        // Stored heights never exceed the plane and stay within a few f32 ulps of it, over
+        // random values of every magnitude and sign, values just above an f32 (where rounding
+        // to nearest goes up), zero, subnormals and values beyond f32's range.
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(8);
+        let mut vals = vec![
+            0.0,
+            -0.0,
+            1e-40,
+            -1e-40,
+            1e-300,
+            1e39,
+            -1e39,
+            f64::MAX,
+            -f64::MAX,
+        ];
+        for _ in 0..100_000 {
+            let m: f64 = rng.random_range(-1.0..1.0) * 10f64.powi(rng.random_range(-6..8));
+            vals.push(m);
+            let f = m as f32;
+            vals.push(f as f64 + (f.next_up() as f64 - f as f64) * 0.49);
+        }
+        for v in vals {
+            let s = stored_height(v);
+            assert!((s as f64) <= v, "{v}: {s}");
+            if v.abs() > 1e-20 && v.abs() < 1e38 {
+                assert!((s as f64) >= v - 3e-7 * v.abs(), "{v}: {s} too low");
+            }
+        }
+        assert!(stored_height(f64::NAN).is_nan());
     }
 
     #[test]

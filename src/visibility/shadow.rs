@@ -292,28 +292,89 @@ impl OccluderShadow {
     /// to spare, intersected with `[x_lo, x_hi]`; `None` when empty. Exact up to one rounding per
     /// half-plane; no infinities leave this function.
     pub fn row_interval(&self, y: f64, margin: f64, x_lo: f64, x_hi: f64) -> Option<(f64, f64)> {
-        let mut lo = x_lo;
-        let mut hi = x_hi;
-        for h in &self.region {
+        self.row_bounds(margin).interval(y, x_lo, x_hi)
+    }
+
+    /// The bounds of [`OccluderShadow::row_interval`] as linear functions of `y`, set up once
+    /// per shadow so that each row costs a multiply-add per half-plane and no division.
+    pub fn row_bounds(&self, margin: f64) -> RowBounds {
+        let mut rb = RowBounds {
+            bounds: [Bound::None; 4],
+            empty: false,
+        };
+        for (k, h) in self.region.iter().enumerate() {
             // n.x·x + (n.y·y + c − margin) ≥ 0
-            let t = h.n.y * y + h.c - margin;
-            if h.n.x == 0.0 || t.is_infinite() {
-                if t < 0.0 {
-                    return None;
+            let c = h.c - margin;
+            rb.bounds[k] = if c.is_infinite() {
+                if c < 0.0 {
+                    rb.empty = true;
                 }
-                continue;
-            }
-            let x = -t / h.n.x;
-            if h.n.x > 0.0 {
-                lo = lo.max(x);
+                Bound::None
+            } else if h.n.x == 0.0 {
+                Bound::Y { ny: h.n.y, c }
             } else {
-                hi = hi.min(x);
-            }
-            if lo > hi || lo.is_nan() || hi.is_nan() {
-                return None;
+                // x ≥ or ≤ −c/n.x − (n.y/n.x)·y; within a few roundings of `-t / n.x`, far
+                // below the margin.
+                let (a, b) = (-c / h.n.x, -h.n.y / h.n.x);
+                if !(a.is_finite() && b.is_finite()) {
+                    rb.empty = true;
+                }
+                if h.n.x > 0.0 {
+                    Bound::Lower { a, b }
+                } else {
+                    Bound::Upper { a, b }
+                }
+            };
+        }
+        rb
+    }
+}
+
+/// One half-plane of [`RowBounds`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum Bound {
+    /// No constraint.
+    None,
+    /// `x ≥ a + b·y`.
+    Lower { a: f64, b: f64 },
+    /// `x ≤ a + b·y`.
+    Upper { a: f64, b: f64 },
+    /// `ny·y + c ≥ 0` (a horizontal boundary).
+    Y { ny: f64, c: f64 },
+}
+
+/// A shadow's region shrunk by a margin, as per-row x-bounds (see
+/// [`OccluderShadow::row_bounds`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct RowBounds {
+    bounds: [Bound; 4],
+    /// Nothing is inside (a half-plane empty everywhere, or a bound not finite).
+    empty: bool,
+}
+
+impl RowBounds {
+    /// The x-interval of the shrunk region on the line `y`, within `[x_lo, x_hi]`; `None` when
+    /// empty.
+    #[inline]
+    pub fn interval(&self, y: f64, x_lo: f64, x_hi: f64) -> Option<(f64, f64)> {
+        if self.empty {
+            return None;
+        }
+        let (mut lo, mut hi) = (x_lo, x_hi);
+        for b in &self.bounds {
+            match *b {
+                Bound::None => {}
+                Bound::Lower { a, b } => lo = lo.max(a + b * y),
+                Bound::Upper { a, b } => hi = hi.min(a + b * y),
+                Bound::Y { ny, c } => {
+                    let t = ny * y + c;
+                    if t.is_nan() || t < 0.0 {
+                        return None;
+                    }
+                }
             }
         }
-        Some((lo, hi))
+        (lo <= hi).then_some((lo, hi))
     }
 }
 
