@@ -345,7 +345,11 @@ fn bqr_layout_on_a_grid_and_with_mobile_objects() {
     t.check_invariants();
     let laid = t.traversal_nodes();
     // Buckets of a few blocks and collapsed chains: far fewer nodes to visit than built.
-    assert!(laid > 0 && laid * 4 < t.nodes_len(), "{laid} of {}", t.nodes_len());
+    assert!(
+        laid > 0 && laid * 4 < t.nodes_len(),
+        "{laid} of {}",
+        t.nodes_len()
+    );
     let cam = Camera::new(DVec3::new(0.0, 0.0, 1.7), 0.4, 0.0);
     let f = cam.frustum();
     let q = CullQuery::with_eye(&f, cam.position);

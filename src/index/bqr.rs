@@ -813,7 +813,10 @@ impl BqrTree {
         }
         assert_eq!(live, self.object_count, "object count");
         if let Some(hot) = &self.hot {
-            assert_eq!(self.object_count, 0, "a traversal layout with objects present");
+            assert_eq!(
+                self.object_count, 0,
+                "a traversal layout with objects present"
+            );
             hot.check(self.blocks.len());
         }
     }
