@@ -45,7 +45,7 @@ use glam::DVec3;
 
 /// A subtree with at most this many blocks is laid out as one bucket (see the module doc).
 /// Measured on jittered grids of 5,000 to 1,000,000 blocks (README, index figures).
-pub(crate) const BUCKET_BLOCKS: u32 = 8;
+pub(crate) const BUCKET_BLOCKS: u32 = 16;
 
 /// One node, one cache line.
 #[derive(Clone, Copy, Debug)]
