@@ -124,7 +124,7 @@ impl HotLayout {
             hand: blocks.iter().map(|b| (b.id, b.triangles)).collect(),
         };
         if let Some(r) = root {
-            layout.nodes.push(hot(&node(r), 0));
+            layout.nodes.push(hot(&node(r)));
             layout.lay_children(0, r, node);
         }
         layout
@@ -148,7 +148,7 @@ impl HotLayout {
             }
         }
         for &c in &kids {
-            self.nodes.push(hot(&node(c), 0));
+            self.nodes.push(hot(&node(c)));
         }
         let n = &mut self.nodes[at];
         n.first = first as u32;
@@ -229,12 +229,14 @@ impl HotLayout {
     }
 }
 
-fn hot(s: &SourceNode, first: u32) -> HotNode {
+/// A node's record, as a bucket; [`HotLayout::lay_children`] sets `first` and `quads` when its
+/// children are laid out.
+fn hot(s: &SourceNode) -> HotNode {
     HotNode {
         c: s.sphere.center.to_array(),
         r: s.sphere.radius,
         mid: s.mid,
-        first,
+        first: 0,
         block_start: s.block_start,
         block_end: s.block_end,
         quads: 0,
