@@ -4,7 +4,10 @@
 //! # Layout
 //! Nodes live in one `Vec` in depth-first preorder, so a node's subtree is the contiguous node
 //! range `[i, subtree_end)` and its blocks the contiguous range `block_range` of
-//! [`BqrTree::blocks`]: a subtree found fully inside the frustum is appended in one go.
+//! [`BqrTree::blocks`]: a subtree found fully inside the frustum is appended in one go. The
+//! plain frustum cull (no hidden-volume filter, no temporal coherence, no mobile object) runs
+//! on a second layout of the same tree laid out for it (`bqr_layout`: one cache line per node,
+//! chains collapsed, leaf buckets); it accepts the same blocks.
 //!
 //! # Linear quadtree key
 //! Every node carries a key: the root is `1`, and the child in quadrant `q` of a node with key
