@@ -298,6 +298,86 @@ proptest! {
     }
 }
 
+/// The plain cull runs on the traversal layout (chains collapsed, leaf buckets); with a filter
+/// that keeps everything it runs on the build tree, volume by volume. Both accept a block
+/// exactly when its own leaf volume (box ∩ sphere) is not outside the frustum.
+fn layout_matches_build_tree(bounds: &[BlockBounds], cams: &[Camera]) -> Result<(), TestCaseError> {
+    let tree = BqrTree::build(bounds, &BqrParams::default()).unwrap();
+    tree.check_invariants();
+    for cam in cams {
+        let f = cam.frustum();
+        let q = CullQuery::with_eye(&f, cam.position);
+        let (mut fast, mut slow) = (Vec::new(), Vec::new());
+        let a = tree.cull(&q, None, &mut fast);
+        let b = tree.cull(&q, Some(&mut |_: &Aabb3| true), &mut slow);
+        let sa: HashSet<BlockId> = fast.iter().copied().collect();
+        let sb: HashSet<BlockId> = slow.iter().copied().collect();
+        prop_assert_eq!(sa.len(), fast.len(), "a block reported twice");
+        prop_assert_eq!(&sa, &sb);
+        prop_assert_eq!(a.blocks_accepted, b.blocks_accepted);
+        prop_assert_eq!(a.triangles_accepted, b.triangles_accepted);
+    }
+    Ok(())
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(64))]
+
+    #[test]
+    fn bqr_layout_accepts_what_the_build_tree_accepts_uniform(
+        bounds in uniform_city(), cams in prop::collection::vec(camera(), 1..6),
+    ) {
+        layout_matches_build_tree(&bounds, &cams)?;
+    }
+
+    #[test]
+    fn bqr_layout_accepts_what_the_build_tree_accepts_clustered(
+        bounds in clustered_city(), cams in prop::collection::vec(camera(), 1..6),
+    ) {
+        layout_matches_build_tree(&bounds, &cams)?;
+    }
+}
+
+#[test]
+fn bqr_layout_on_a_grid_and_with_mobile_objects() {
+    let bounds = block_grid(5000, 9);
+    let mut t = BqrTree::build(&bounds, &BqrParams::default()).unwrap();
+    t.check_invariants();
+    let laid = t.traversal_nodes();
+    // Buckets of a few blocks and collapsed chains: far fewer nodes to visit than built.
+    assert!(
+        laid > 0 && laid * 4 < t.nodes_len(),
+        "{laid} of {}",
+        t.nodes_len()
+    );
+    let cam = Camera::new(DVec3::new(0.0, 0.0, 1.7), 0.4, 0.0);
+    let f = cam.frustum();
+    let q = CullQuery::with_eye(&f, cam.position);
+    let mut before = Vec::new();
+    let s0 = t.cull(&q, None, &mut before);
+    assert!(s0.blocks_accepted > 0);
+    // An object present: the build tree serves (the layout has no objects); the volumes only
+    // grew, so every block accepted before still is.
+    let obj = Aabb3::new(DVec3::new(1.0, 1.0, 0.0), DVec3::new(3.0, 2.0, 1.5));
+    t.insert_object(ObjectId(7), obj).unwrap();
+    assert_eq!(t.traversal_nodes(), 0);
+    t.check_invariants();
+    let mut with = Vec::new();
+    t.cull(&q, None, &mut with);
+    let sb: HashSet<BlockId> = before.iter().copied().collect();
+    let sw: HashSet<BlockId> = with.iter().copied().collect();
+    assert!(sb.is_subset(&sw));
+    // Removed and refitted: laid out again, as built.
+    t.remove_object(ObjectId(7)).unwrap();
+    t.refit();
+    t.check_invariants();
+    assert_eq!(t.traversal_nodes(), laid);
+    let mut after = Vec::new();
+    let s1 = t.cull(&q, None, &mut after);
+    assert_eq!(after, before);
+    assert_eq!(s1, s0);
+}
+
 #[test]
 fn bqr_paper_shape_one_block_per_leaf_and_keys() {
     let bounds = block_grid(1000, 3);

@@ -4,7 +4,10 @@
 //! # Layout
 //! Nodes live in one `Vec` in depth-first preorder, so a node's subtree is the contiguous node
 //! range `[i, subtree_end)` and its blocks the contiguous range `block_range` of
-//! [`BqrTree::blocks`]: a subtree found fully inside the frustum is appended in one go.
+//! [`BqrTree::blocks`]: a subtree found fully inside the frustum is appended in one go. The
+//! plain frustum cull (no hidden-volume filter, no temporal coherence, no mobile object) runs
+//! on a second layout of the same tree laid out for it (`bqr_layout`: one cache line per node,
+//! chains collapsed, leaf buckets); it accepts the same blocks.
 //!
 //! # Linear quadtree key
 //! Every node carries a key: the root is `1`, and the child in quadrant `q` of a node with key
@@ -21,6 +24,7 @@
 //! and are reported in a separate output by [`BqrTree::cull_with_objects`]; the
 //! [`CityIndex`] methods report blocks only.
 
+use super::bqr_layout::{HotLayout, SourceNode};
 use super::{
     validate_bounds, BlockBounds, CityIndex, CullQuery, CullStats, IndexError, Sink, Structure,
 };
@@ -122,6 +126,9 @@ pub struct BqrTree {
     objects: Vec<Option<ObjectSlot>>,
     node_objects: Vec<Vec<u32>>,
     object_count: usize,
+    /// The traversal layout of the plain frustum cull (`bqr_layout`), laid out at build and by
+    /// [`BqrTree::refit`]; dropped when an object is inserted (the build tree then serves).
+    hot: Option<HotLayout>,
 }
 
 struct Builder<'a> {
@@ -289,8 +296,10 @@ impl BqrTree {
             objects: Vec::new(),
             node_objects: vec![Vec::new(); n],
             object_count: 0,
+            hot: None,
         };
         tree.refresh_all();
+        tree.lay_out();
         Ok(tree)
     }
 
@@ -390,6 +399,7 @@ impl BqrTree {
             });
             self.node_objects.push(Vec::new());
         }
+        self.hot = None;
         let node = self.place(&aabb);
         if self.objects.len() <= i {
             self.objects.resize(i + 1, None);
@@ -489,6 +499,38 @@ impl BqrTree {
             };
         }
         self.refresh_all();
+        self.lay_out();
+    }
+
+    /// Lays out the traversal layout when no mobile object is present (see `bqr_layout`).
+    fn lay_out(&mut self) {
+        self.hot = None;
+        if self.object_count > 0 {
+            return;
+        }
+        let nodes = &self.nodes;
+        let source = |i: usize| {
+            let n = &nodes[i];
+            SourceNode {
+                sphere: n.sphere,
+                mid: ((n.quad_min + n.quad_max) * 0.5).to_array(),
+                children: n
+                    .children
+                    .map(|c| (c != NONE).then(|| nodes[c as usize].pass as usize)),
+                block_start: n.block_start,
+                block_end: n.block_end,
+            }
+        };
+        let blocks = &self.blocks;
+        let box_only = |k: usize| sphere_holds_box(&blocks[k].sphere, &blocks[k].aabb);
+        let root = nodes.first().map(|r| r.pass as usize);
+        self.hot = Some(HotLayout::new(root, &source, blocks, &box_only));
+    }
+
+    /// Nodes of the traversal layout (`bqr_layout`): the build tree's nodes less the collapsed
+    /// chains and the nodes inside leaf buckets; 0 while mobile objects are present.
+    pub fn traversal_nodes(&self) -> usize {
+        self.hot.as_ref().map_or(0, HotLayout::len)
     }
 
     /// Recomputes `pass` and `box_only` of every node (children before parents).
@@ -504,14 +546,7 @@ impl BqrTree {
             .single_child_copy(i)
             .map_or(i as u32, |c| self.nodes[c].pass);
         let n = &self.nodes[i];
-        // Testing the box alone is always conservative (box ⊇ box ∩ sphere); the flag only
-        // says that the sphere would cut nothing off, so a rounding tolerance is harmless.
-        let r2 = (n.sphere.radius * (1.0 + 1e-9)).powi(2);
-        let box_only = n.kind == BqrNodeKind::Leaf
-            && n.aabb
-                .corners()
-                .iter()
-                .all(|&p| (p - n.sphere.center).length_squared() <= r2);
+        let box_only = n.kind == BqrNodeKind::Leaf && sphere_holds_box(&n.sphere, &n.aabb);
         let n = &mut self.nodes[i];
         n.pass = pass;
         n.box_only = box_only;
@@ -601,6 +636,11 @@ impl BqrTree {
             out,
             stats: CullStats::default(),
         };
+        if let (Some(hot), None, None) = (&self.hot, &sink.keep, &coherence) {
+            // The plain frustum cull (seed 003 §5) on the traversal layout: the same blocks.
+            hot.cull(query.frustum, query.eye, &mut sink);
+            return sink.stats;
+        }
         let mut t = Traversal {
             tree: self,
             frustum: query.frustum,
@@ -775,6 +815,13 @@ impl BqrTree {
             }
         }
         assert_eq!(live, self.object_count, "object count");
+        if let Some(hot) = &self.hot {
+            assert_eq!(
+                self.object_count, 0,
+                "a traversal layout with objects present"
+            );
+            hot.check(self.blocks.len());
+        }
     }
 }
 
@@ -927,6 +974,16 @@ fn tighter(merged: BoundingSphere, aabb: &Aabb3) -> BoundingSphere {
     } else {
         merged
     }
+}
+
+/// True when `s` holds every corner of `b`: box ∩ sphere is then the box. Testing the box alone
+/// is always conservative (box ⊇ box ∩ sphere); this only says that the sphere would cut
+/// nothing off, so a rounding tolerance is harmless.
+fn sphere_holds_box(s: &BoundingSphere, b: &Aabb3) -> bool {
+    let r2 = (s.radius * (1.0 + 1e-9)).powi(2);
+    b.corners()
+        .iter()
+        .all(|&p| (p - s.center).length_squared() <= r2)
 }
 
 /// Squared distance from `p` to the box (0 inside).

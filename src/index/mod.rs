@@ -15,6 +15,7 @@
 pub mod bench;
 mod bounds;
 mod bqr;
+mod bqr_layout;
 mod flat;
 mod rstar_index;
 mod scene_graph;
