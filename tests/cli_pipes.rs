@@ -151,3 +151,31 @@ fn nan_fractions_and_unbounded_counts_are_usage_errors() {
         assert!(!err.contains("panicked"), "{args:?}: {err}");
     }
 }
+
+#[test]
+fn commands_over_blocks_refuse_the_scene_graph_of_pages() {
+    let input = data("bubenec/buildings.shp");
+    let input = input.to_str().unwrap();
+    for (args, needle) in [
+        (
+            vec!["cull-bench", input, "--structures", "bqr,scenegraph"],
+            "--structures scenegraph",
+        ),
+        (
+            vec!["occlusion-bench", input, "--index", "scenegraph"],
+            "--index scenegraph",
+        ),
+        (
+            vec!["view", input, "--structure", "scenegraph"],
+            "--structure scenegraph",
+        ),
+    ] {
+        let o = run(&args);
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert!(!o.status.success(), "{args:?} succeeded");
+        // Without the `window` feature `view` refuses for that reason instead.
+        let windowless = args[0] == "view" && err.contains("--features window");
+        assert!(windowless || err.contains(needle), "{args:?}: {err}");
+        assert!(!err.contains("panicked"), "{args:?}: {err}");
+    }
+}

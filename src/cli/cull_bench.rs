@@ -53,6 +53,11 @@ pub struct Args {
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
+    if let Some(s) = args.structures.iter().find(|s| !s.culls_blocks()) {
+        anyhow::bail!(
+            "--structures {s}: cull-bench compares structures over blocks, and `{s}` culls pages of buildings (compare it with `blockwalk walk --structures bqr,{s}`)"
+        );
+    }
     let mut scene: Option<Scene> = None;
     let (name, bounds): (String, Vec<BlockBounds>) = match (&args.city, args.synthetic) {
         (_, Some(n)) => (

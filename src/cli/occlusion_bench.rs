@@ -86,6 +86,13 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     if args.resolution.is_empty() {
         bail!("--resolution: give at least one");
     }
+    if !args.index.culls_blocks() {
+        bail!(
+            "--index {}: the occlusion bench culls blocks, and `{}` culls pages of buildings",
+            args.index,
+            args.index
+        );
+    }
     let opts = SceneOptions {
         structures: vec![args.index],
         ..SceneOptions::default()
