@@ -219,7 +219,7 @@ impl BlockMapRenderer {
         for &k in &ALLOWED_K {
             let of_k: Vec<usize> = (0..maps.len()).filter(|&i| maps[i].meta.k == k).collect();
             for chunk in of_k.chunks(page_layers as usize) {
-                let width = 2 * k + crate::blockmap::layout::WALL_COLUMNS;
+                let width = crate::blockmap::layout::image_width(k);
                 let tex = device.create_texture(&wgpu::TextureDescriptor {
                     label: Some("blockmap page"),
                     size: wgpu::Extent3d {
