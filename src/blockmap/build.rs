@@ -403,7 +403,10 @@ pub fn build_map(
                     .iter()
                     .enumerate()
                     .map(|(s, (di, dj))| (s, e.n[0] * *di as f32 + e.n[1] * *dj as f32))
-                    .fold((0usize, f32::NEG_INFINITY), |a, b| if b.1 > a.1 { b } else { a });
+                    .fold(
+                        (0usize, f32::NEG_INFINITY),
+                        |a, b| if b.1 > a.1 { b } else { a },
+                    );
                 bits |= 1 << best.0;
             }
             exposed[(j as usize) * k + i as usize] = bits;
@@ -591,7 +594,13 @@ pub fn kept_area(n: DVec2, o: f64) -> f64 {
 /// crossing edges (normals quantised as the layout stores them, offsets rounded up with the
 /// quantised normal). Fills (in `owner`) a crossed texel the sampling left empty when footprints
 /// cover part of it and a half-plane cuts it, with the building covering most of it.
-fn footprint_edges(bs: &[&SourceBuilding], min: DVec2, s: f64, k: usize, owner: &mut [u32]) -> Edges {
+fn footprint_edges(
+    bs: &[&SourceBuilding],
+    min: DVec2,
+    s: f64,
+    k: usize,
+    owner: &mut [u32],
+) -> Edges {
     use super::layout::{decode_offset, decode_unit, encode_offset_up};
     // Per texel, the (building, ring, edge) crossing it.
     let mut cross: Vec<Vec<(u32, u32, u32)>> = vec![Vec::new(); k * k];
@@ -621,8 +630,11 @@ fn footprint_edges(bs: &[&SourceBuilding], min: DVec2, s: f64, k: usize, owner: 
     // holds the whole texel).
     let mut centre: Vec<Vec<u32>> = vec![Vec::new(); k * k];
     {
-        let pos: std::collections::HashMap<u32, u32> =
-            bs.iter().enumerate().map(|(p, b)| (b.id.0, p as u32)).collect();
+        let pos: std::collections::HashMap<u32, u32> = bs
+            .iter()
+            .enumerate()
+            .map(|(p, b)| (b.id.0, p as u32))
+            .collect();
         scan(bs, min, s, k, &mut |t, b| centre[t].push(pos[&b.id.0]));
     }
     // Orientation of each ring (+1 counter-clockwise).
@@ -696,7 +708,10 @@ fn footprint_edges(bs: &[&SourceBuilding], min: DVec2, s: f64, k: usize, owner: 
             if nq == DVec2::ZERO {
                 continue;
             }
-            let need = pts.iter().map(|q| nq.dot(*q)).fold(f64::NEG_INFINITY, f64::max);
+            let need = pts
+                .iter()
+                .map(|q| nq.dot(*q))
+                .fold(f64::NEG_INFINITY, f64::max);
             // A millionth of a texel for the f32 walk's rounding.
             let Some(bo) = encode_offset_up(need + 1e-6) else {
                 continue;

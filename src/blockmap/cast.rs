@@ -386,14 +386,19 @@ fn cast_generic<T: Real>(map: &BlockMap, ray: &TexRay<T>, opts: &CastOptions) ->
         if let Some(e) = edge {
             // The cell's solid is (half-plane ∩ square) × [0, h].
             let half = T::of(0.5);
-            let (nx, ny, eo) = (T::of(e.n[0] as f64), T::of(e.n[1] as f64), T::of(e.o as f64));
+            let (nx, ny, eo) = (
+                T::of(e.n[0] as f64),
+                T::of(e.n[1] as f64),
+                T::of(e.o as f64),
+            );
             let cx = T::of(w.i as f64) + half;
             let cy = T::of(w.j as f64) + half;
-            let g_in = (ray.o[0] + t_in * ray.d[0] - cx) * nx + (ray.o[1] + t_in * ray.d[1] - cy) * ny
+            let g_in = (ray.o[0] + t_in * ray.d[0] - cx) * nx
+                + (ray.o[1] + t_in * ray.d[1] - cy) * ny
                 - eo;
-            let g_out =
-                (ray.o[0] + t_out * ray.d[0] - cx) * nx + (ray.o[1] + t_out * ray.d[1] - cy) * ny
-                    - eo;
+            let g_out = (ray.o[0] + t_out * ray.d[0] - cx) * nx
+                + (ray.o[1] + t_out * ray.d[1] - cy) * ny
+                - eo;
             if !(steps == 1 && entered_top) {
                 margin = margin.min((za - h).abs().to64());
             }
@@ -578,9 +583,7 @@ pub fn surface(map: &BlockMap, ray: &TexRay<f64>, hit: &Hit) -> Option<Surface> 
             let off = map.wall_offset(i, j);
             // The edge's normal (a hit on the half-plane's side), else the cell face's.
             let edge_normal = match (face, map.edge(i, j)) {
-                (Face::Edge, Some(e)) => {
-                    Some(Vec3::new(e.n[0], e.n[1], 0.0).normalize_or(Vec3::Z))
-                }
+                (Face::Edge, Some(e)) => Some(Vec3::new(e.n[0], e.n[1], 0.0).normalize_or(Vec3::Z)),
                 _ => None,
             };
             if off == 0 || face == Face::Inside {
@@ -747,10 +750,7 @@ mod tests {
                 ..
             }
         ));
-        assert_eq!(
-            both(&m, DVec3::new(10.51, -5.0, 30.0), DVec3::Y),
-            Hit::Miss
-        );
+        assert_eq!(both(&m, DVec3::new(10.51, -5.0, 30.0), DVec3::Y), Hit::Miss);
         // From inside the box, over the cut half and below the roof, sloping west: the edge.
         let h = both(
             &m,

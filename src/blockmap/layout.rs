@@ -464,7 +464,12 @@ impl BlockMap {
             // A map from before the edge section: the same texels, no edges.
             let (w0, k) = (2 * meta.k + WALL_COLUMNS, meta.k);
             let mut t = Vec::with_capacity((image_width(k) * k) as usize);
-            for row in img.pixels().map(|p| p.0).collect::<Vec<_>>().chunks(w0 as usize) {
+            for row in img
+                .pixels()
+                .map(|p| p.0)
+                .collect::<Vec<_>>()
+                .chunks(w0 as usize)
+            {
                 t.extend_from_slice(row);
                 t.extend(std::iter::repeat_n([128, 128, 128, 0], k as usize));
             }
@@ -511,7 +516,10 @@ mod tests {
         for o in [-0.7, -0.31, 0.0, 0.001, 0.2, 0.5, 0.7] {
             let b = encode_offset_up(o).unwrap();
             assert!(decode_offset(b) as f64 >= o, "{o}");
-            assert!(b == 0 || (decode_offset(b - 1) as f64) < o, "{o}: not the smallest");
+            assert!(
+                b == 0 || (decode_offset(b - 1) as f64) < o,
+                "{o}: not the smallest"
+            );
         }
         assert_eq!(encode_offset_up(0.8), None);
         let mut m = BlockMap::empty(32, DVec3::ZERO, 32.0, 10.0).unwrap();

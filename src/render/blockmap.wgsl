@@ -2,6 +2,9 @@
 // rasterises its box's back faces, and every fragment walks the map's height field with the grid
 // walk of `blockmap::cast` (Amanatides–Woo in 2D), operation for operation as `cast_f32` does it,
 // shades the hit as `blockmap::cast::surface` + `blockmap::colors::lit`, and writes its depth.
+// A non-empty cell with a footprint edge (image column 2K + 256 + i, A = 255) is the part of the
+// cell inside the edge's half-plane: the ray's segment in the cell is cut with it and with the
+// height slab, and a hit on the half-plane's side is an EDGE wall with the edge's normal.
 //
 // The rays and the depth are those of `blockmap::image` (see its module doc): the view direction
 // of the pixel centre `(px·sx + cx, py·sy + cy, −1)`, mapped to texture space per map with
