@@ -378,12 +378,12 @@ fn edge_texels_hold_every_footprint_point_and_cut_the_excess() {
                 })
             };
             // Uniform points over the map's square: footprint points must all be covered
-            // (conservative), and the edges must cut the 2D mismatch by a quarter at least (on
-            // Helsinki they halve it at K = 32 with 8 blocks a map; what is left is mostly
-            // convex corners, where one line cannot follow both edges).
+            // wherever the whole-texel map covered them, and the edges must cut the 2D mismatch
+            // by a third at least (on Helsinki 1.8–6.4×; what is left is mostly convex
+            // corners, where one line cannot follow both edges).
             let (side, mn) = (m.meta.side, m.meta.min);
             let (mut inside_fp, mut mis_e, mut mis_w) = (0usize, 0usize, 0usize);
-            let mut missed = 0usize;
+            let (mut missed, mut missed_w) = (0usize, 0usize);
             for _ in 0..20_000 {
                 let p = DVec2::new(
                     mn[0] + rng.random::<f64>() * side,
@@ -399,18 +399,20 @@ fn edge_texels_hold_every_footprint_point_and_cut_the_excess() {
                         "K = {k}: footprint point {p:?} is outside the map's columns"
                     );
                     missed += usize::from(!e);
+                    missed_w += usize::from(!w);
                 }
                 mis_e += usize::from(e != f);
                 mis_w += usize::from(w != f);
             }
             eprintln!(
-                "K = {k}: {inside_fp} footprint points ({missed} outside), mismatch edges {mis_e}, whole {mis_w}"
+                "K = {k}: {inside_fp} footprint points ({missed} outside, whole texels \
+                 {missed_w}), mismatch edges {mis_e}, whole {mis_w}"
             );
-            // Footprint points outside the columns are only those in texels between two
-            // buildings that no line cuts: few.
-            assert!(missed * 20 < inside_fp, "{missed} of {inside_fp}");
+            // Footprint points left outside: only in texels that stay empty (a gap no line
+            // cuts, or a sliver whose half-plane would add more than it covers).
+            assert!(missed < missed_w, "{missed} vs {missed_w} of {inside_fp}");
             assert!(inside_fp > 100, "{inside_fp}");
-            assert!(4 * mis_e < 3 * mis_w, "edges {mis_e}, whole texels {mis_w}");
+            assert!(3 * mis_e < 2 * mis_w, "edges {mis_e}, whole texels {mis_w}");
         }
     }
 }

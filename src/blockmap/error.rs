@@ -430,6 +430,21 @@ fn cell_parts(map: &BlockMap, i: i64, j: i64) -> ([Part; 2], usize) {
     (parts, 2)
 }
 
+/// Height of the map's column over `xy` (0 over empty ground and outside the map).
+fn column_height_at(map: &BlockMap, xy: DVec2) -> f64 {
+    let s = map.texel_m();
+    let m = map.meta.min;
+    let (i, j) = (
+        ((xy.x - m[0]) / s).floor() as i64,
+        ((xy.y - m[1]) / s).floor() as i64,
+    );
+    let (parts, n) = cell_parts(map, i, j);
+    parts[..n]
+        .iter()
+        .find(|q| q.distance(xy) == 0.0)
+        .map_or(0.0, |q| q.h)
+}
+
 /// Exact distance from `p` to the surface of the map's prisms (ground included): the boundary
 /// of the union of texel columns `footprint × (−∞, H]` (empty texels and the outside have
 /// H = 0; a texel with a footprint edge is two columns, the part inside its half-plane at the
@@ -700,13 +715,24 @@ pub fn measure(map: &BlockMap, source: &Source, buildings: &[u32]) -> ErrorRepor
                     if hn >= h {
                         continue;
                     }
+                    // Only points of the side that are on the map's surface: the column just
+                    // across is lower.
+                    let out = (b - a).perp().normalize_or_zero() * (-1e-6 * s);
                     for z in heights(hn, h, 2.0 * s) {
+                        if column_height_at(map, mid + out) > z {
+                            continue;
+                        }
                         samples += 1;
                         local = local.max(grid.surface_distance(mid.extend(z), &mut scratch));
                     }
                     for end in [a, b] {
+                        let across = column_height_at(map, end + out + (mid - end) * 1e-6);
+                        if across >= h {
+                            continue;
+                        }
                         samples += 1;
-                        local = local.max(grid.surface_distance(end.extend(hn), &mut scratch));
+                        local = local
+                            .max(grid.surface_distance(end.extend(hn.max(across)), &mut scratch));
                     }
                 }
             } else if h > 0.0 {
@@ -717,7 +743,13 @@ pub fn measure(map: &BlockMap, source: &Source, buildings: &[u32]) -> ErrorRepor
                     }
                     let dir = DVec2::new(di as f64, dj as f64);
                     let mid = c + dir * (0.5 * s);
+                    // Only points of the side on the map's surface (next to a neighbour with
+                    // an edge, the part of the side its column does not cover).
+                    let out = dir * (1e-6 * s);
                     for z in heights(hn, h, 2.0 * s) {
+                        if column_height_at(map, mid + out) > z {
+                            continue;
+                        }
                         samples += 1;
                         local = local.max(grid.surface_distance(mid.extend(z), &mut scratch));
                     }
@@ -725,7 +757,11 @@ pub fn measure(map: &BlockMap, source: &Source, buildings: &[u32]) -> ErrorRepor
                     // farthest from a footprint edge) at its bottom and top.
                     let along = DVec2::new(dir.y, dir.x) * (0.5 * s);
                     for end in [mid - along, mid + along] {
-                        for z in [hn, h] {
+                        let across = column_height_at(map, end + out + (mid - end) * 1e-6);
+                        if across >= h {
+                            continue;
+                        }
+                        for z in [hn.max(across), h] {
                             samples += 1;
                             local = local.max(grid.surface_distance(end.extend(z), &mut scratch));
                         }
