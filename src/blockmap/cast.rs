@@ -90,6 +90,9 @@ pub enum Face {
     North,
     /// The ray starts inside a prism (eye inside, or below the ground): hit at its start.
     Inside,
+    /// The footprint edge stored for the texel (the side of its half-plane, see
+    /// [`super::layout::Edge`]); its normal is the edge's, read from the map by [`surface`].
+    Edge,
 }
 
 impl Face {
@@ -100,7 +103,7 @@ impl Face {
             Face::East => Vec3::X,
             Face::South => Vec3::NEG_Y,
             Face::North => Vec3::Y,
-            Face::Inside => Vec3::Z,
+            Face::Inside | Face::Edge => Vec3::Z,
         }
     }
 }
@@ -375,7 +378,97 @@ fn cast_generic<T: Real>(map: &BlockMap, ray: &TexRay<T>, opts: &CastOptions) ->
         let zb = ray.o[2] + t_out * ray.d[2];
         let code = map.height_code(w.i as u32, w.j as u32);
         let h = T::of(code as f64) / k255;
-        if code > 0 {
+        let edge = if code > 0 {
+            map.edge(w.i as u32, w.j as u32)
+        } else {
+            None
+        };
+        if let Some(e) = edge {
+            // The cell's solid is (half-plane ∩ square) × [0, h].
+            let half = T::of(0.5);
+            let (nx, ny, eo) = (
+                T::of(e.n[0] as f64),
+                T::of(e.n[1] as f64),
+                T::of(e.o as f64),
+            );
+            let cx = T::of(w.i as f64) + half;
+            let cy = T::of(w.j as f64) + half;
+            let g_in = (ray.o[0] + t_in * ray.d[0] - cx) * nx
+                + (ray.o[1] + t_in * ray.d[1] - cy) * ny
+                - eo;
+            let g_out = (ray.o[0] + t_out * ray.d[0] - cx) * nx
+                + (ray.o[1] + t_out * ray.d[1] - cy) * ny
+                - eo;
+            if !(steps == 1 && entered_top) {
+                margin = margin.min((za - h).abs().to64());
+            }
+            margin = margin.min((zb - h).abs().to64());
+            margin = margin.min(g_in.abs().to64()).min(g_out.abs().to64());
+            // [z_lo, z_hi]: where the segment is at or below the roof.
+            let mut z_ok = true;
+            let mut z_roof = false;
+            let (mut z_lo, mut z_hi) = (t_in, t_out);
+            if za <= h {
+                if zb > h {
+                    z_hi = t_in + (h - za) / ray.d[2];
+                }
+            } else if zb <= h {
+                z_lo = t_in + (za - h) / (-ray.d[2]);
+                z_roof = true;
+            } else {
+                z_ok = false;
+            }
+            // [g_lo, g_hi]: where the segment is inside the half-plane.
+            let mut g_ok = true;
+            let mut g_edge = false;
+            let (mut g_lo, mut g_hi) = (t_in, t_out);
+            if g_in <= T::ZERO {
+                if g_out > T::ZERO {
+                    g_hi = t_in + (t_out - t_in) * (g_in / (g_in - g_out));
+                }
+            } else if g_out <= T::ZERO {
+                g_lo = t_in + (t_out - t_in) * (g_in / (g_in - g_out));
+                g_edge = true;
+            } else {
+                g_ok = false;
+            }
+            if z_ok && g_ok {
+                let lo = z_lo.mx(g_lo);
+                let hi = z_hi.mn(g_hi);
+                margin = margin.min((hi - lo).abs().to64() * dir_scale(ray));
+                if lo <= hi {
+                    let (i, j) = (w.i as u32, w.j as u32);
+                    let hit = if g_edge && g_lo > z_lo {
+                        Hit::Wall {
+                            i,
+                            j,
+                            face: Face::Edge,
+                            t: g_lo.to64(),
+                        }
+                    } else if z_roof {
+                        Hit::Roof {
+                            i,
+                            j,
+                            t: z_lo.to64(),
+                        }
+                    } else if steps == 1 && entered_top {
+                        Hit::Roof {
+                            i,
+                            j,
+                            t: t_in.to64(),
+                        }
+                    } else {
+                        Hit::Wall {
+                            i,
+                            j,
+                            face,
+                            t: t_in.to64(),
+                        }
+                    };
+                    return Cast { hit, steps, margin };
+                }
+            }
+        } else if code > 0 {
             // Entering through the top face over a texel of the top level is a roof hit either
             // way (za ≈ 1 = h): not a tie.
             if !(steps == 1 && entered_top) {
@@ -488,24 +581,31 @@ pub fn surface(map: &BlockMap, ray: &TexRay<f64>, hit: &Hit) -> Option<Surface> 
         }
         Hit::Wall { i, j, face, t } => {
             let off = map.wall_offset(i, j);
+            // The edge's normal (a hit on the half-plane's side), else the cell face's.
+            let edge_normal = match (face, map.edge(i, j)) {
+                (Face::Edge, Some(e)) => Some(Vec3::new(e.n[0], e.n[1], 0.0).normalize_or(Vec3::Z)),
+                _ => None,
+            };
             if off == 0 || face == Face::Inside {
                 let c = map.texel(k + i, j);
                 return Some(Surface {
                     color: [c[0], c[1], c[2]],
                     ao: c[3],
-                    normal: face.normal(),
+                    normal: edge_normal.unwrap_or(face.normal()),
                 });
             }
             let u = map.wall_u(off);
             let z = (ray.o[2] + t * ray.d[2]) as f32;
             let c = map.texel(u, map.wall_color_row(j, z));
             let n = map.texel(u, map.wall_normal_row(j));
-            let normal = Vec3::new(
-                super::layout::decode_unit(n[0]),
-                super::layout::decode_unit(n[1]),
-                super::layout::decode_unit(n[2]),
-            )
-            .normalize_or(face.normal());
+            let normal = edge_normal.unwrap_or_else(|| {
+                Vec3::new(
+                    super::layout::decode_unit(n[0]),
+                    super::layout::decode_unit(n[1]),
+                    super::layout::decode_unit(n[2]),
+                )
+                .normalize_or(face.normal())
+            });
             Some(Surface {
                 color: [c[0], c[1], c[2]],
                 ao: c[3],
@@ -574,6 +674,125 @@ mod tests {
                 t: 0.0
             }
         );
+    }
+
+    /// Tower texel (10, 10) of `tower_map` alone, with an edge: normal bytes and offset.
+    fn edge_map(nx: f32, ny: f32, o: f64) -> BlockMap {
+        use crate::blockmap::layout::{encode_offset_up, encode_unit};
+        let mut m = BlockMap::empty(32, DVec3::ZERO, 32.0, 100.0).unwrap();
+        m.texel_mut(10, 10)[0] = 255;
+        m.set_edge_bytes(
+            10,
+            10,
+            Some([
+                encode_unit(nx),
+                encode_unit(ny),
+                encode_offset_up(o).unwrap(),
+            ]),
+        );
+        m
+    }
+
+    fn both(m: &BlockMap, o: DVec3, d: DVec3) -> Hit {
+        let r = m.tex_ray(o, d.normalize());
+        let a = cast_f64(m, &r, &CastOptions::default());
+        let b = cast_f32(m, &r.to_f32(), &CastOptions::default());
+        assert_eq!(a.hit.texel(), b.hit.texel(), "{a:?} vs {b:?}");
+        assert_eq!(
+            std::mem::discriminant(&a.hit),
+            std::mem::discriminant(&b.hit)
+        );
+        if let (Some(ta), Some(tb)) = (a.hit.t(), b.hit.t()) {
+            assert!((ta - tb).abs() < 1e-4, "{ta} vs {tb}");
+        }
+        a.hit
+    }
+
+    #[test]
+    fn an_edge_texel_is_hit_on_its_half_plane_only() {
+        // Kept: the west half (n = +x, o = 0).
+        let m = edge_map(1.0, 0.0, 0.0);
+        // From the west the square's own face is hit.
+        assert_eq!(
+            both(&m, DVec3::new(-5.0, 10.5, 30.0), DVec3::X),
+            Hit::Wall {
+                i: 10,
+                j: 10,
+                face: Face::West,
+                t: 15.0
+            }
+        );
+        // From the east the edge, half a texel in, with the edge's normal.
+        let h = both(&m, DVec3::new(40.0, 10.5, 30.0), DVec3::NEG_X);
+        assert!(
+            matches!(h, Hit::Wall { i: 10, j: 10, face: Face::Edge, t } if (t - 29.5).abs() < 1e-9),
+            "{h:?}"
+        );
+        let r = m.tex_ray(DVec3::new(40.0, 10.5, 30.0), DVec3::NEG_X);
+        let s = surface(&m, &r, &h).unwrap();
+        assert_eq!(s.normal, Vec3::X);
+        // Vertical rays on each side of the edge: the roof, then nothing.
+        assert!(matches!(
+            both(&m, DVec3::new(10.2, 10.5, 150.0), DVec3::NEG_Z),
+            Hit::Roof { i: 10, j: 10, t } if (t - 50.0).abs() < 1e-9
+        ));
+        assert_eq!(
+            both(&m, DVec3::new(10.8, 10.5, 150.0), DVec3::NEG_Z),
+            Hit::Miss
+        );
+        // Grazing rays along the edge, just inside (the south face) and just outside (nothing).
+        assert!(matches!(
+            both(&m, DVec3::new(10.49, -5.0, 30.0), DVec3::Y),
+            Hit::Wall {
+                i: 10,
+                j: 10,
+                face: Face::South,
+                ..
+            }
+        ));
+        assert_eq!(both(&m, DVec3::new(10.51, -5.0, 30.0), DVec3::Y), Hit::Miss);
+        // From inside the box, over the cut half and below the roof, sloping west: the edge.
+        let h = both(
+            &m,
+            DVec3::new(10.9, 10.5, 90.0),
+            DVec3::new(-0.4, 0.0, -1.0),
+        );
+        assert!(
+            matches!(h, Hit::Wall { face: Face::Edge, t, .. } if t > 0.0),
+            "{h:?}"
+        );
+    }
+
+    #[test]
+    fn a_ray_through_the_cut_corner_misses() {
+        // Kept: all but the north-east corner (n = (1, 1)/√2, o = 0.5).
+        let s2 = std::f32::consts::FRAC_1_SQRT_2;
+        let m = edge_map(s2, s2, 0.5);
+        // Entering at the top side inside the cut corner, leaving by the east side: no hit
+        // (a whole texel would be hit).
+        let d = DVec3::new(1.0, -1.0, 0.0);
+        assert_eq!(both(&m, DVec3::new(0.9, 21.0, 30.0), d), Hit::Miss);
+        // Along −x through the corner: the diagonal edge, with its normal.
+        let h = both(&m, DVec3::new(40.0, 10.95, 30.0), DVec3::NEG_X);
+        let Hit::Wall {
+            face: Face::Edge,
+            t,
+            ..
+        } = h
+        else {
+            panic!("{h:?}")
+        };
+        let e = m.edge(10, 10).unwrap();
+        let x = 40.0 - t;
+        let g = (x - 10.5) * e.n[0] as f64 + 0.45 * e.n[1] as f64 - e.o as f64;
+        assert!(g.abs() < 1e-6, "hit {x} is off the edge by {g}");
+        // The same ray with no edge hits the east face.
+        let mut whole = m.clone();
+        whole.set_edge_bytes(10, 10, None);
+        assert!(matches!(
+            both(&whole, DVec3::new(40.0, 10.95, 30.0), DVec3::NEG_X),
+            Hit::Wall { face: Face::East, t, .. } if (t - 29.0).abs() < 1e-9
+        ));
     }
 
     #[test]

@@ -342,23 +342,126 @@ fn horizontal_exit(polys: &[&SourceBuilding], p: DVec2, bound: f64) -> f64 {
     best
 }
 
+/// A texel column's footprint: a convex polygon (world xy, counter-clockwise, at most 5
+/// vertices) and its height.
+#[derive(Clone, Copy, Debug)]
+struct Part {
+    v: [DVec2; 5],
+    n: usize,
+    h: f64,
+}
+
+impl Part {
+    fn verts(&self) -> &[DVec2] {
+        &self.v[..self.n]
+    }
+    /// Horizontal distance from `p` (0 inside).
+    fn distance(&self, p: DVec2) -> f64 {
+        let v = self.verts();
+        if v.is_empty() {
+            return f64::INFINITY;
+        }
+        let inside = (0..v.len()).all(|q| (v[(q + 1) % v.len()] - v[q]).perp_dot(p - v[q]) >= 0.0);
+        if inside {
+            return 0.0;
+        }
+        (0..v.len())
+            .map(|q| seg_dist(v[q], v[(q + 1) % v.len()], p).0)
+            .fold(f64::INFINITY, f64::min)
+    }
+}
+
+/// The columns of texel `(i, j)` (outside the map: the ground, height 0): the whole square at
+/// the texel's height, or, for a texel with a footprint edge, the part inside the edge's
+/// half-plane at that height and the rest at 0.
+fn cell_parts(map: &BlockMap, i: i64, j: i64) -> ([Part; 2], usize) {
+    let s = map.texel_m();
+    let m = map.meta.min;
+    let lo = DVec2::new(m[0] + i as f64 * s, m[1] + j as f64 * s);
+    let sq = [
+        lo,
+        lo + DVec2::new(s, 0.0),
+        lo + DVec2::new(s, s),
+        lo + DVec2::new(0.0, s),
+    ];
+    let h = map.texel_height_m(i, j).unwrap_or(0.0);
+    let whole = |h: f64| {
+        let mut v = [DVec2::ZERO; 5];
+        v[..4].copy_from_slice(&sq);
+        Part { v, n: 4, h }
+    };
+    let edge = if h > 0.0 {
+        map.edge(i as u32, j as u32)
+    } else {
+        None
+    };
+    let Some(e) = edge else {
+        return ([whole(h), whole(h)], 1);
+    };
+    let n = DVec2::new(e.n[0] as f64, e.n[1] as f64);
+    let c = lo + DVec2::splat(0.5 * s);
+    let g = |p: DVec2| n.dot((p - c) / s) - e.o as f64;
+    let mut parts = [
+        Part {
+            v: [DVec2::ZERO; 5],
+            n: 0,
+            h,
+        },
+        Part {
+            v: [DVec2::ZERO; 5],
+            n: 0,
+            h: 0.0,
+        },
+    ];
+    for q in 0..4 {
+        let (a, b) = (sq[q], sq[(q + 1) % 4]);
+        let (ga, gb) = (g(a), g(b));
+        let pa = &mut parts[usize::from(ga > 0.0)];
+        pa.v[pa.n] = a;
+        pa.n += 1;
+        if (ga <= 0.0) != (gb <= 0.0) {
+            let x = a + (b - a) * (ga / (ga - gb));
+            for part in &mut parts {
+                part.v[part.n] = x;
+                part.n += 1;
+            }
+        }
+    }
+    (parts, 2)
+}
+
+/// Height of the map's column over `xy` (0 over empty ground and outside the map).
+fn column_height_at(map: &BlockMap, xy: DVec2) -> f64 {
+    let s = map.texel_m();
+    let m = map.meta.min;
+    let (i, j) = (
+        ((xy.x - m[0]) / s).floor() as i64,
+        ((xy.y - m[1]) / s).floor() as i64,
+    );
+    let (parts, n) = cell_parts(map, i, j);
+    parts[..n]
+        .iter()
+        .find(|q| q.distance(xy) == 0.0)
+        .map_or(0.0, |q| q.h)
+}
+
 /// Exact distance from `p` to the surface of the map's prisms (ground included): the boundary
-/// of the union of texel columns `cell × (−∞, H]` (empty texels and the outside have H = 0).
+/// of the union of texel columns `footprint × (−∞, H]` (empty texels and the outside have
+/// H = 0; a texel with a footprint edge is two columns, the part inside its half-plane at the
+/// texel's height and the rest at 0).
 pub fn map_surface_distance(map: &BlockMap, p: DVec3) -> f64 {
     let k = map.k() as i64;
     let s = map.texel_m();
     let m = map.meta.min;
     let (fx, fy) = ((p.x - m[0]) / s, (p.y - m[1]) / s);
-    let hof = |i: i64, j: i64| -> f64 { map.texel_height_m(i, j).unwrap_or(0.0) };
     let (ci, cj) = (fx.floor() as i64, fy.floor() as i64);
-    let inside = p.z <= hof(ci, cj);
-    let cell_dxy = |i: i64, j: i64| -> f64 {
-        let x0 = m[0] + i as f64 * s;
-        let y0 = m[1] + j as f64 * s;
-        let dx = (x0 - p.x).max(p.x - (x0 + s)).max(0.0);
-        let dy = (y0 - p.y).max(p.y - (y0 + s)).max(0.0);
-        (dx * dx + dy * dy).sqrt()
-    };
+    let xy = p.truncate();
+    let (own, own_n) = cell_parts(map, ci, cj);
+    let own_h = own[..own_n]
+        .iter()
+        .find(|q| q.distance(xy) == 0.0)
+        .map_or(own[0].h, |q| q.h);
+    let inside = p.z <= own_h;
     let mut best = f64::INFINITY;
     let mut r = 0i64;
     loop {
@@ -372,20 +475,23 @@ pub fn map_surface_distance(map: &BlockMap, p: DVec3) -> f64 {
                 if (i - ci).abs() != r && (j - cj).abs() != r {
                     continue;
                 }
-                let h = hof(i, j);
-                let dz = if inside {
-                    (h - p.z).max(0.0)
-                } else {
-                    (p.z - h).max(0.0)
-                };
-                // Inside: complement column above h; outside: solid column below h.
-                let d = cell_dxy(i, j);
-                let v = (d * d + dz * dz).sqrt();
-                if inside && h >= p.z && d == 0.0 {
-                    // The own cell's way out is straight up.
-                    best = best.min(dz);
-                } else {
-                    best = best.min(v);
+                let (parts, np) = cell_parts(map, i, j);
+                for part in &parts[..np] {
+                    let h = part.h;
+                    let dz = if inside {
+                        (h - p.z).max(0.0)
+                    } else {
+                        (p.z - h).max(0.0)
+                    };
+                    // Inside: complement column above h; outside: solid column below h.
+                    let d = part.distance(xy);
+                    let v = (d * d + dz * dz).sqrt();
+                    if inside && h >= p.z && d == 0.0 {
+                        // The own column's way out is straight up.
+                        best = best.min(dz);
+                    } else {
+                        best = best.min(v);
+                    }
                 }
             }
         }
@@ -570,15 +676,80 @@ pub fn measure(map: &BlockMap, source: &Source, buildings: &[u32]) -> ErrorRepor
             let mut local: f64;
             samples += 1;
             local = grid.surface_distance(c.extend(h), &mut scratch);
-            if h > 0.0 {
+            // A neighbour with a footprint edge may leave the shared side open: count it as
+            // empty there (more samples, never fewer).
+            let side_h = |i: i64, j: i64| -> f64 {
+                if i >= 0 && j >= 0 && i < k && j < k && map.edge(i as u32, j as u32).is_some() {
+                    0.0
+                } else {
+                    hof(i, j)
+                }
+            };
+            let edge = if h > 0.0 {
+                map.edge(i as u32, j as u32)
+            } else {
+                None
+            };
+            if let (Some(_), (parts, _)) = (edge, cell_parts(map, i, j)) {
+                // The kept part: its roof (centroid and corners) and each side, from the
+                // neighbour's height (0 on the edge's side) to the roof.
+                let kept = parts[0];
+                let v = kept.verts();
+                let centroid = v.iter().copied().sum::<DVec2>() / v.len().max(1) as f64;
+                samples += 1;
+                local = grid.surface_distance(centroid.extend(h), &mut scratch);
+                for q in 0..v.len() {
+                    let (a, b) = (v[q], v[(q + 1) % v.len()]);
+                    let mid = (a + b) * 0.5;
+                    // Which square side the side lies on, if any.
+                    let rel = (mid - c) / s;
+                    let hn = if (rel.x.abs() - 0.5).abs() < 1e-9 {
+                        side_h(i + rel.x.signum() as i64, j)
+                    } else if (rel.y.abs() - 0.5).abs() < 1e-9 {
+                        side_h(i, j + rel.y.signum() as i64)
+                    } else {
+                        0.0
+                    };
+                    samples += 1;
+                    local = local.max(grid.surface_distance(a.extend(h), &mut scratch));
+                    if hn >= h {
+                        continue;
+                    }
+                    // Only points of the side that are on the map's surface: the column just
+                    // across is lower.
+                    let out = (b - a).perp().normalize_or_zero() * (-1e-6 * s);
+                    for z in heights(hn, h, 2.0 * s) {
+                        if column_height_at(map, mid + out) > z {
+                            continue;
+                        }
+                        samples += 1;
+                        local = local.max(grid.surface_distance(mid.extend(z), &mut scratch));
+                    }
+                    for end in [a, b] {
+                        let across = column_height_at(map, end + out + (mid - end) * 1e-6);
+                        if across >= h {
+                            continue;
+                        }
+                        samples += 1;
+                        local = local
+                            .max(grid.surface_distance(end.extend(hn.max(across)), &mut scratch));
+                    }
+                }
+            } else if h > 0.0 {
                 for (di, dj) in [(-1i64, 0i64), (1, 0), (0, -1), (0, 1)] {
-                    let hn = hof(i + di, j + dj);
+                    let hn = side_h(i + di, j + dj);
                     if hn >= h {
                         continue;
                     }
                     let dir = DVec2::new(di as f64, dj as f64);
                     let mid = c + dir * (0.5 * s);
+                    // Only points of the side on the map's surface (next to a neighbour with
+                    // an edge, the part of the side its column does not cover).
+                    let out = dir * (1e-6 * s);
                     for z in heights(hn, h, 2.0 * s) {
+                        if column_height_at(map, mid + out) > z {
+                            continue;
+                        }
                         samples += 1;
                         local = local.max(grid.surface_distance(mid.extend(z), &mut scratch));
                     }
@@ -586,7 +757,11 @@ pub fn measure(map: &BlockMap, source: &Source, buildings: &[u32]) -> ErrorRepor
                     // farthest from a footprint edge) at its bottom and top.
                     let along = DVec2::new(dir.y, dir.x) * (0.5 * s);
                     for end in [mid - along, mid + along] {
-                        for z in [hn, h] {
+                        let across = column_height_at(map, end + out + (mid - end) * 1e-6);
+                        if across >= h {
+                            continue;
+                        }
+                        for z in [hn.max(across), h] {
                             samples += 1;
                             local = local.max(grid.surface_distance(end.extend(z), &mut scratch));
                         }

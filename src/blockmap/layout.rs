@@ -15,6 +15,7 @@
 //! | `[0, K)` shape | height code, 256 levels over `[zmin, zmax]`, 0 = empty | wall column offset, 0 = none, 1..=255 | roof normal x | roof normal y |
 //! | `[K, 2K)` roof | colour r | g | b | AO (255 = open sky) |
 //! | `[2K, 2K + 256)` walls | colour r | g | b | AO; last row of each slice: the column's normal xyz, A = 255 |
+//! | `[2K + 256, 3K + 256)` edges | edge normal x | edge normal y | offset `o` | 255 = the texel has an edge, 0 = whole square |
 //!
 //! - Offset `c` of height-map row `j` addresses image column `2K + c − 1` (column `2K + 255` is
 //!   never used: offset 0 is reserved, BLOCKMAPS.md A.4-3) in slice `s = ⌊j·S/K⌋`, whose rows are
@@ -24,6 +25,11 @@
 //!   exactly `(0, 0, 1)`. The roof normal's z is rebuilt as `√max(0, 1 − x² − y²)` (seed 002 §4.2.1).
 //! - Heights decode as `zmin + code/255·(zmax − zmin)` so that `zmax` is exact (BLOCKMAPS.md A.4-4);
 //!   `zmin` is the ground (0), and code 0 is empty: rays pass through, the ground is drawn elsewhere.
+//! - Edges: `n = (decode_unit(R), decode_unit(G))` and `o = (B − 128)/127 · 0.75` texels
+//!   ([`EDGE_OFFSET_RANGE`]; the half-plane cuts the square only for `|o| < ½(|nx| + |ny|) ≤ 0.71`).
+//!   The builder computes `o` with the *decoded* `n` and rounds it up, so the stored half-plane
+//!   still holds every footprint point of the texel (conservative). Maps written before the
+//!   section existed (`(2K + 256) × K` PNGs) read as maps without edges.
 
 use super::BlockMapError;
 use crate::geom::Aabb3;
@@ -36,6 +42,57 @@ pub const ALLOWED_K: [u32; 3] = [32, 64, 128];
 
 /// Width of the wall attribute section (8-bit offsets address 256 columns).
 pub const WALL_COLUMNS: u32 = 256;
+
+/// The largest edge offset the edge section encodes, texels (≥ ½·(|nx| + |ny|) for any decoded
+/// normal).
+pub const EDGE_OFFSET_RANGE: f32 = 0.75;
+
+/// Image width of a map of side `k`: roof, shape and edge sections (`3K`) plus the wall columns.
+#[inline]
+pub const fn image_width(k: u32) -> u32 {
+    3 * k + WALL_COLUMNS
+}
+
+/// A footprint edge inside a texel, decoded: the texel's solid is the part of its square where
+/// `n·q ≤ o`, `q` the point relative to the texel centre in texels.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Edge {
+    /// Outward normal of the kept part (not necessarily unit).
+    pub n: [f32; 2],
+    /// Offset, texels.
+    pub o: f32,
+}
+
+impl Edge {
+    /// Decodes an edge texel (`None` when its A byte is not 255).
+    #[inline]
+    pub fn decode(t: [u8; 4]) -> Option<Self> {
+        (t[3] == 255).then(|| Self {
+            n: [decode_unit(t[0]), decode_unit(t[1])],
+            o: decode_offset(t[2]),
+        })
+    }
+}
+
+/// Decodes an edge offset byte: `(b − 128)/127 · EDGE_OFFSET_RANGE` (the shader's operations).
+#[inline]
+pub fn decode_offset(b: u8) -> f32 {
+    (b as f32 - 128.0) / 127.0 * EDGE_OFFSET_RANGE
+}
+
+/// The smallest offset byte whose decoded offset is at least `o` (texels), or `None` past the
+/// range.
+pub fn encode_offset_up(o: f64) -> Option<u8> {
+    let guess = (o / EDGE_OFFSET_RANGE as f64 * 127.0 + 128.0).floor() - 1.0;
+    let mut b = guess.max(0.0);
+    while b <= 255.0 {
+        if decode_offset(b as u8) as f64 >= o {
+            return Some(b as u8);
+        }
+        b += 1.0;
+    }
+    None
+}
 
 /// Encodes a unit-vector component in `[-1, 1]` as a byte (`round(127·c) + 128`).
 #[inline]
@@ -100,13 +157,14 @@ impl BlockMap {
                 "box min {min:?}, side {side}, zmax {zmax}: need finite, side > 0, zmax > zmin"
             )));
         }
-        let w = 2 * k + WALL_COLUMNS;
+        let w = image_width(k);
         let mut texels = vec![[0u8; 4]; (w * k) as usize];
         for j in 0..k {
             for i in 0..k {
                 let t = &mut texels[(j * w + i) as usize];
                 *t = [0, 0, 128, 128];
                 texels[(j * w + k + i) as usize] = [0, 0, 0, 255];
+                texels[(j * w + 2 * k + WALL_COLUMNS + i) as usize] = [128, 128, 128, 0];
             }
         }
         Ok(Self {
@@ -130,10 +188,10 @@ impl BlockMap {
     pub fn k(&self) -> u32 {
         self.meta.k
     }
-    /// Image width `2K + 256`.
+    /// Image width `3K + 256`.
     #[inline]
     pub fn width(&self) -> u32 {
-        2 * self.meta.k + WALL_COLUMNS
+        image_width(self.meta.k)
     }
     /// Texel side in metres.
     #[inline]
@@ -145,7 +203,7 @@ impl BlockMap {
     pub fn dz_m(&self) -> f64 {
         (self.meta.zmax - self.meta.zmin) / 255.0
     }
-    /// Bytes of the texture (`(2K + 256)·K·4`: 96 KiB at K = 64).
+    /// Bytes of the texture (`(3K + 256)·K·4`: 112 KiB at K = 64).
     pub fn bytes(&self) -> usize {
         self.texels.len() * 4
     }
@@ -201,6 +259,33 @@ impl BlockMap {
             0 => None,
             c => Some(self.code_height_m(c)),
         }
+    }
+    /// Image column of the edge texel of height-map column `i`.
+    #[inline]
+    pub fn edge_u(&self, i: u32) -> u32 {
+        2 * self.meta.k + WALL_COLUMNS + i
+    }
+    /// The footprint edge of texel `(i, j)`, if it has one.
+    #[inline]
+    pub fn edge(&self, i: u32, j: u32) -> Option<Edge> {
+        Edge::decode(self.texel(self.edge_u(i), j))
+    }
+    /// Sets (or, with `None`, clears) the edge bytes of texel `(i, j)`: normal bytes and offset
+    /// byte as [`Edge::decode`] reads them.
+    pub fn set_edge_bytes(&mut self, i: u32, j: u32, e: Option<[u8; 3]>) {
+        let u = self.edge_u(i);
+        *self.texel_mut(u, j) = match e {
+            Some([x, y, o]) => [x, y, o, 255],
+            None => [128, 128, 128, 0],
+        };
+    }
+    /// Texels with an edge.
+    pub fn edge_texels(&self) -> usize {
+        let k = self.k();
+        (0..k)
+            .flat_map(|j| (0..k).map(move |i| (i, j)))
+            .filter(|&(i, j)| self.height_code(i, j) > 0 && self.edge(i, j).is_some())
+            .count()
     }
     /// Wall column offset of texel `(i, j)` (0 = none).
     #[inline]
@@ -357,10 +442,13 @@ impl BlockMap {
         if !ALLOWED_K.contains(&meta.k) {
             return Err(bad(format!("K = {} is not 32, 64 or 128", meta.k)));
         }
-        if img.dimensions() != (2 * meta.k + WALL_COLUMNS, meta.k) {
+        let legacy = img.dimensions() == (2 * meta.k + WALL_COLUMNS, meta.k);
+        if img.dimensions() != (image_width(meta.k), meta.k) && !legacy {
             return Err(bad(format!(
-                "image is {:?}, K = {} needs {}x{}",
+                "image is {:?}, K = {} needs {}x{} (or {}x{} without edges)",
                 img.dimensions(),
+                meta.k,
+                image_width(meta.k),
                 meta.k,
                 2 * meta.k + WALL_COLUMNS,
                 meta.k
@@ -372,10 +460,24 @@ impl BlockMap {
                 meta.slices, meta.k
             )));
         }
-        Ok(Self {
-            meta,
-            texels: img.pixels().map(|p| p.0).collect(),
-        })
+        let texels = if legacy {
+            // A map from before the edge section: the same texels, no edges.
+            let (w0, k) = (2 * meta.k + WALL_COLUMNS, meta.k);
+            let mut t = Vec::with_capacity((image_width(k) * k) as usize);
+            for row in img
+                .pixels()
+                .map(|p| p.0)
+                .collect::<Vec<_>>()
+                .chunks(w0 as usize)
+            {
+                t.extend_from_slice(row);
+                t.extend(std::iter::repeat_n([128, 128, 128, 0], k as usize));
+            }
+            t
+        } else {
+            img.pixels().map(|p| p.0).collect()
+        };
+        Ok(Self { meta, texels })
     }
 }
 
@@ -395,7 +497,7 @@ mod tests {
 
     #[test]
     fn sizes_follow_the_layout() {
-        for (k, kib) in [(32, 40), (64, 96), (128, 256)] {
+        for (k, kib) in [(32, 44), (64, 112), (128, 320)] {
             let m = BlockMap::empty(k, DVec3::ZERO, 100.0, 30.0).unwrap();
             assert_eq!(m.bytes(), kib * 1024, "K = {k}");
         }
@@ -407,6 +509,42 @@ mod tests {
             BlockMap::empty(64, DVec3::ZERO, 100.0, 0.0),
             Err(BlockMapError::BadParameter(_))
         ));
+    }
+
+    #[test]
+    fn edge_offsets_round_up_and_decode_as_the_shader() {
+        for o in [-0.7, -0.31, 0.0, 0.001, 0.2, 0.5, 0.7] {
+            let b = encode_offset_up(o).unwrap();
+            assert!(decode_offset(b) as f64 >= o, "{o}");
+            assert!(
+                b == 0 || (decode_offset(b - 1) as f64) < o,
+                "{o}: not the smallest"
+            );
+        }
+        assert_eq!(encode_offset_up(0.8), None);
+        let mut m = BlockMap::empty(32, DVec3::ZERO, 32.0, 10.0).unwrap();
+        assert_eq!(m.edge(3, 4), None);
+        m.set_edge_bytes(3, 4, Some([255, 128, 140]));
+        let e = m.edge(3, 4).unwrap();
+        assert_eq!(e.n, [1.0, 0.0]);
+        assert!((e.o - 12.0 / 127.0 * 0.75).abs() < 1e-7);
+        m.set_edge_bytes(3, 4, None);
+        assert_eq!(m.edge(3, 4), None);
+    }
+
+    #[test]
+    fn legacy_images_read_without_edges() {
+        let m = BlockMap::empty(32, DVec3::ZERO, 32.0, 10.0).unwrap();
+        let dir = tempfile::tempdir().unwrap();
+        let (png, _) = m.write(dir.path(), "a").unwrap();
+        let w0 = 2 * 32 + WALL_COLUMNS;
+        let mut old = image::RgbaImage::new(w0, 32);
+        for (x, y, p) in old.enumerate_pixels_mut() {
+            *p = image::Rgba(m.texel(x, y));
+        }
+        old.save(&png).unwrap();
+        let back = BlockMap::read(&png).unwrap();
+        assert_eq!(back, m);
     }
 
     #[test]

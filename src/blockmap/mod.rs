@@ -2,8 +2,10 @@
 //! layout of seed 002 (Di Benedetto 2011, ch. 4), built on the CPU from the extruded prisms, with
 //! a reference ray caster equal to the GPU's and a measured error bound.
 //!
-//! - [`layout`]: [`BlockMap`], the RGBA8 `(2K + 256) × K` texture (seed 002 §4.2.1), its box, PNG +
-//!   JSON storage, and the optional 2007 distance map (seed 000 §3.1–3.2).
+//! - [`layout`]: [`BlockMap`], the RGBA8 `(2K + 256) × K` texture (seed 002 §4.2.1) plus a
+//!   `K × K` section of footprint edges (one half-plane per boundary texel, blockwalk's
+//!   addition), its box, PNG + JSON storage, and the optional 2007 distance map (seed 000
+//!   §3.1–3.2).
 //! - [`build`]: construction from the prisms (seed 000 §3.3, seed 002 §4.3.2): top-down
 //!   orthographic sampling through the oracle's rasteriser, exposed texels, unfolded wall
 //!   columns, slices.
@@ -35,7 +37,7 @@ pub use build::{build_map, BuildOptions, BuildStats, Source};
 pub use cast::{cast_f32, cast_f64, Cast, CastOptions, Face, Hit, TexRay};
 pub use error::{measure, ErrorReport, ThinFeature, ThinKind};
 pub use image::{cast_image, CpuHybridRenderer, FrameRays, MapImage, MapXform};
-pub use layout::{BlockMap, BlockMapMeta};
+pub use layout::{BlockMap, BlockMapMeta, Edge};
 pub use select::{
     projected_error_px, SelectError, SelectOptions, SelectStats, Selection, Selector,
 };

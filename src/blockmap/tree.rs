@@ -85,7 +85,7 @@ pub struct MapTree {
 
 /// The nodes that get a map, parents first: `(node, level, parent slot)`.
 pub fn select_nodes(tree: &BqrTree, k: u32, stop: Stop) -> Vec<(usize, u32, Option<usize>)> {
-    let map_bytes = ((2 * k + super::layout::WALL_COLUMNS) * k * 4) as usize;
+    let map_bytes = (super::layout::image_width(k) * k * 4) as usize;
     let blocks = tree.blocks();
     let mut out = Vec::new();
     if tree.nodes_len() == 0 {

@@ -2,6 +2,9 @@
 // rasterises its box's back faces, and every fragment walks the map's height field with the grid
 // walk of `blockmap::cast` (Amanatides–Woo in 2D), operation for operation as `cast_f32` does it,
 // shades the hit as `blockmap::cast::surface` + `blockmap::colors::lit`, and writes its depth.
+// A non-empty cell with a footprint edge (image column 2K + 256 + i, A = 255) is the part of the
+// cell inside the edge's half-plane: the ray's segment in the cell is cut with it and with the
+// height slab, and a hit on the half-plane's side is an EDGE wall with the edge's normal.
 //
 // The rays and the depth are those of `blockmap::image` (see its module doc): the view direction
 // of the pixel centre `(px·sx + cx, py·sy + cy, −1)`, mapped to texture space per map with
@@ -77,6 +80,9 @@ const EAST: u32 = 1u;
 const SOUTH: u32 = 2u;
 const NORTH: u32 = 3u;
 const INSIDE: u32 = 4u;
+const EDGE: u32 = 5u;
+// blockmap::layout::EDGE_OFFSET_RANGE.
+const EDGE_RANGE: f32 = 0.75;
 
 struct Hit {
     kind: u32,
@@ -179,7 +185,72 @@ fn walk_map(o: vec3<f32>, d: vec3<f32>, k: i32, layer: i32) -> Hit {
         let zb = o.z + t_out * d.z;
         let code = texel(layer, i, j).x;
         let hh = f32(code) / 255.0;
+        var e = vec4<u32>(0u);
         if code > 0u {
+            e = texel(layer, 2 * k + 256 + i, j);
+        }
+        if code > 0u && e.w == 255u {
+            // blockmap::cast: (half-plane ∩ square) × [0, h].
+            let nx = decode_unit(e.x);
+            let ny = decode_unit(e.y);
+            let eo = (f32(e.z) - 128.0) / 127.0 * EDGE_RANGE;
+            let cx = f32(i) + 0.5;
+            let cy = f32(j) + 0.5;
+            let g_in = (o.x + t_in * d.x - cx) * nx + (o.y + t_in * d.y - cy) * ny - eo;
+            let g_out = (o.x + t_out * d.x - cx) * nx + (o.y + t_out * d.y - cy) * ny - eo;
+            var z_ok = true;
+            var z_roof = false;
+            var z_lo = t_in;
+            var z_hi = t_out;
+            if za <= hh {
+                if zb > hh {
+                    z_hi = t_in + (hh - za) / d.z;
+                }
+            } else if zb <= hh {
+                z_lo = t_in + (za - hh) / (-d.z);
+                z_roof = true;
+            } else {
+                z_ok = false;
+            }
+            var g_ok = true;
+            var g_edge = false;
+            var g_lo = t_in;
+            var g_hi = t_out;
+            if g_in <= 0.0 {
+                if g_out > 0.0 {
+                    g_hi = t_in + (t_out - t_in) * (g_in / (g_in - g_out));
+                }
+            } else if g_out <= 0.0 {
+                g_lo = t_in + (t_out - t_in) * (g_in / (g_in - g_out));
+                g_edge = true;
+            } else {
+                g_ok = false;
+            }
+            if z_ok && g_ok {
+                let lo = max(z_lo, g_lo);
+                let hi = min(z_hi, g_hi);
+                if lo <= hi {
+                    h.i = i;
+                    h.j = j;
+                    if g_edge && g_lo > z_lo {
+                        h.kind = WALL;
+                        h.face = EDGE;
+                        h.t = g_lo;
+                    } else if z_roof {
+                        h.kind = ROOF;
+                        h.t = z_lo;
+                    } else if it == 0 && entered_top {
+                        h.kind = ROOF;
+                        h.t = t_in;
+                    } else {
+                        h.kind = WALL;
+                        h.face = face;
+                        h.t = t_in;
+                    }
+                    return h;
+                }
+            }
+        } else if code > 0u {
             if za <= hh {
                 h.i = i;
                 h.j = j;
@@ -266,12 +337,30 @@ fn fs_main(in: VsOut) -> FsOut {
     let shape = texel(layer, h.i, h.j);
     var base = texel(layer, k + h.i, h.j).xyz;
     var n: vec3<f32>;
+    // The edge's normal on the half-plane's side (blockmap::cast::surface).
+    var edge_n = vec3<f32>(0.0, 0.0, 1.0);
+    var has_edge_n = false;
+    if h.kind == WALL && h.face == EDGE {
+        let e = texel(layer, 2 * k + 256 + h.i, h.j);
+        if e.w == 255u {
+            let raw_e = vec3<f32>(decode_unit(e.x), decode_unit(e.y), 0.0);
+            let rcp_e = 1.0 / length(raw_e);
+            if rcp_e > 0.0 && rcp_e < BIG {
+                edge_n = raw_e * rcp_e;
+            }
+            has_edge_n = true;
+        }
+    }
     if h.kind == ROOF {
         let x = decode_unit(shape.z);
         let y = decode_unit(shape.w);
         n = vec3<f32>(x, y, sqrt(max(1.0 - x * x - y * y, 0.0)));
     } else if shape.y == 0u || h.face == INSIDE {
-        n = face_normal(h.face);
+        if has_edge_n {
+            n = edge_n;
+        } else {
+            n = face_normal(h.face);
+        }
     } else {
         let u = 2 * k + i32(shape.y) - 1;
         let z = o.z + h.t * d.z;
@@ -283,7 +372,9 @@ fn fs_main(in: VsOut) -> FsOut {
         let nb = texel(layer, u, slice * rows + rows - 1);
         let raw = vec3<f32>(decode_unit(nb.x), decode_unit(nb.y), decode_unit(nb.z));
         let rcp = 1.0 / length(raw);
-        if rcp > 0.0 && rcp < BIG {
+        if has_edge_n {
+            n = edge_n;
+        } else if rcp > 0.0 && rcp < BIG {
             n = raw * rcp;
         } else {
             n = face_normal(h.face);
