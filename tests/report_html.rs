@@ -125,8 +125,24 @@ fn the_helsinki_walk_report_opens_alone_in_chromium() {
     }
     let imgs = r["images"].as_array().unwrap();
     // Three thumbnails, the far field's frame-time plot, and two Fig.-4 plots per culling mode
-    // (frustum and frustum+occlusion).
-    assert_eq!(imgs.len(), 3 + 1 + 2 * 2, "{imgs:?}");
+    // of the walk's Table 1 (frustum and frustum+occlusion, each with and without the
+    // per-building test).
+    let mut modes: Vec<String> = j["summary"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|r| r["mode"].as_str().unwrap().to_string())
+        .collect();
+    modes.sort();
+    modes.dedup();
+    assert_eq!(modes.len(), 4, "{modes:?}");
+    assert_eq!(imgs.len(), 3 + 1 + 2 * modes.len(), "{imgs:?}");
+    for m in &modes {
+        assert!(
+            imgs.iter().any(|i| i["alt"] == format!("time per frame, {m}")),
+            "no frame-time plot of {m}"
+        );
+    }
     assert!(imgs
         .iter()
         .any(|i| i["alt"] == "mesh-only against hybrid frame time"));
