@@ -139,7 +139,8 @@ fn the_helsinki_walk_report_opens_alone_in_chromium() {
     assert_eq!(imgs.len(), 3 + 1 + 2 * modes.len(), "{imgs:?}");
     for m in &modes {
         assert!(
-            imgs.iter().any(|i| i["alt"] == format!("time per frame, {m}")),
+            imgs.iter()
+                .any(|i| i["alt"] == format!("time per frame, {m}")),
             "no frame-time plot of {m}"
         );
     }
