@@ -150,3 +150,42 @@ pub fn parse_k(s: &str) -> Result<u32, String> {
         Err(format!("{k}: expected 32, 64 or 128"))
     }
 }
+
+/// The far-field options `walk` and `view` share: BlockMaps or none, τ, K and the hysteresis.
+#[derive(clap::Args, Debug, Clone)]
+pub struct FarArgs {
+    /// Far field: `blockmaps` draws far nodes of the block quadtree as ray-cast BlockMaps (seed
+    /// 000 §4–5) and near blocks as meshes; `none` draws meshes only.
+    #[arg(long = "far", value_enum, default_value_t = blockwalk::walk::FarMode::None)]
+    pub mode: blockwalk::walk::FarMode,
+    /// Largest projected error of a drawn BlockMap, pixels (τ).
+    #[arg(long, default_value_t = 1.0)]
+    pub tau: f64,
+    /// BlockMap height-map side K (32, 64 or 128).
+    #[arg(long, value_parser = parse_k, default_value_t = 64)]
+    pub k: u32,
+    /// Hysteresis h: a map stays a map until its error exceeds τ·(1 + h).
+    #[arg(long, default_value_t = blockwalk::blockmap::select::DEFAULT_HYSTERESIS)]
+    pub hysteresis: f64,
+}
+
+impl FarArgs {
+    /// τ and the hysteresis as selection settings, refused when τ is not a positive number of
+    /// pixels or h is negative.
+    pub fn select(&self) -> anyhow::Result<blockwalk::blockmap::SelectOptions> {
+        anyhow::ensure!(
+            self.tau.is_finite() && self.tau > 0.0,
+            "--tau {}: expected a positive number of pixels",
+            self.tau
+        );
+        anyhow::ensure!(
+            self.hysteresis.is_finite() && self.hysteresis >= 0.0,
+            "--hysteresis {}: expected a number ≥ 0",
+            self.hysteresis
+        );
+        Ok(blockwalk::blockmap::SelectOptions {
+            tau_px: self.tau,
+            hysteresis: self.hysteresis,
+        })
+    }
+}

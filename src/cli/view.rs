@@ -39,20 +39,8 @@ pub struct Args {
     /// Seed of a `synthetic:` city.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
-    /// Far field: `blockmaps` draws far nodes of the block quadtree as ray-cast BlockMaps, as
-    /// `blockwalk walk --far blockmaps` does (the structure then only serves the near field's
-    /// blocks through the selector's own frustum test).
-    #[arg(long, value_enum, default_value_t = FarMode::None)]
-    pub far: FarMode,
-    /// Largest projected error of a drawn map, pixels (τ).
-    #[arg(long, default_value_t = 1.0)]
-    pub tau: f64,
-    /// BlockMap height-map side (32, 64 or 128).
-    #[arg(long, value_parser = super::common::parse_k, default_value_t = 64)]
-    pub k: u32,
-    /// Hysteresis: a map stays until its error exceeds τ·(1 + h).
-    #[arg(long, default_value_t = blockwalk::blockmap::select::DEFAULT_HYSTERESIS)]
-    pub hysteresis: f64,
+    #[command(flatten)]
+    pub far: super::common::FarArgs,
     /// Print one JSON object at the end instead of the human summary.
     #[arg(long)]
     pub json: bool,
@@ -85,7 +73,6 @@ pub fn run(args: Args) -> anyhow::Result<()> {
 pub fn run(args: Args) -> anyhow::Result<()> {
     use super::common::load_scene;
     use anyhow::Context;
-    use blockwalk::blockmap::SelectOptions;
     use blockwalk::render::window::{run_viewer, ViewerFar, ViewerOptions, ViewerScene};
     use blockwalk::scene::SceneOptions;
     use blockwalk::visibility::CullerOptions;
@@ -103,16 +90,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         "--speed {}: expected a positive number",
         args.speed
     );
-    anyhow::ensure!(
-        args.tau.is_finite() && args.tau > 0.0,
-        "--tau {}: expected a positive number of pixels",
-        args.tau
-    );
-    anyhow::ensure!(
-        args.hysteresis.is_finite() && args.hysteresis >= 0.0,
-        "--hysteresis {}: expected a number ≥ 0",
-        args.hysteresis
-    );
+    let select = args.far.select()?;
     let opts = SceneOptions {
         structures: vec![args.structure],
         occlusion: occlusion.then(CullerOptions::default),
@@ -121,14 +99,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let scene = load_scene(&args.city, args.seed, &opts)?;
     let (route, _) = super::walk::resolve_route(&args.route, &scene, args.size)?;
     let name = scene.name.clone();
-    let far = match args.far {
+    let far = match args.far.mode {
         FarMode::None => None,
         FarMode::Blockmaps => Some(ViewerFar {
-            maps: super::walk::build_far_maps(&scene, args.k, args.json)?,
-            select: SelectOptions {
-                tau_px: args.tau,
-                hysteresis: args.hysteresis,
-            },
+            maps: super::walk::build_far_maps(&scene, args.far.k, args.json)?,
+            select,
         }),
     };
     let far_on = far.is_some();
@@ -155,10 +130,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         j["city"] = serde_json::json!(name);
         j["structure"] = serde_json::json!(args.structure);
         j["occlusion"] = serde_json::json!(occlusion);
-        j["far"] = serde_json::json!(args.far);
+        j["far"] = serde_json::json!(args.far.mode);
         if far_on {
-            j["tau"] = serde_json::json!(args.tau);
-            j["k"] = serde_json::json!(args.k);
+            j["tau"] = serde_json::json!(args.far.tau);
+            j["k"] = serde_json::json!(args.far.k);
         }
         outln!("{}", serde_json::to_string(&j)?);
     } else {
@@ -175,8 +150,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         if far_on {
             outln!(
                 "far field: BlockMaps K = {} at τ = {} px; {} maps in the last frame ({} pixels), {:.1} per frame",
-                args.k,
-                args.tau,
+                args.far.k,
+                args.far.tau,
                 summary.far_nodes,
                 summary.far_pixels,
                 summary.far_nodes_mean

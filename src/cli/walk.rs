@@ -2,7 +2,7 @@
 
 use super::common::{load_scene, CityArgs, Size};
 use anyhow::Context;
-use blockwalk::blockmap::{MapTree, SelectOptions};
+use blockwalk::blockmap::MapTree;
 use blockwalk::index::Structure;
 use blockwalk::report;
 use blockwalk::route::{RouteChoice, RouteContext};
@@ -73,19 +73,8 @@ pub struct Args {
     /// Print one JSON object instead of the human summary.
     #[arg(long)]
     pub json: bool,
-    /// Far field: `blockmaps` draws far nodes of the block quadtree as BlockMaps (seed 000
-    /// §4–5) beside the mesh-only frames, `none` draws meshes only.
-    #[arg(long, value_enum, default_value_t = FarMode::None)]
-    pub far: FarMode,
-    /// Largest projected error of a drawn BlockMap, pixels (τ).
-    #[arg(long, default_value_t = 1.0)]
-    pub tau: f64,
-    /// BlockMap height-map side K (32, 64 or 128).
-    #[arg(long, value_parser = super::common::parse_k, default_value_t = 64)]
-    pub k: u32,
-    /// Hysteresis h: a map stays a map until its error exceeds τ·(1 + h).
-    #[arg(long, default_value_t = blockwalk::blockmap::select::DEFAULT_HYSTERESIS)]
-    pub hysteresis: f64,
+    #[command(flatten)]
+    pub far: super::common::FarArgs,
     /// Compare every hybrid frame with the mesh-only frame of the same camera (coverage error,
     /// PSNR, silhouette distance, popping); needs `--render`.
     #[arg(long)]
@@ -239,30 +228,18 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         oracle: args.oracle,
         size: args.size.pair(),
     };
-    anyhow::ensure!(
-        args.tau.is_finite() && args.tau > 0.0,
-        "--tau {}: expected a positive number of pixels",
-        args.tau
-    );
-    anyhow::ensure!(
-        args.hysteresis.is_finite() && args.hysteresis >= 0.0,
-        "--hysteresis {}: expected a number ≥ 0",
-        args.hysteresis
-    );
+    let select = args.far.select()?;
     anyhow::ensure!(
         !args.reference || args.render,
         "--reference compares drawn frames: add --render"
     );
-    let maps = match args.far {
+    let maps = match args.far.mode {
         FarMode::None => None,
-        FarMode::Blockmaps => Some(build_far_maps(&scene, args.k, args.json)?),
+        FarMode::Blockmaps => Some(build_far_maps(&scene, args.far.k, args.json)?),
     };
     let far = maps.as_ref().map(|m| FarField {
         maps: m,
-        select: SelectOptions {
-            tau_px: args.tau,
-            hysteresis: args.hysteresis,
-        },
+        select,
         reference: args.reference,
         leave_out: !args.keep_far,
         probe_frames: 8,

@@ -16,10 +16,10 @@
 //! page, 8 children a node) is the block VAMSplit tree's.
 
 use super::bqr::box_distance_2;
+use super::vamsplit::vam_split;
 use super::{validate_bounds, BlockBounds, CityIndex, CullQuery, CullStats, IndexError, Structure};
 use crate::blocks::BlockId;
 use crate::geom::{Aabb3, Containment, PlaneMask, ALL_PLANES};
-use glam::DVec3;
 
 const NAME: Structure = Structure::SceneGraph;
 
@@ -75,10 +75,6 @@ pub struct SceneGraphTree {
     params: SceneGraphParams,
 }
 
-fn key(b: &BlockBounds) -> DVec3 {
-    DVec3::new(b.center.x, b.center.y, b.aabb.center().z)
-}
-
 struct Builder<'a> {
     input: &'a [BlockBounds],
     leaf_cap: usize,
@@ -131,7 +127,7 @@ impl Builder<'_> {
         }
         let cap = self.child_capacity(items.len());
         let mut groups = Vec::new();
-        split(self.input, items, cap, 0, &mut groups);
+        vam_split(self.input, items, cap, 0, &mut groups);
         let mut children = Vec::with_capacity(groups.len());
         for (a, b) in groups {
             children.push(self.build(&mut items[a..b]));
@@ -150,48 +146,6 @@ impl Builder<'_> {
         n.page_end = page_end;
         idx
     }
-}
-
-/// White & Jain's VAMSplit: `items` (at `offset` in the node's slice) cut recursively in two on
-/// the dimension of largest variance of the item centres, at the multiple of `cap` nearest the
-/// median, until every group holds at most `cap`.
-fn split(
-    input: &[BlockBounds],
-    items: &mut [u32],
-    cap: usize,
-    offset: usize,
-    out: &mut Vec<(usize, usize)>,
-) {
-    let n = items.len();
-    if n <= cap {
-        out.push((offset, offset + n));
-        return;
-    }
-    let mean = items
-        .iter()
-        .fold(DVec3::ZERO, |m, &i| m + key(&input[i as usize]))
-        / n as f64;
-    let var = items.iter().fold(DVec3::ZERO, |v, &i| {
-        let d = key(&input[i as usize]) - mean;
-        v + d * d
-    });
-    let dim = if var.x >= var.y && var.x >= var.z {
-        0
-    } else if var.y >= var.z {
-        1
-    } else {
-        2
-    };
-    let max_k = (n - 1) / cap * cap;
-    let k = (((n as f64 / 2.0) / cap as f64).round() as usize * cap).clamp(cap, max_k);
-    items.select_nth_unstable_by(k, |&a, &b| {
-        key(&input[a as usize])[dim]
-            .total_cmp(&key(&input[b as usize])[dim])
-            .then(a.cmp(&b))
-    });
-    let (left, right) = items.split_at_mut(k);
-    split(input, left, cap, offset, out);
-    split(input, right, cap, offset + k, out);
 }
 
 impl SceneGraphTree {
@@ -441,6 +395,7 @@ mod tests {
     use super::*;
     use crate::geom::Camera;
     use crate::index::synthetic::block_grid;
+    use glam::DVec3;
 
     /// Random cameras over a grid; brute force over the items' boxes.
     fn cameras(n: usize) -> Vec<Camera> {

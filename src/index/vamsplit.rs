@@ -91,7 +91,7 @@ impl Builder<'_> {
             child_cap *= self.cap;
         }
         let mut groups = Vec::new();
-        self.split(items, child_cap, 0, &mut groups);
+        vam_split(self.input, items, child_cap, 0, &mut groups);
         let mut children = Vec::with_capacity(groups.len());
         for (a, b) in groups {
             children.push(self.build(&mut items[a..b]));
@@ -109,44 +109,52 @@ impl Builder<'_> {
         n.block_end = self.order.len() as u32;
         idx
     }
+}
 
-    /// Splits `items` (at `offset` in the node's item slice) into groups of at most `cap`,
-    /// recursively in two (White & Jain's VAMSplit).
-    fn split(&self, items: &mut [u32], cap: usize, offset: usize, out: &mut Vec<(usize, usize)>) {
-        let n = items.len();
-        if n <= cap {
-            out.push((offset, offset + n));
-            return;
-        }
-        // Dimension of maximum variance of the centres.
-        let mut mean = DVec3::ZERO;
-        for &i in items.iter() {
-            mean += key(&self.input[i as usize]);
-        }
-        mean /= n as f64;
-        let mut var = DVec3::ZERO;
-        for &i in items.iter() {
-            let d = key(&self.input[i as usize]) - mean;
-            var += d * d;
-        }
-        let dim = if var.x >= var.y && var.x >= var.z {
-            0
-        } else if var.y >= var.z {
-            1
-        } else {
-            2
-        };
-        // Split position: the multiple of the subtree capacity closest to the median.
-        let max_k = (n - 1) / cap * cap;
-        let k = (((n as f64 / 2.0) / cap as f64).round() as usize * cap).clamp(cap, max_k);
-        let input = self.input;
-        items.select_nth_unstable_by(k, |&a, &b| {
-            key(&input[a as usize])[dim].total_cmp(&key(&input[b as usize])[dim])
-        });
-        let (left, right) = items.split_at_mut(k);
-        self.split(left, cap, offset, out);
-        self.split(right, cap, offset + k, out);
+/// White & Jain's VAMSplit: `items` (indices into `input`, at `offset` in the node's slice) cut
+/// recursively in two on the dimension of largest variance of the item centres, at the multiple
+/// of `cap` nearest the median, until every group holds at most `cap`; pushes the groups' ranges
+/// to `out`. Shared by the block tree and the scene graph over buildings
+/// ([`super::SceneGraphTree`]).
+pub(super) fn vam_split(
+    input: &[BlockBounds],
+    items: &mut [u32],
+    cap: usize,
+    offset: usize,
+    out: &mut Vec<(usize, usize)>,
+) {
+    let n = items.len();
+    if n <= cap {
+        out.push((offset, offset + n));
+        return;
     }
+    // Dimension of maximum variance of the centres.
+    let mut mean = DVec3::ZERO;
+    for &i in items.iter() {
+        mean += key(&input[i as usize]);
+    }
+    mean /= n as f64;
+    let mut var = DVec3::ZERO;
+    for &i in items.iter() {
+        let d = key(&input[i as usize]) - mean;
+        var += d * d;
+    }
+    let dim = if var.x >= var.y && var.x >= var.z {
+        0
+    } else if var.y >= var.z {
+        1
+    } else {
+        2
+    };
+    // Split position: the multiple of the subtree capacity closest to the median.
+    let max_k = (n - 1) / cap * cap;
+    let k = (((n as f64 / 2.0) / cap as f64).round() as usize * cap).clamp(cap, max_k);
+    items.select_nth_unstable_by(k, |&a, &b| {
+        key(&input[a as usize])[dim].total_cmp(&key(&input[b as usize])[dim])
+    });
+    let (left, right) = items.split_at_mut(k);
+    vam_split(input, left, cap, offset, out);
+    vam_split(input, right, cap, offset + k, out);
 }
 
 impl VamSplitTree {

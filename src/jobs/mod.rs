@@ -31,6 +31,7 @@
 //! streaming reader, [`blockwalk_importers::shp::read_streaming`]); other footprint formats are
 //! refused with the reason.
 
+use crate::city::build::frame::finite_bbox;
 use std::collections::{BTreeMap, HashMap, HashSet};
 use std::io::Read;
 use std::path::{Path, PathBuf};
@@ -398,21 +399,6 @@ impl Default for PlanOptions {
     }
 }
 
-fn bbox_of(p: &Polygon<f64>) -> Option<[f64; 4]> {
-    let mut b = [
-        f64::INFINITY,
-        f64::INFINITY,
-        f64::NEG_INFINITY,
-        f64::NEG_INFINITY,
-    ];
-    for c in p.exterior().0.iter() {
-        if c.x.is_finite() && c.y.is_finite() {
-            b = [b[0].min(c.x), b[1].min(c.y), b[2].max(c.x), b[3].max(c.y)];
-        }
-    }
-    (b[0] <= b[2]).then_some(b)
-}
-
 fn union(a: Option<[f64; 4]>, b: [f64; 4]) -> [f64; 4] {
     match a {
         None => b,
@@ -541,7 +527,7 @@ pub fn plan(
             centres.extend(
                 polys
                     .into_iter()
-                    .filter_map(|p| bbox_of(p).map(|b| centre_of(&b))),
+                    .filter_map(|p| finite_bbox(p).map(|b| centre_of(&b))),
             );
         }
     })
@@ -624,7 +610,7 @@ pub fn plan(
         let which = assign(&polys, &face_polys);
         buildings += polys.len();
         for ((b, poly), w) in city.buildings.iter().zip(polys).zip(which) {
-            let bb = bbox_of(&poly);
+            let bb = finite_bbox(&poly);
             if let Some(bb) = bb {
                 origin_centres.push(centre_of(&bb));
             }
@@ -663,7 +649,7 @@ pub fn plan(
             .collect()
     };
     for (k, p) in face_polys.iter().enumerate() {
-        let outline = bbox_of(p).unwrap_or([0.0; 4]);
+        let outline = finite_bbox(p).unwrap_or([0.0; 4]);
         blocks.push(PlanBlock {
             id: k as u32,
             outskirts: false,
@@ -681,11 +667,11 @@ pub fn plan(
     for (hull, group) in outskirts_groups(&opolys, &all, DEFAULT_OUTSKIRTS_LINK) {
         let mut bb: Option<[f64; 4]> = None;
         for &i in &group {
-            if let Some(b) = bbox_of(&opolys[i]) {
+            if let Some(b) = finite_bbox(&opolys[i]) {
                 bb = Some(union(bb, b));
             }
         }
-        let outline = bbox_of(&hull);
+        let outline = finite_bbox(&hull);
         blocks.push(PlanBlock {
             id: blocks.len() as u32,
             outskirts: true,
@@ -1031,7 +1017,7 @@ pub fn run_tile(
     let polys: Vec<Polygon<f64>> = city.buildings.iter().map(|b| b.footprint.clone()).collect();
     let mut seen: Option<[f64; 4]> = None;
     for p in &polys {
-        if let Some(b) = bbox_of(p) {
+        if let Some(b) = finite_bbox(p) {
             seen = Some(union(seen, b));
         }
     }
@@ -1040,7 +1026,7 @@ pub fn run_tile(
     if let Some(seen) = seen {
         for b in plan.blocks.iter().filter(|b| !b.outskirts) {
             let p = b.polygon();
-            let outline = bbox_of(&p);
+            let outline = finite_bbox(&p);
             if outline.is_some_and(|o| meets(&o, &seen)) {
                 cand.push(b.id);
                 cand_polys.push(p);

@@ -60,7 +60,8 @@ pub fn f32_spacing(d: f64) -> f64 {
     (d.next_up() - d) as f64
 }
 
-fn bbox_centre(p: &Polygon<f64>) -> Option<[f64; 2]> {
+/// `[xmin, ymin, xmax, ymax]` of the finite corners of `p`'s outer ring; `None` when it has none.
+pub fn finite_bbox(p: &Polygon<f64>) -> Option<[f64; 4]> {
     let mut b = [
         f64::INFINITY,
         f64::INFINITY,
@@ -72,7 +73,11 @@ fn bbox_centre(p: &Polygon<f64>) -> Option<[f64; 2]> {
             b = [b[0].min(c.x), b[1].min(c.y), b[2].max(c.x), b[3].max(c.y)];
         }
     }
-    (b[0] <= b[2]).then(|| [(b[0] + b[2]) * 0.5, (b[1] + b[3]) * 0.5])
+    (b[0] <= b[2]).then_some(b)
+}
+
+fn bbox_centre(p: &Polygon<f64>) -> Option<[f64; 2]> {
+    finite_bbox(p).map(|b| [(b[0] + b[2]) * 0.5, (b[1] + b[3]) * 0.5])
 }
 
 fn median(v: &mut [f64]) -> Option<f64> {

@@ -117,18 +117,7 @@ pub fn build_city(
     opts: &BuildOptions,
 ) -> Result<City, BuildError> {
     let hf = &opts.heights;
-    if !(hf.storey_m.is_finite() && hf.storey_m > 0.0) {
-        return Err(BuildError::Options(format!(
-            "storey height {} m is not positive",
-            hf.storey_m
-        )));
-    }
-    if !heights::usable(hf.default_height_m) {
-        return Err(BuildError::Options(format!(
-            "default height {} m is not in (0, 1000]",
-            hf.default_height_m
-        )));
-    }
+    check_heights(hf)?;
     let transform = frame::footprint_transform(footprints)?;
     let mut report = CityReport {
         crs: transform.describe(),
@@ -146,6 +135,79 @@ pub fn build_city(
     report.notes.extend(frame::frame_notes(&frame_report));
     report.frame = frame_report;
 
+    with_layers(
+        footprints,
+        streets,
+        parcels,
+        opts,
+        (transform, local),
+        buildings,
+        report,
+    )
+}
+
+/// [`build_city`] with the metric transform and the local frame given instead of derived from
+/// the footprints, for a part of a city read on its own (a tile of `jobs`): its buildings get
+/// exactly the world coordinates and f32 local coordinates they have in the whole city. A part
+/// with no building is not an error here: it gives a city without buildings.
+///
+/// # Errors
+/// [`BuildError::Crs`] when a street or parcel layer's CRS cannot be set up;
+/// [`BuildError::Options`] as [`build_city`].
+pub fn build_city_in_frame(
+    footprints: &Layer,
+    streets: Option<&Layer>,
+    parcels: Option<&Layer>,
+    opts: &BuildOptions,
+    transform: MetricTransform,
+    frame: LocalFrame,
+) -> Result<City, BuildError> {
+    let hf = &opts.heights;
+    check_heights(hf)?;
+    let mut report = CityReport {
+        crs: transform.describe(),
+        ..Default::default()
+    };
+    let buildings = repair_report::build_footprints(footprints, &transform, hf, &mut report);
+    with_layers(
+        footprints,
+        streets,
+        parcels,
+        opts,
+        (transform, frame),
+        buildings,
+        report,
+    )
+}
+
+/// Refuses a storey or default height that is not usable.
+fn check_heights(hf: &HeightFields) -> Result<(), BuildError> {
+    if !(hf.storey_m.is_finite() && hf.storey_m > 0.0) {
+        return Err(BuildError::Options(format!(
+            "storey height {} m is not positive",
+            hf.storey_m
+        )));
+    }
+    if !heights::usable(hf.default_height_m) {
+        return Err(BuildError::Options(format!(
+            "default height {} m is not in (0, 1000]",
+            hf.default_height_m
+        )));
+    }
+    Ok(())
+}
+
+/// The rest of a city around its `buildings`, in `transform` and `frame`: the street and parcel
+/// layers reprojected into the footprints' frame, their warnings in the report.
+fn with_layers(
+    footprints: &Layer,
+    streets: Option<&Layer>,
+    parcels: Option<&Layer>,
+    opts: &BuildOptions,
+    (transform, frame): (MetricTransform, LocalFrame),
+    buildings: Vec<Building>,
+    mut report: CityReport,
+) -> Result<City, BuildError> {
     let streets_out = match streets {
         Some(l) => {
             let t = frame::layer_transform(&transform, l, &mut report.notes)?;
@@ -166,60 +228,6 @@ pub fn build_city(
     {
         report.notes.push(format!("warning: {why}"));
     }
-
-    Ok(City {
-        name: footprints.name.clone(),
-        transform,
-        frame: local,
-        buildings,
-        streets: streets_out,
-        parcels: parcels_out,
-        report,
-    })
-}
-
-/// [`build_city`] with the metric transform and the local frame given instead of derived from
-/// the footprints, for a part of a city read on its own (a tile of `jobs`): its buildings get
-/// exactly the world coordinates and f32 local coordinates they have in the whole city. A part
-/// with no building is not an error here: it gives a city without buildings.
-///
-/// # Errors
-/// [`BuildError::Crs`] when a street or parcel layer's CRS cannot be set up;
-/// [`BuildError::Options`] as [`build_city`].
-pub fn build_city_in_frame(
-    footprints: &Layer,
-    streets: Option<&Layer>,
-    parcels: Option<&Layer>,
-    opts: &BuildOptions,
-    transform: MetricTransform,
-    frame: LocalFrame,
-) -> Result<City, BuildError> {
-    let hf = &opts.heights;
-    if !(hf.storey_m.is_finite() && hf.storey_m > 0.0 && heights::usable(hf.default_height_m)) {
-        return Err(BuildError::Options(format!(
-            "storey height {} m / default height {} m out of range",
-            hf.storey_m, hf.default_height_m
-        )));
-    }
-    let mut report = CityReport {
-        crs: transform.describe(),
-        ..Default::default()
-    };
-    let buildings = repair_report::build_footprints(footprints, &transform, hf, &mut report);
-    let streets_out = match streets {
-        Some(l) => {
-            let t = frame::layer_transform(&transform, l, &mut report.notes)?;
-            layers::build_streets(l, &t, opts, &mut report)
-        }
-        None => Vec::new(),
-    };
-    let parcels_out = match parcels {
-        Some(l) => {
-            let t = frame::layer_transform(&transform, l, &mut report.notes)?;
-            layers::build_parcels(l, &t, &mut report)
-        }
-        None => Vec::new(),
-    };
     Ok(City {
         name: footprints.name.clone(),
         transform,
