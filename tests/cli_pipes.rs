@@ -179,3 +179,20 @@ fn commands_over_blocks_refuse_the_scene_graph_of_pages() {
         assert!(!err.contains("panicked"), "{args:?}: {err}");
     }
 }
+
+#[test]
+fn an_error_that_shows_its_cause_shows_it_once() {
+    let input = data("bubenec/buildings.shp");
+    let o = run(&[
+        "walk",
+        input.to_str().unwrap(),
+        "--route",
+        "no/such/route.json",
+        "--frames",
+        "2",
+    ]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success());
+    assert!(err.contains("route.json"), "{err}");
+    assert_eq!(err.matches("(os error 2)").count(), 1, "{err}");
+}
