@@ -163,7 +163,12 @@ impl GpuFrameRenderer {
             (None, None) => None,
             (None, Some(&index)) => return Err(RenderError::NoSuchMap { index, maps: 0 }),
         };
-        let meshes = self.renderer.draw(&self.gpu, camera, visible)?;
+        // The far pass reads the composite back: the mesh image alone is not needed then.
+        let meshes = if far_renderer.is_some() && read.color {
+            self.renderer.draw_in_place(&self.gpu, camera, visible)?
+        } else {
+            self.renderer.draw(&self.gpu, camera, visible)?
+        };
         let o = self.renderer.options();
         let Some(fr) = far_renderer else {
             return Ok(HybridFrame {

@@ -595,6 +595,30 @@ impl MeshRenderer {
         visible: &[BlockId],
         shading: Shading,
     ) -> Result<Frame, RenderError> {
+        self.render(gpu, camera, visible, shading, true)
+    }
+
+    /// As [`Self::draw`], but the image stays in [`Self::color_texture`] and
+    /// [`Self::depth_texture`] (the returned frame's `rgba` is empty; the GPU has finished when
+    /// it returns): for a pass that draws on top of it and reads the result back itself, such as
+    /// the far field's.
+    pub fn draw_in_place(
+        &self,
+        gpu: &Gpu,
+        camera: &Camera,
+        visible: &[BlockId],
+    ) -> Result<Frame, RenderError> {
+        self.render(gpu, camera, visible, Shading::Lit, false)
+    }
+
+    fn render(
+        &self,
+        gpu: &Gpu,
+        camera: &Camera,
+        visible: &[BlockId],
+        shading: Shading,
+        read: bool,
+    ) -> Result<Frame, RenderError> {
         let start = Instant::now();
         let m = crate::city::LocalFrame::round_matrix_to_f32(camera.clip_from_world());
         // appearance::shade: the sun and the ambient term.
@@ -676,6 +700,27 @@ impl MeshRenderer {
         }
         if let Some(t) = &self.queries {
             t.resolve(&mut encoder);
+        }
+        if !read {
+            gpu.queue.submit([encoder.finish()]);
+            gpu.device
+                .poll(wgpu::PollType::wait_indefinitely())
+                .map_err(|source| RenderError::Poll {
+                    what: Readback::Frame,
+                    source,
+                })?;
+            let gpu_s = self.queries.as_ref().map(|t| t.seconds(gpu)).transpose()?;
+            return Ok(Frame {
+                width: self.options.width,
+                height: self.options.height,
+                rgba: Vec::new(),
+                timings: FrameTimings {
+                    gpu_s,
+                    wall_s: start.elapsed().as_secs_f64(),
+                    blocks,
+                    triangles,
+                },
+            });
         }
         encoder.copy_texture_to_buffer(
             wgpu::TexelCopyTextureInfo {

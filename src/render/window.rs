@@ -539,11 +539,18 @@ impl App {
         let Some(state) = self.state.as_ref() else {
             return Ok(());
         };
-        let mut frame = state
-            .renderer
-            .draw(&state.gpu, &self.camera, &self.visible)?;
+        let far_pass = state.far.as_ref().filter(|_| !self.far.is_empty());
+        // With maps to draw, the far pass reads the composite back, not the mesh pass.
+        let mut frame = match far_pass {
+            Some(_) => state
+                .renderer
+                .draw_in_place(&state.gpu, &self.camera, &self.visible)?,
+            None => state
+                .renderer
+                .draw(&state.gpu, &self.camera, &self.visible)?,
+        };
         let mut far_pixels = 0;
-        if let (Some(far), false) = (&state.far, self.far.is_empty()) {
+        if let Some(far) = far_pass {
             let pass = far.draw(
                 &state.gpu,
                 &self.camera,
