@@ -240,6 +240,8 @@ pub struct BuildOptions {
     /// Store a footprint edge (half-plane) in each texel a footprint edge crosses (see the
     /// module doc); off builds whole-texel columns only.
     pub edges: bool,
+    /// How the maps of inner quadtree nodes are built (a tree option: single maps ignore it).
+    pub parents: super::children::Parents,
 }
 
 impl Default for BuildOptions {
@@ -252,6 +254,7 @@ impl Default for BuildOptions {
             ao: false,
             ao_radius_m: 30.0,
             edges: true,
+            parents: super::children::Parents::Polygons,
         }
     }
 }
@@ -279,6 +282,8 @@ pub struct BuildStats {
     /// Of those, texels filled only because a footprint overlaps them (the sampling left them
     /// empty).
     pub edge_filled_texels: usize,
+    /// For a map built from its children's maps, what the resample counted.
+    pub from_children: Option<super::children::ResampleStats>,
 }
 
 /// Builds the BlockMap of `buildings` (indices into `source.buildings`) over the square that
@@ -877,7 +882,7 @@ fn scan<'b>(
 /// Exposed texels of rows `[r0, r1)` in unfolding order: start at the first unvisited exposed
 /// texel in row-major order, then keep stepping to an unvisited exposed 4-neighbour, else
 /// 8-neighbour (fixed order), so a building's boundary is followed around.
-fn unfold(exposed: &[u8], k: usize, r0: usize, r1: usize) -> Vec<usize> {
+pub(crate) fn unfold(exposed: &[u8], k: usize, r0: usize, r1: usize) -> Vec<usize> {
     let mut visited = vec![false; k * k];
     let mut out = Vec::new();
     const NB: [(i64, i64); 8] = [

@@ -14,6 +14,8 @@
 //! - [`cast`]: the reference caster (2D Amanatides–Woo walk, seed 002 §4.2.2) in f32 as the
 //!   shader runs it, with an f64 twin that names ties; optional distance-map leaps.
 //! - [`tree`]: maps for the BqR-tree's nodes (whole blocks per node).
+//! - [`children`]: the option of building inner nodes' maps from their children's maps
+//!   (conservative max filter), with a derived and measured ε.
 //! - [`select`]: which nodes a frame draws as maps and which blocks as meshes (seed 000 §4–5).
 //! - [`compare`]: ray-cast image against the oracle's mesh image: coverage error, the projected
 //!   bound at silhouettes, 3D point error, colour PSNR.
@@ -25,6 +27,7 @@
 pub mod ao;
 pub mod build;
 pub mod cast;
+pub mod children;
 pub mod colors;
 pub mod compare;
 pub mod error;
@@ -34,6 +37,7 @@ pub mod select;
 pub mod tree;
 
 pub use build::{build_map, BuildOptions, BuildStats, Source};
+pub use children::{build_from_children, Parents, ResampleStats};
 pub use cast::{cast_f32, cast_f64, Cast, CastOptions, Face, Hit, TexRay};
 pub use error::{measure, ErrorReport, ThinFeature, ThinKind};
 pub use image::{cast_image, CpuHybridRenderer, FrameRays, MapImage, MapXform};

@@ -147,6 +147,9 @@ pub fn build_tree(
     opts: &TreeOptions,
     progress: &(dyn Fn(usize, usize) + Sync),
 ) -> Result<MapTree, BlockMapError> {
+    if opts.build.parents == super::children::Parents::Children {
+        return super::children::build_tree_from_children(source, layout, tree, opts, progress);
+    }
     let sel = select_nodes(tree, opts.build.k, opts.stop);
     let total = sel.len();
     let done = AtomicUsize::new(0);
