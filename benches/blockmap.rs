@@ -3,13 +3,19 @@
 //! and of Astana from `../shared/data/astana` when it is there; each without and with ambient
 //! occlusion, and the distance-map leap against the plain grid walk.
 //!
+//! Group `parents` (`cargo bench --bench blockmap -- parents` runs it alone): the whole tree's
+//! build time with inner nodes built from the polygons and from their children's maps
+//! (`blockmap::children`), on Helsinki, the 20,000-building generated city of seed 7 and Astana,
+//! with ε (declared, measured, derived) and the coverage error of one random view per map.
+//!
 //! `cargo bench --bench blockmap` (release). Prints maps, bytes (96 KiB per map at K = 64), MiB
 //! per km² of the city's box, build seconds (construction + error measurement), ε, the AO cost
 //! and effect, and the leap's steps and time per ray.
 
 use blockwalk::blockmap::cast::{cast_f32, CastOptions, Hit};
+use blockwalk::blockmap::compare::{compare_view, random_views};
 use blockwalk::blockmap::compare::{pixel_ray, view_at};
-use blockwalk::blockmap::{build_tree, BuildOptions, MapTree, Source, Stop, TreeOptions};
+use blockwalk::blockmap::{build_tree, BuildOptions, MapTree, Parents, Source, Stop, TreeOptions};
 use blockwalk::blocks::{detect, BlockOptions};
 use blockwalk::city::build::{build_city, BuildOptions as CityOptions};
 use blockwalk::city::extrude::extrude_city;
@@ -20,6 +26,9 @@ use std::path::PathBuf;
 use std::time::Instant;
 
 fn run(name: &str, fp: &Layer, st: Option<&Layer>) {
+    if std::env::args().any(|a| a == "parents") {
+        return parents(name, fp, st);
+    }
     let city = build_city(fp, st, None, &CityOptions::default()).expect("city");
     let layout = detect(&city, &BlockOptions::default()).expect("blocks");
     let meshes = extrude_city(&city);
@@ -86,6 +95,82 @@ fn run(name: &str, fp: &Layer, st: Option<&Layer>) {
             );
         }
     }
+}
+
+/// The whole tree (competitive stop, K = 64) built both ways: seconds (construction and error
+/// measurement, plus the resampling distances for children), ε, and the coverage error of one
+/// random view per map (160×90; the same camera for both, placed by the polygon map's ε).
+fn parents(name: &str, fp: &Layer, st: Option<&Layer>) {
+    let city = build_city(fp, st, None, &CityOptions::default()).expect("city");
+    let layout = detect(&city, &BlockOptions::default()).expect("blocks");
+    let meshes = extrude_city(&city);
+    let bounds = block_bounds(&city, &layout);
+    let tree = BqrTree::build(&bounds, &BqrParams::default()).expect("bqr");
+    let source = Source::new(&city, &layout, &meshes).expect("source");
+    let mut trees = Vec::new();
+    for parents in [Parents::Polygons, Parents::Children] {
+        let t = Instant::now();
+        let maps = build_tree(
+            &source,
+            &layout,
+            &tree,
+            &TreeOptions {
+                build: BuildOptions {
+                    parents,
+                    ..BuildOptions::default()
+                },
+                stop: Stop::Competitive,
+            },
+            &|_, _| {},
+        )
+        .expect("maps");
+        let s = t.elapsed().as_secs_f64();
+        let slots: std::collections::HashSet<usize> =
+            maps.maps.iter().filter_map(|m| m.parent).collect();
+        let inner: Vec<_> = maps
+            .maps
+            .iter()
+            .enumerate()
+            .filter(|(i, _)| slots.contains(i))
+            .map(|(_, m)| m)
+            .collect();
+        let fmax = |v: &mut dyn Iterator<Item = f64>| v.fold(0.0, f64::max);
+        println!(
+            "{name}: parents from {parents:?}: {} maps ({} inner), tree built in {s:.2} s; inner ε declared max {:.2} m, measured max {:.2} m, derived max {:.2} m, {} measured above derived",
+            maps.maps.len(),
+            inner.len(),
+            fmax(&mut inner.iter().map(|m| m.map.meta.eps_m)),
+            fmax(&mut inner.iter().map(|m| m.error.measured_m)),
+            fmax(&mut maps.maps.iter().filter_map(|m| m.stats.from_children.as_ref()).map(|r| r.derived_eps_m)),
+            maps.maps.iter().filter_map(|m| m.stats.from_children.as_ref()).filter(|r| r.measured_over_derived).count(),
+        );
+        trees.push(maps);
+    }
+    let (poly, kids) = (&trees[0], &trees[1]);
+    let mut cov = [Vec::new(), Vec::new()];
+    for (q, (p, c)) in poly.maps.iter().zip(&kids.maps).enumerate() {
+        if c.stats.from_children.is_none() {
+            continue;
+        }
+        let cam = random_views(&p.map, 1, q as u64, 90)[0];
+        cov[0].push(compare_view(&p.map, &source, &p.buildings, &cam, 160, 90).coverage_error);
+        cov[1].push(compare_view(&c.map, &source, &c.buildings, &cam, 160, 90).coverage_error);
+    }
+    let stat = |v: &[f64]| {
+        (
+            v.iter().sum::<f64>() / v.len().max(1) as f64,
+            v.iter().copied().fold(0.0, f64::max),
+        )
+    };
+    let ((pm, px), (cm, cx)) = (stat(&cov[0]), stat(&cov[1]));
+    println!(
+        "{name}: coverage error of one view per inner map ({} maps, same camera): polygons mean {:.4} max {:.4}, children mean {:.4} max {:.4}",
+        cov[0].len(),
+        pm,
+        px,
+        cm,
+        cx
+    );
 }
 
 /// The distance-map leap (seed 000 §3.2) against the plain grid walk (seed 002 §4.2.2): the
@@ -168,18 +253,24 @@ fn leap_figures(name: &str, maps: &MapTree) {
 
 fn main() {
     let root = PathBuf::from(env!("CARGO_MANIFEST_DIR"));
-    // 80,000 generated buildings.
+    let (n, seed, name) = if std::env::args().any(|a| a == "parents") {
+        // The 20,000-building city of seed 7 (as `blockwalk generate` writes it).
+        (20_000, 7, "generated 20k seed 7")
+    } else {
+        // 80,000 generated buildings.
+        (80_000, 1, "generated 80k")
+    };
     let dir = tempfile::tempdir().expect("tempdir");
     let gen = generate_city(&GenerateParams {
-        buildings: 80_000,
-        seed: 1,
+        buildings: n,
+        seed,
         ..Default::default()
     })
     .expect("generate");
     write_city(&gen, dir.path()).expect("write");
     let fp = read_layer(&dir.path().join("buildings.shp"), &Theme::Buildings).expect("read");
     let st = read_layer(&dir.path().join("streets.shp"), &Theme::Streets).ok();
-    run("generated 80k", &fp, st.as_ref());
+    run(name, &fp, st.as_ref());
     // Helsinki.
     let h = root.join("data/helsinki");
     let fp = read_layer(&h.join("buildings.shp"), &Theme::Buildings).expect("helsinki");

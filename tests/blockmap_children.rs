@@ -344,3 +344,42 @@ fn children_maps_are_deterministic() {
     }
     let _ = DVec3::ZERO;
 }
+
+#[test]
+fn the_blockmaps_command_builds_parents_from_children() {
+    let out = tempfile::tempdir().unwrap();
+    let run = |parents: &str| {
+        std::process::Command::new(env!("CARGO_BIN_EXE_blockwalk"))
+            .args(["blockmaps"])
+            .arg(data("helsinki/buildings.shp"))
+            .arg("--streets")
+            .arg(data("helsinki/streets_blockclass.shp"))
+            .args(["--parents", parents, "--check", "100", "--json", "-o"])
+            .arg(out.path())
+            .output()
+            .expect("run blockwalk")
+    };
+    let o = run("children");
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let s: serde_json::Value = serde_json::from_slice(&o.stdout).expect("one JSON object");
+    assert!(s["parents_from_children"].as_u64().unwrap() > 0, "{s}");
+    assert_eq!(s["measured_over_derived"], 0, "{s}");
+    assert!(s["eps_derived_max"].as_f64().unwrap() > 0.0);
+    assert_eq!(s["bound_violations"], 0, "{s}");
+    eprintln!(
+        "Helsinki, parents from children, one view per map: coverage error max {}, mean {}",
+        s["coverage_error_max"], s["coverage_error_mean"]
+    );
+    let o = run("polygons");
+    assert!(o.status.success());
+    let s: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(s["parents_from_children"], 0);
+    eprintln!(
+        "Helsinki, parents from polygons, one view per map: coverage error max {}, mean {}",
+        s["coverage_error_max"], s["coverage_error_mean"]
+    );
+    let o = run("kids");
+    assert!(!o.status.success());
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(err.contains("kids") && err.contains("children"), "{err}");
+}

@@ -399,7 +399,14 @@ pub fn build_from_children(
     let orders = loop {
         let rows = opts.k / slices;
         let orders: Vec<Vec<usize>> = (0..slices)
-            .map(|sl| unfold(&exposed, k, (sl * rows) as usize, ((sl + 1) * rows) as usize))
+            .map(|sl| {
+                unfold(
+                    &exposed,
+                    k,
+                    (sl * rows) as usize,
+                    ((sl + 1) * rows) as usize,
+                )
+            })
             .collect();
         let worst = orders.iter().map(Vec::len).max().unwrap_or(0);
         if worst <= 255 || rows / 2 < opts.min_slice_rows {

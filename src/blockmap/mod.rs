@@ -37,8 +37,8 @@ pub mod select;
 pub mod tree;
 
 pub use build::{build_map, BuildOptions, BuildStats, Source};
-pub use children::{build_from_children, Parents, ResampleStats};
 pub use cast::{cast_f32, cast_f64, Cast, CastOptions, Face, Hit, TexRay};
+pub use children::{build_from_children, Parents, ResampleStats};
 pub use error::{measure, ErrorReport, ThinFeature, ThinKind};
 pub use image::{cast_image, CpuHybridRenderer, FrameRays, MapImage, MapXform};
 pub use layout::{BlockMap, BlockMapMeta, Edge};

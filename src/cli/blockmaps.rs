@@ -47,6 +47,11 @@ pub struct Args {
     /// How far ambient occlusion looks for occluders, metres.
     #[arg(long, default_value_t = 30.0)]
     pub ao_radius: f64,
+    /// How inner nodes' maps are built: `polygons` (from the source footprints, as every leaf)
+    /// or `children` (from their children's maps, max-filtered, with a derived ε that is also
+    /// measured against the footprints).
+    #[arg(long, default_value = "polygons", value_parser = ["polygons", "children"])]
+    pub parents: String,
     /// Print one JSON object instead of the human summary.
     #[arg(long)]
     pub json: bool,
@@ -84,6 +89,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 ao_radius_m: args.ao_radius,
                 fill_samples: args.fill_samples,
                 fill_share: args.fill_share,
+                parents: args.parents.parse()?,
                 ..BuildOptions::default()
             },
             stop,
@@ -155,6 +161,14 @@ fn print_summary(s: &serde_json::Value, path: &std::path::Path) -> anyhow::Resul
         s["area_km2"].as_f64().unwrap_or(0.0),
         s["build_s"].as_f64().unwrap_or(0.0)
     );
+    let from_children = s["parents_from_children"].as_u64().unwrap_or(0);
+    if from_children > 0 {
+        outln!(
+            "{from_children} parents built from their children's maps: derived ε max {:.2} m, {} measured above their derived ε",
+            s["eps_derived_max"].as_f64().unwrap_or(0.0),
+            s["measured_over_derived"]
+        );
+    }
     outln!("| level | maps | texel m | ½ voxel diag m | ε measured m | ε declared m | exposed | shared cols | slices | thin |");
     outln!("|---|---|---|---|---|---|---|---|---|---|");
     for l in s["levels"].as_array().into_iter().flatten() {
