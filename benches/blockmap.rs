@@ -13,9 +13,13 @@
 //! and effect, and the leap's steps and time per ray.
 
 use blockwalk::blockmap::cast::{cast_f32, CastOptions, Hit};
+use blockwalk::blockmap::children::{node_square, resample_distances};
 use blockwalk::blockmap::compare::{compare_view, random_views};
 use blockwalk::blockmap::compare::{pixel_ray, view_at};
-use blockwalk::blockmap::{build_tree, BuildOptions, MapTree, Parents, Source, Stop, TreeOptions};
+use blockwalk::blockmap::{
+    build_from_children, build_map, build_tree, measure, BlockMap, BuildOptions, MapTree, Parents,
+    Source, Stop, TreeOptions,
+};
 use blockwalk::blocks::{detect, BlockOptions};
 use blockwalk::city::build::{build_city, BuildOptions as CityOptions};
 use blockwalk::city::extrude::extrude_city;
@@ -147,6 +151,43 @@ fn parents(name: &str, fp: &Layer, st: Option<&Layer>) {
         trees.push(maps);
     }
     let (poly, kids) = (&trees[0], &trees[1]);
+    // Where the time goes, per inner map, one at a time: polygon construction and its
+    // measurement against the resample from the kept children's maps (kids without a map, built
+    // from the polygons first in the tree, left out here), the resampling distances and the
+    // measurement of the result.
+    let mut t = [0.0f64; 5];
+    let opts = BuildOptions::default();
+    for (q, c) in kids.maps.iter().enumerate() {
+        if c.stats.from_children.is_none() {
+            continue;
+        }
+        let clock = Instant::now();
+        let (pm, kept, _) = build_map(&source, &c.buildings, &opts).expect("map");
+        t[0] += clock.elapsed().as_secs_f64();
+        let clock = Instant::now();
+        std::hint::black_box(measure(&pm, &source, &kept));
+        t[1] += clock.elapsed().as_secs_f64();
+        let under: Vec<&BlockMap> = kids
+            .maps
+            .iter()
+            .filter(|m| m.parent == Some(q))
+            .map(|m| &m.map)
+            .collect();
+        let (min, side, zmax) = node_square(&source, &c.buildings).expect("square");
+        let clock = Instant::now();
+        let (cm, _) = build_from_children(&under, min, side, zmax, &opts).expect("resample");
+        t[2] += clock.elapsed().as_secs_f64();
+        let clock = Instant::now();
+        std::hint::black_box(resample_distances(&cm, &under));
+        t[3] += clock.elapsed().as_secs_f64();
+        let clock = Instant::now();
+        std::hint::black_box(measure(&cm, &source, &c.buildings));
+        t[4] += clock.elapsed().as_secs_f64();
+    }
+    println!(
+        "{name}: inner maps one at a time: polygons build {:.3} s + measure {:.3} s; children resample {:.3} s + resampling distances {:.3} s + measure {:.3} s",
+        t[0], t[1], t[2], t[3], t[4]
+    );
     let mut cov = [Vec::new(), Vec::new()];
     for (q, (p, c)) in poly.maps.iter().zip(&kids.maps).enumerate() {
         if c.stats.from_children.is_none() {

@@ -561,41 +561,71 @@ fn surface_samples(m: &BlockMap, lo: DVec2, hi: DVec2) -> Vec<DVec3> {
 pub fn resample_distances(parent: &BlockMap, children: &[&BlockMap]) -> (f64, f64) {
     let lo = DVec2::new(parent.meta.min[0], parent.meta.min[1]);
     let hi = lo + DVec2::splat(parent.meta.side);
+    let union_top = |xy: DVec2| {
+        children
+            .iter()
+            .map(|c| column_height(c, xy))
+            .fold(0.0, f64::max)
+    };
     // Parent → union: the parent holds the union, so its surface points are on or outside it
     // and the distance to the union is the least distance to any child's solid (≤ z: below the
     // ground everything is solid).
-    let to: f64 = surface_samples(parent, lo, hi)
-        .par_iter()
-        .map(|p| {
+    let to = max_pruned(
+        surface_samples(parent, lo, hi)
+            .into_iter()
+            .map(|p| (p, (union_top(p.truncate()) - p.z).abs()))
+            .collect(),
+        &|p| {
             let mut d = p.z.max(0.0);
             for c in children {
                 let cl = DVec2::new(c.meta.min[0], c.meta.min[1]);
                 let ch = cl + DVec2::splat(c.meta.side);
                 let gap = (cl - p.truncate()).max(p.truncate() - ch).max(DVec2::ZERO);
                 if gap.length() < d {
-                    d = d.min(map_surface_distance(c, *p));
+                    d = d.min(map_surface_distance(c, p));
                 }
             }
             d
-        })
-        .reduce(|| 0.0, f64::max);
-    let from: f64 = children
-        .par_iter()
-        .enumerate()
-        .map(|(ci, c)| {
+        },
+    );
+    let mut samples = Vec::new();
+    for (ci, c) in children.iter().enumerate() {
+        samples.extend(
             surface_samples(c, lo, hi)
-                .iter()
+                .into_iter()
                 .filter(|p| {
                     children
                         .iter()
                         .enumerate()
                         .all(|(o, other)| o == ci || column_height(other, p.truncate()) <= p.z)
                 })
-                .map(|p| map_surface_distance(parent, *p))
-                .fold(0.0, f64::max)
-        })
-        .reduce(|| 0.0, f64::max);
+                .map(|p| (p, (column_height(parent, p.truncate()) - p.z).abs())),
+        );
+    }
+    let from = max_pruned(samples, &|p| map_surface_distance(parent, p));
     (to, from)
+}
+
+/// `max` over `points` of `min(bound, exact(point))`, where each point's `bound` is an upper
+/// bound of its distance (the vertical distance to the other surface's top over the same xy,
+/// a point of that surface): points are taken by decreasing bound, and the exact distance is
+/// computed only while a bound exceeds the running maximum (the result is the same as with
+/// every point computed).
+fn max_pruned(mut points: Vec<(DVec3, f64)>, exact: &(dyn Fn(DVec3) -> f64 + Sync)) -> f64 {
+    points.sort_by(|a, b| b.1.total_cmp(&a.1));
+    let mut best: f64 = 0.0;
+    for chunk in points.chunks(256) {
+        if chunk[0].1 <= best {
+            break;
+        }
+        let m = chunk
+            .par_iter()
+            .filter(|q| q.1 > best)
+            .map(|q| exact(q.0).min(q.1))
+            .reduce(|| 0.0, f64::max);
+        best = best.max(m);
+    }
+    best
 }
 
 /// The sampled directed distance from `a`'s surface to `b`'s (both with the ground), metres,
@@ -605,10 +635,13 @@ pub fn resample_distances(parent: &BlockMap, children: &[&BlockMap]) -> (f64, f6
 pub fn directed_distance(a: &BlockMap, b: &BlockMap) -> f64 {
     let lo = DVec2::new(a.meta.min[0], a.meta.min[1]);
     let hi = lo + DVec2::splat(a.meta.side);
-    surface_samples(a, lo, hi)
-        .par_iter()
-        .map(|p| map_surface_distance(b, *p))
-        .reduce(|| 0.0, f64::max)
+    max_pruned(
+        surface_samples(a, lo, hi)
+            .into_iter()
+            .map(|p| (p, (column_height(b, p.truncate()) - p.z).abs()))
+            .collect(),
+        &|p| map_surface_distance(b, p),
+    )
 }
 
 /// The square [`build_map`] puts around `buildings` (indices into `source.buildings`): lower
