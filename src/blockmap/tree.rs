@@ -3,7 +3,9 @@
 //! no building is ever cut and a node switches between meshes and its map with disjoint block
 //! sets. Every map is built from the source prisms, not from its children (seed 002 §4.3.1 builds
 //! internal nodes from the children because its data is out of core; ours fits in memory, and
-//! this gives each node its own measured bound with no error accumulation).
+//! this gives each node its own measured bound with no error accumulation). Building inner
+//! nodes from their children's maps is the option [`super::children`]
+//! (`BuildOptions::parents`).
 
 use super::build::{build_map, BuildOptions, BuildStats, Source};
 use super::error::{measure, ErrorReport};
