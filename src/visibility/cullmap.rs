@@ -481,8 +481,8 @@ impl CullMap {
             let hi = a1.min(b1).min(xs[r1]);
             // Two boundaries in [lo, hi] are a cell apart (give or take a rounding far below
             // half a cell): a narrower interval holds no cell. Most rows of the long, thin
-            // wedges end here.
-            if !(hi - lo >= half) {
+            // wedges end here. (lo and hi are finite: maxima and minima with the table's boundaries.)
+            if hi - lo < half {
                 continue;
             }
             let Some((i0, i1)) = columns_in(xs, g.origin.x, inv, lo, hi) else {
