@@ -433,7 +433,8 @@ impl CullMap {
     /// are visited; per row the covered columns are the intersection of the shadow's x-intervals
     /// on the row's two boundary lines (a cell lies in a convex region iff its four corners do),
     /// and the plane's minimum over a cell is at its left or right column boundary according to
-    /// the sign of the x slope, the same for the whole shadow.
+    /// the sign of the x slope, the same for the whole shadow. A row whose interval, cut to the
+    /// window, is narrower than half a cell is dropped before any column search.
     pub fn draw(&mut self, s: &OccluderShadow) -> u64 {
         let g = self.grid;
         let w = self.window;
@@ -481,7 +482,7 @@ impl CullMap {
             let hi = a1.min(b1).min(xs[r1]);
             // Two boundaries in [lo, hi] are a cell apart (give or take a rounding far below
             // half a cell): a narrower interval holds no cell. Most rows of the long, thin
-            // wedges end here. (lo and hi are finite: maxima and minima with the table's boundaries.)
+            // wedges end here. (lo and hi are finite: taken with the table's boundaries.)
             if hi - lo < half {
                 continue;
             }
