@@ -215,6 +215,11 @@ pub struct CullMap {
     dirty: CellRect,
     /// Bounding box of the cells above −∞ in the pyramid's levels.
     built: CellRect,
+    /// The column boundaries `x(0..=nx)`, exactly [`Grid::x`] (no int → float conversion per
+    /// cell or per row).
+    xs: Vec<f64>,
+    /// Scratch outlines for [`region_y_range`] (no allocation per shadow).
+    clip: (Vec<DVec2>, Vec<DVec2>),
 }
 
 /// A half-open rectangle of cells `[i0, i1) × [j0, j1)`; empty when `i0 >= i1` or `j0 >= j1`.
@@ -272,15 +277,21 @@ impl CellRect {
 }
 
 /// The y-range of the shadow's region (without margin) clipped to the box `[min, max]`, by
-/// clipping the box's outline with each half-plane; `None` when nothing is left.
-fn region_y_range(s: &OccluderShadow, min: DVec2, max: DVec2) -> Option<(f64, f64)> {
-    let mut poly: Vec<DVec2> = vec![min, DVec2::new(max.x, min.y), max, DVec2::new(min.x, max.y)];
-    let mut next = Vec::with_capacity(8);
+/// clipping the box's outline with each half-plane (in the scratch outlines `poly` and `next`);
+/// `None` when nothing is left.
+fn region_y_range(
+    s: &OccluderShadow,
+    min: DVec2,
+    max: DVec2,
+    (poly, next): &mut (Vec<DVec2>, Vec<DVec2>),
+) -> Option<(f64, f64)> {
+    poly.clear();
+    poly.extend([min, DVec2::new(max.x, min.y), max, DVec2::new(min.x, max.y)]);
     for h in &s.region {
         if h.c == f64::INFINITY {
             continue;
         }
-        clip_polygon(&mut poly, &mut next, |p| h.eval(p));
+        clip_polygon(poly, next, |p| h.eval(p));
         if poly.is_empty() {
             return None;
         }
@@ -291,6 +302,31 @@ fn region_y_range(s: &OccluderShadow, min: DVec2, max: DVec2) -> Option<(f64, f6
             (a.min(p.y), b.max(p.y))
         });
     (lo <= hi).then_some((lo, hi))
+}
+
+/// The cell columns `[i0, i1)` whose both boundaries lie in `[lo, hi]`, from the table `xs` of
+/// column boundaries (increasing, `nx + 1` of them; `inv` is one over the cell size): the same
+/// answer as [`Grid::columns_within`] (the smallest boundary ≥ `lo`, the largest ≤ `hi`). The
+/// first guess truncates instead of calling `ceil`/`floor`; the table lookups correct it.
+#[inline]
+fn columns_in(xs: &[f64], ox: f64, inv: f64, lo: f64, hi: f64) -> Option<(usize, usize)> {
+    let n = xs.len() - 1;
+    let guess = |v: f64| ((v - ox) * inv).clamp(0.0, n as f64) as usize;
+    let mut i0 = guess(lo);
+    while i0 > 0 && xs[i0 - 1] >= lo {
+        i0 -= 1;
+    }
+    while i0 <= n && xs[i0] < lo {
+        i0 += 1;
+    }
+    let mut i1 = guess(hi);
+    while i1 < n && xs[i1 + 1] <= hi {
+        i1 += 1;
+    }
+    while i1 > 0 && xs[i1] > hi {
+        i1 -= 1;
+    }
+    (i1 > i0 && xs[i1] <= hi).then_some((i0, i1))
 }
 
 impl CullMap {
@@ -309,6 +345,8 @@ impl CullMap {
             row_window: vec![(0, grid.nx); grid.ny],
             dirty: CellRect::full(&grid),
             built: CellRect::full(&grid),
+            xs: (0..=grid.nx).map(|i| grid.x(i)).collect(),
+            clip: (Vec::with_capacity(8), Vec::with_capacity(8)),
         })
     }
 
@@ -395,7 +433,8 @@ impl CullMap {
     /// are visited; per row the covered columns are the intersection of the shadow's x-intervals
     /// on the row's two boundary lines (a cell lies in a convex region iff its four corners do),
     /// and the plane's minimum over a cell is at its left or right column boundary according to
-    /// the sign of the x slope, the same for the whole shadow.
+    /// the sign of the x slope, the same for the whole shadow. A row whose interval, cut to the
+    /// window, is narrower than half a cell is dropped before any column search.
     pub fn draw(&mut self, s: &OccluderShadow) -> u64 {
         let g = self.grid;
         let w = self.window;
@@ -408,6 +447,7 @@ impl CullMap {
             s,
             DVec2::new(g.x(w.i0), g.y(w.j0)),
             DVec2::new(g.x(w.i1), g.y(w.j1)),
+            &mut self.clip,
         ) else {
             return 0;
         };
@@ -419,32 +459,44 @@ impl CullMap {
         let right = (p.zx < 0.0) as usize;
         let mut covered = 0u64;
         let rb = s.row_bounds(self.margin);
-        let mut prev = rb.interval(g.y(j0), x_lo, x_hi);
+        let (inv, half) = (1.0 / g.cell, 0.5 * g.cell);
+        let xs = &self.xs[..];
+        let mut y_next = g.y(j0);
+        let mut prev = rb.interval(y_next, x_lo, x_hi);
         for j in j0..j1 {
-            let next = rb.interval(g.y(j + 1), x_lo, x_hi);
-            if let (Some((a0, a1)), Some((b0, b1))) = (prev, next) {
-                let lo = a0.max(b0);
-                let hi = a1.min(b1);
-                if lo < hi {
-                    if let Some((i0, i1)) = g.columns_within(lo, hi) {
-                        let (r0, r1) = self.row_window[j];
-                        let (i0, i1) = (i0.max(r0), i1.min(r1));
-                        if i0 < i1 {
-                            let (y0, y1) = (g.y(j), g.y(j + 1));
-                            let zy = (p.zy * y0).min(p.zy * y1);
-                            let base = p.z0 + zy - self.height_margin;
-                            let row = &mut self.values[j * g.nx..(j + 1) * g.nx];
-                            for (i, cell) in row.iter_mut().enumerate().take(i1).skip(i0) {
-                                let z = base + p.zx * g.x(i + right);
-                                *cell = cell.max(stored_height(z));
-                            }
-                            covered += (i1 - i0) as u64;
-                            self.dirty.include(i0, i1, j);
-                        }
-                    }
-                }
-            }
+            let y_prev = y_next;
+            y_next = g.y(j + 1);
+            let next = rb.interval(y_next, x_lo, x_hi);
+            let (Some((a0, a1)), Some((b0, b1))) = (prev, next) else {
+                prev = next;
+                continue;
+            };
             prev = next;
+            let (r0, r1) = self.row_window[j];
+            if r0 >= r1 {
+                continue;
+            }
+            // The row's interval cut to the window's columns: the smallest boundary ≥ lo is
+            // then at least r0 and the largest ≤ hi at most r1 (the boundaries increase).
+            let lo = a0.max(b0).max(xs[r0]);
+            let hi = a1.min(b1).min(xs[r1]);
+            // Two boundaries in [lo, hi] are a cell apart (give or take a rounding far below
+            // half a cell): a narrower interval holds no cell. Most rows of the long, thin
+            // wedges end here. (lo and hi are finite: taken with the table's boundaries.)
+            if hi - lo < half {
+                continue;
+            }
+            let Some((i0, i1)) = columns_in(xs, g.origin.x, inv, lo, hi) else {
+                continue;
+            };
+            let zy = (p.zy * y_prev).min(p.zy * y_next);
+            let base = p.z0 + zy - self.height_margin;
+            let row = &mut self.values[j * g.nx + i0..j * g.nx + i1];
+            for (cell, &x) in row.iter_mut().zip(&xs[i0 + right..i1 + right]) {
+                *cell = cell.max(stored_height(base + p.zx * x));
+            }
+            covered += (i1 - i0) as u64;
+            self.dirty.include(i0, i1, j);
         }
         covered
     }
@@ -1022,6 +1074,45 @@ mod tests {
             }
         }
         assert!(inside > 0 && outside > 0, "{inside} {outside}");
+    }
+
+    /// The table lookup gives the same columns as the grid's own search, over random
+    /// intervals, intervals ending on boundaries, and intervals narrower than a cell.
+    #[test]
+    fn columns_in_equals_columns_within() {
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(17);
+        let mut found = 0;
+        for n in [1u32, 7, 64, 257] {
+            let m = CullMap::new(
+                DVec2::new(512_345.6, -80.0),
+                DVec2::new(514_000.1, 900.0),
+                Resolution::Cells(n),
+            )
+            .unwrap();
+            let g = *m.grid();
+            let (lo_x, hi_x) = (g.x(0), g.x(g.nx));
+            for k in 0..4000 {
+                let (mut lo, mut hi) = (rng.random_range(lo_x..hi_x), rng.random_range(lo_x..hi_x));
+                if k % 3 == 0 {
+                    lo = g.x(rng.random_range(0..=g.nx));
+                }
+                if k % 5 == 0 {
+                    hi = g.x(rng.random_range(0..=g.nx));
+                }
+                if k % 7 == 0 {
+                    hi = lo + rng.random_range(0.0..1.5) * g.cell;
+                }
+                let (lo, hi) = (lo.max(lo_x), hi.min(hi_x));
+                let want = g.columns_within(lo, hi);
+                found += want.is_some() as usize;
+                assert_eq!(
+                    columns_in(&m.xs, g.origin.x, 1.0 / g.cell, lo, hi),
+                    want,
+                    "n {n}: [{lo}, {hi}]"
+                );
+            }
+        }
+        assert!(found > 1000, "vacuous: {found}");
     }
 
     #[test]
