@@ -41,7 +41,55 @@ pub fn convex_hull<P: Xy>(points: &[P]) -> Vec<P> {
     } {
         out.pop();
     }
-    out
+    drop_collinear(out)
+}
+
+/// Leaves out the vertices of a hull ring that lie on the segment between their neighbours
+/// (exact `orient2d`): QuickHull can keep such a vertex when several input points repeat or are
+/// collinear with a hull edge. When every vertex is collinear, the two extreme points remain.
+fn drop_collinear<P: Xy>(mut ring: Vec<P>) -> Vec<P> {
+    use super::predicates::{orient2d, Orientation};
+    if ring.len() < 3 {
+        return ring;
+    }
+    let all_collinear = ring
+        .iter()
+        .all(|&p| orient2d(ring[0], ring[1], p) == Orientation::Collinear);
+    if all_collinear {
+        let key = |p: &P| (p.x(), p.y());
+        let lo = *ring
+            .iter()
+            .min_by(|a, b| {
+                key(a)
+                    .partial_cmp(&key(b))
+                    .unwrap_or(std::cmp::Ordering::Equal)
+            })
+            .unwrap_or(&ring[0]);
+        let hi = *ring
+            .iter()
+            .max_by(|a, b| {
+                key(a)
+                    .partial_cmp(&key(b))
+                    .unwrap_or(std::cmp::Ordering::Equal)
+            })
+            .unwrap_or(&ring[0]);
+        return vec![lo, hi];
+    }
+    let mut k = 0;
+    let mut since_removal = 0;
+    while ring.len() >= 3 && since_removal < ring.len() {
+        let n = ring.len();
+        let (a, b, c) = (ring[(k + n - 1) % n], ring[k % n], ring[(k + 1) % n]);
+        if orient2d(a, b, c) == Orientation::Collinear {
+            ring.remove(k % n);
+            since_removal = 0;
+        } else {
+            k = (k + 1) % n;
+            since_removal += 1;
+        }
+        k %= ring.len().max(1);
+    }
+    ring
 }
 
 #[cfg(test)]
@@ -85,6 +133,41 @@ mod tests {
         let h = convex_hull(&[p, q, p, DVec2::new(4.0, 4.0)]);
         assert_eq!(h.len(), 2, "{h:?}");
         assert!(h.contains(&p) && h.contains(&q));
+    }
+
+    /// Repeated points and a point on a hull edge (a case QuickHull left a collinear vertex in):
+    /// the hull turns strictly left at every vertex.
+    #[test]
+    fn repeated_and_edge_points_leave_no_collinear_vertex() {
+        #[rustfmt::skip]
+        let raw = [
+            (0, 0), (0, 0), (0, 0), (0, 49), (13, 49), (0, 0), (0, 0), (0, 0), (0, 0), (0, 0),
+            (0, 0), (1, 49), (0, 0), (14, 45), (-1, 45),
+        ];
+        for off in [0.0, 5.0e6] {
+            let pts: Vec<DVec2> = raw
+                .iter()
+                .map(|&(x, y)| DVec2::new(x as f64 * 0.25 + off, y as f64 * 0.25 + off))
+                .collect();
+            let h = convex_hull(&pts);
+            let n = h.len();
+            assert!(n >= 3, "{h:?}");
+            for k in 0..n {
+                assert_eq!(
+                    orient2d(h[k], h[(k + 1) % n], h[(k + 2) % n]),
+                    Orientation::CounterClockwise,
+                    "{h:?}"
+                );
+            }
+        }
+        // Every point collinear: the two extremes, whatever the order.
+        let line: Vec<DVec2> = [3.0, -1.0, 7.0, 2.0, 7.0]
+            .iter()
+            .map(|&t| DVec2::new(t, 2.0 * t + 1.0))
+            .collect();
+        let h = convex_hull(&line);
+        assert_eq!(h.len(), 2, "{h:?}");
+        assert!(h.contains(&DVec2::new(-1.0, -1.0)) && h.contains(&DVec2::new(7.0, 15.0)));
     }
 
     #[test]
