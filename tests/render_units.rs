@@ -85,7 +85,7 @@ fn kept_buildings(scene: &Scene, cam: &Camera, occlusion: bool) -> (Vec<BlockId>
         let mut map = culler.new_map();
         let st = culler.build(cam, &mut map);
         let usable = st.skipped.is_none() && st.cells_covered > 0;
-        culler.traverse(index, cam, &mut map, st, &mut blocks);
+        culler.traverse(index, cam, &map, st, &mut blocks);
         units
             .buildings
             .refine(&frustum, usable.then_some(&map), &blocks, &mut kept);
