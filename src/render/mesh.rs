@@ -1,5 +1,12 @@
-//! The block mesh renderer: one vertex and index buffer for the whole city, one indexed draw
-//! per visible block.
+//! The block mesh renderer: one vertex and index buffer for the whole city, the units (blocks,
+//! pages, buildings: [`crate::scene::units`]) laid out in their input order, and one indexed
+//! draw per run of visible units that are neighbours in that order ([`Batching::Runs`]).
+//!
+//! Every vertex carries its unit's id and every index is absolute (no base vertex), so any
+//! contiguous range of the index buffer is one `draw_indexed`, whatever units it spans. The
+//! visible units are drawn in the order of the buffer; with one call per unit
+//! ([`Batching::PerUnit`]) the triangles reach the rasteriser in the same order, so both give the
+//! same image.
 
 use super::{padded_row_bytes, Gpu, PassTimer, Readback, RenderError};
 use crate::blocks::BlockId;
@@ -15,7 +22,7 @@ use wgpu::util::DeviceExt;
 const COLOR_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba8Unorm;
 /// Depth target format (see the module docs of [`super`] for the depth convention).
 const DEPTH_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
-/// Instance id of the ground plane; must match `GROUND` in `mesh.wgsl`.
+/// Unit id of the ground's vertices (never a block id).
 const GROUND: u32 = 0x00FF_FFFF;
 /// The ground's id (for naming its meshes in errors).
 pub(crate) const GROUND_ID: u32 = GROUND;
@@ -71,6 +78,8 @@ pub struct FrameTimings {
     pub blocks: u32,
     /// Triangles drawn (blocks only).
     pub triangles: u64,
+    /// Draw calls of the units (the ground's call not counted).
+    pub draws: u32,
 }
 
 impl FrameTimings {
@@ -125,8 +134,9 @@ impl Frame {
     }
 }
 
-/// One vertex as the shader reads it (32 bytes): position and normal (local frame), the
-/// along-wall coordinate `u` (m) and the index of its style in the style table.
+/// One vertex as the shader reads it (36 bytes): position and normal (local frame), the
+/// along-wall coordinate `u` (m), the index of its style in the style table and its unit's id
+/// (what the id pass writes; per vertex, so that one call may draw many units).
 #[repr(C)]
 #[derive(Clone, Copy, Pod, Zeroable)]
 struct Vertex {
@@ -134,6 +144,7 @@ struct Vertex {
     normal: [f32; 3],
     u_m: f32,
     style: u32,
+    unit: u32,
 }
 
 /// [`BuildingStyle`] as `mesh.wgsl`'s `Style` (storage buffer, 64 bytes): the values exactly as
@@ -179,13 +190,12 @@ fn wgsl_constants() -> String {
     )
 }
 
-/// Appends `mesh` to the shared buffers, its styles to the style table (a mesh without
-/// appearance gets style 0, the default).
+/// Appends `mesh` to the shared buffers (indices absolute), its styles to the style table (a
+/// mesh without appearance gets style 0, the default); its vertices carry `block`'s id.
 fn push_mesh(
     vertices: &mut Vec<Vertex>,
     indices: &mut Vec<u32>,
     styles: &mut Vec<GpuStyle>,
-    offset: u32,
     mesh: &Mesh,
     block: BlockId,
 ) -> Result<(), RenderError> {
@@ -226,6 +236,12 @@ fn push_mesh(
             vertices: mesh.positions.len(),
         });
     }
+    let offset = u32::try_from(vertices.len() + mesh.positions.len())
+        .map(|_| vertices.len() as u32)
+        .map_err(|_| RenderError::TooManyVertices {
+            block,
+            vertices: vertices.len() + mesh.positions.len(),
+        })?;
     let style0 = styles.len() as u32;
     styles.extend(mesh.styles.iter().map(GpuStyle::from));
     vertices.extend(
@@ -243,6 +259,7 @@ fn push_mesh(
                     normal: n.to_array(),
                     u_m,
                     style,
+                    unit: block.0,
                 }
             }),
     );
@@ -258,12 +275,57 @@ struct Globals {
     mode: [u32; 4],
 }
 
-/// Where one block lives in the shared buffers.
-#[derive(Clone, Copy, Debug)]
+/// Where one unit lives in the index buffer (indices are absolute).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord)]
 struct BlockRange {
     first_index: u32,
     index_count: u32,
-    base_vertex: i32,
+}
+
+/// How the visible units are turned into draw calls.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Batching {
+    /// One call per run of visible units that are neighbours in the index buffer (the units'
+    /// input order): a block whose buildings are all visible is one call.
+    #[default]
+    Runs,
+    /// One call per visible unit, in the same order (the reference the runs are checked
+    /// against; as many calls as units).
+    PerUnit,
+}
+
+/// The draw calls for `visible`: their ranges (unknown ids, empty units and repeats left out),
+/// in index-buffer order, neighbours merged with [`Batching::Runs`]. Returns the units drawn.
+fn draw_ranges(
+    ranges: &[Option<BlockRange>],
+    visible: &[BlockId],
+    batching: Batching,
+    out: &mut Vec<BlockRange>,
+) -> u32 {
+    out.clear();
+    out.extend(
+        visible
+            .iter()
+            .filter_map(|id| ranges.get(id.0 as usize).copied().flatten())
+            .filter(|r| r.index_count > 0),
+    );
+    out.sort_unstable();
+    out.dedup();
+    let units = out.len() as u32;
+    if batching == Batching::Runs {
+        let mut w = 0;
+        for i in 0..out.len() {
+            let r = out[i];
+            if w > 0 && out[w - 1].first_index + out[w - 1].index_count == r.first_index {
+                out[w - 1].index_count += r.index_count;
+            } else {
+                out[w] = r;
+                w += 1;
+            }
+        }
+        out.truncate(w);
+    }
+    units
 }
 
 /// Uploaded block meshes and the render targets.
@@ -279,6 +341,7 @@ pub struct MeshRenderer {
     /// Indexed by `BlockId.0`.
     ranges: Vec<Option<BlockRange>>,
     ground: BlockRange,
+    batching: Batching,
     color: wgpu::Texture,
     depth: wgpu::Texture,
     readback: wgpu::Buffer,
@@ -302,8 +365,10 @@ impl MeshRenderer {
     }
 
     /// Uploads the meshes (local frame, f32, as in [`Mesh`]); a block may appear several times
-    /// (one mesh per building), its meshes are drawn together. Lit frames show the ground plane
-    /// only; see [`Self::with_ground`] for streets and blocks on the ground.
+    /// (one mesh per building), its meshes are drawn together. The blocks are laid out in the
+    /// order of their first appearance, which is the order they are drawn in and the order
+    /// whose neighbours [`Batching::Runs`] merges. Lit frames show the ground plane only; see
+    /// [`Self::with_ground`] for streets and blocks on the ground.
     pub fn with_options(
         gpu: &Gpu,
         blocks: &[(BlockId, &Mesh)],
@@ -338,9 +403,15 @@ impl MeshRenderer {
             });
         }
         let device = &gpu.device;
-        // Group meshes by block, keeping the input order within a block.
+        // Group meshes by block, the blocks in the order of their first appearance, keeping
+        // the input order within a block.
+        let mut first_seen: std::collections::HashMap<BlockId, usize> =
+            std::collections::HashMap::with_capacity(blocks.len());
+        for (i, (id, _)) in blocks.iter().enumerate() {
+            first_seen.entry(*id).or_insert(i);
+        }
         let mut order: Vec<usize> = (0..blocks.len()).collect();
-        order.sort_by_key(|&i| blocks[i].0);
+        order.sort_by_key(|&i| first_seen[&blocks[i].0]);
         let mut vertices: Vec<Vertex> = Vec::new();
         let mut indices: Vec<u32> = Vec::new();
         // Style 0: the default, for meshes without appearance.
@@ -349,21 +420,12 @@ impl MeshRenderer {
         // then the ground layers, in drawing order.
         let plane = appearance::ground_plane(appearance::GROUND_PLANE_HALF_M);
         for m in [&plane, ground_layers] {
-            let offset = vertices.len() as u32;
             // The ground's own meshes report the ground's id.
-            push_mesh(
-                &mut vertices,
-                &mut indices,
-                &mut styles,
-                offset,
-                m,
-                BlockId(GROUND),
-            )?;
+            push_mesh(&mut vertices, &mut indices, &mut styles, m, BlockId(GROUND))?;
         }
         let ground = BlockRange {
             first_index: 0,
             index_count: indices.len() as u32,
-            base_vertex: 0,
         };
         let max_id = blocks.iter().map(|b| b.0 .0).max();
         if max_id.is_some_and(|m| m >= GROUND) {
@@ -376,23 +438,19 @@ impl MeshRenderer {
         let mut i = 0;
         while i < order.len() {
             let id = blocks[order[i]].0;
-            let base_vertex = vertices.len();
             let first_index = indices.len();
             while i < order.len() && blocks[order[i]].0 == id {
                 let mesh = blocks[order[i]].1;
-                let offset = (vertices.len() - base_vertex) as u32;
-                push_mesh(&mut vertices, &mut indices, &mut styles, offset, mesh, id)?;
+                push_mesh(&mut vertices, &mut indices, &mut styles, mesh, id)?;
                 i += 1;
             }
+            let too_many = || RenderError::TooManyVertices {
+                block: id,
+                vertices: vertices.len(),
+            };
             ranges[id.0 as usize] = Some(BlockRange {
-                first_index: first_index as u32,
-                index_count: (indices.len() - first_index) as u32,
-                base_vertex: i32::try_from(base_vertex).map_err(|_| {
-                    RenderError::TooManyVertices {
-                        block: id,
-                        vertices: base_vertex,
-                    }
-                })?,
+                first_index: u32::try_from(first_index).map_err(|_| too_many())?,
+                index_count: u32::try_from(indices.len() - first_index).map_err(|_| too_many())?,
             });
         }
 
@@ -465,8 +523,9 @@ impl MeshRenderer {
             bind_group_layouts: &[Some(&layout)],
             immediate_size: 0,
         });
-        let attributes =
-            wgpu::vertex_attr_array![0 => Float32x3, 1 => Float32x3, 2 => Float32, 3 => Uint32];
+        let attributes = wgpu::vertex_attr_array![
+            0 => Float32x3, 1 => Float32x3, 2 => Float32, 3 => Uint32, 4 => Uint32
+        ];
         let make_pipeline = |label, depth_compare| {
             device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
                 label: Some(label),
@@ -553,12 +612,23 @@ impl MeshRenderer {
             indices: index_buffer,
             ranges,
             ground,
+            batching: Batching::default(),
             color,
             depth,
             readback,
             padded_row,
             queries,
         })
+    }
+
+    /// The same renderer turning visible units into calls as `batching` says.
+    pub fn with_batching(self, batching: Batching) -> Self {
+        Self { batching, ..self }
+    }
+
+    /// How visible units become draw calls.
+    pub fn batching(&self) -> Batching {
+        self.batching
     }
 
     /// Image size.
@@ -576,8 +646,10 @@ impl MeshRenderer {
         &self.depth
     }
 
-    /// Draws the blocks in `visible` (others are not drawn; unknown ids are skipped) lit, with
-    /// ground and sky, and reads the image back. The camera's aspect should match the image's.
+    /// Draws the blocks in `visible` (others are not drawn; unknown ids and repeats are skipped)
+    /// lit, with ground and sky, and reads the image back; the blocks are drawn in the order of
+    /// the buffer (see [`Self::with_options`]), not of `visible`. The camera's aspect should
+    /// match the image's.
     pub fn draw(
         &self,
         gpu: &Gpu,
@@ -637,8 +709,10 @@ impl MeshRenderer {
             .create_command_encoder(&wgpu::CommandEncoderDescriptor {
                 label: Some("frame"),
             });
-        let mut blocks = 0u32;
-        let mut triangles = 0u64;
+        let mut calls: Vec<BlockRange> = Vec::new();
+        let blocks = draw_ranges(&self.ranges, visible, self.batching, &mut calls);
+        let draws = calls.len() as u32;
+        let triangles: u64 = calls.iter().map(|r| r.index_count as u64 / 3).sum();
         {
             let clear = match shading {
                 Shading::Lit => sky(),
@@ -674,28 +748,12 @@ impl MeshRenderer {
                 // Ground plane and layers in order, depth test always passing.
                 pass.set_pipeline(&self.ground_pipeline);
                 let g = self.ground;
-                pass.draw_indexed(
-                    g.first_index..g.first_index + g.index_count,
-                    g.base_vertex,
-                    GROUND..GROUND + 1,
-                );
+                pass.draw_indexed(g.first_index..g.first_index + g.index_count, 0, 0..1);
             }
             pass.set_pipeline(&self.pipeline);
-            for id in visible {
-                let Some(Some(r)) = self.ranges.get(id.0 as usize) else {
-                    continue;
-                };
-                if r.index_count == 0 {
-                    continue;
-                }
-                // The block id travels as the instance index (see mesh.wgsl).
-                pass.draw_indexed(
-                    r.first_index..r.first_index + r.index_count,
-                    r.base_vertex,
-                    id.0..id.0 + 1,
-                );
-                blocks += 1;
-                triangles += r.index_count as u64 / 3;
+            // Unit ids travel with the vertices (see mesh.wgsl): a call may span many units.
+            for r in &calls {
+                pass.draw_indexed(r.first_index..r.first_index + r.index_count, 0, 0..1);
             }
         }
         if let Some(t) = &self.queries {
@@ -719,6 +777,7 @@ impl MeshRenderer {
                     wall_s: start.elapsed().as_secs_f64(),
                     blocks,
                     triangles,
+                    draws,
                 },
             });
         }
@@ -757,6 +816,7 @@ impl MeshRenderer {
                 wall_s: start.elapsed().as_secs_f64(),
                 blocks,
                 triangles,
+                draws,
             },
         })
     }
@@ -796,4 +856,47 @@ pub(super) fn map_read(
         .to_vec();
     buffer.unmap();
     Ok(bytes)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn r(first_index: u32, index_count: u32) -> Option<BlockRange> {
+        Some(BlockRange {
+            first_index,
+            index_count,
+        })
+    }
+
+    #[test]
+    fn neighbours_merge_into_one_call_in_buffer_order() {
+        // Units 0..5 back to back (unit 2 empty), unit 5 absent.
+        let ranges = [r(6, 3), r(9, 6), r(15, 0), r(15, 3), r(18, 9), None];
+        let ids = |v: &[u32]| v.iter().map(|&i| BlockId(i)).collect::<Vec<_>>();
+        let mut out = Vec::new();
+        // 4, 0, 1, 3 (any order) with the empty 2 and unknown 5, 9 and a repeat: 0–1 and 3–4
+        // are neighbours (the empty unit takes no room), so 0..4 is one call.
+        let n = draw_ranges(
+            &ranges,
+            &ids(&[4, 0, 2, 1, 5, 9, 3, 0]),
+            Batching::Runs,
+            &mut out,
+        );
+        assert_eq!(n, 4);
+        assert_eq!(out, vec![r(6, 21).unwrap()]);
+        // A gap splits the run.
+        let n = draw_ranges(&ranges, &ids(&[4, 0]), Batching::Runs, &mut out);
+        assert_eq!(n, 2);
+        assert_eq!(out, vec![r(6, 3).unwrap(), r(18, 9).unwrap()]);
+        // One call per unit, in buffer order.
+        let n = draw_ranges(&ranges, &ids(&[3, 1, 0]), Batching::PerUnit, &mut out);
+        assert_eq!(n, 3);
+        assert_eq!(
+            out,
+            vec![r(6, 3).unwrap(), r(9, 6).unwrap(), r(15, 3).unwrap()]
+        );
+        assert_eq!(draw_ranges(&ranges, &[], Batching::Runs, &mut out), 0);
+        assert!(out.is_empty());
+    }
 }

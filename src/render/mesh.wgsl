@@ -1,7 +1,7 @@
 // Block meshes: lit colour pass and flat block-ID pass (one shader, `mode` chooses).
 //
-// The block id arrives as the instance index: every block is drawn as one instance whose
-// first_instance is its BlockId, so no per-vertex id is stored.
+// The unit id (block, page or building: scene::units) is stored per vertex, so that one draw
+// call may span many units (render/mesh.rs merges neighbouring units into one call).
 //
 // The colours are `city::appearance`, mirrored here operation for operation (see that module's
 // docs for the formulas and why they reproduce bit for bit). Its constants (SILL, LINTEL,
@@ -32,9 +32,6 @@ struct Style {
 @group(0) @binding(0) var<uniform> g: Globals;
 @group(0) @binding(1) var<storage, read> styles: array<Style>;
 
-// The ground plane is drawn as this instance id (never a block id).
-const GROUND: u32 = 0xFFFFFFu;
-
 struct VsOut {
     @builtin(position) clip: vec4<f32>,
     @location(0) normal: vec3<f32>,
@@ -50,7 +47,7 @@ fn vs_main(
     @location(1) normal: vec3<f32>,
     @location(2) u_m: f32,
     @location(3) style: u32,
-    @builtin(instance_index) block: u32,
+    @location(4) block: u32,
 ) -> VsOut {
     var out: VsOut;
     out.clip = g.clip_from_world * vec4<f32>(position, 1.0);

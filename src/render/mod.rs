@@ -28,7 +28,7 @@ pub mod window;
 
 pub use blockmap::{BlockMapRenderer, FarPass, FarReadback, NO_MAP};
 pub use frames::{GpuFrameRenderer, HybridFrame};
-pub use mesh::{Frame, FrameTimings, MeshRenderer, RenderOptions, Shading};
+pub use mesh::{Batching, Frame, FrameTimings, MeshRenderer, RenderOptions, Shading};
 
 use crate::blocks::BlockId;
 
@@ -219,7 +219,7 @@ pub enum RenderError {
         vertices: usize,
     },
     /// The meshes together have more vertices than a draw call can address.
-    #[error("render: {vertices} vertices before block {}, more than 2^31", block.0)]
+    #[error("render: {vertices} vertices up to block {}, more than 32-bit indices address", block.0)]
     TooManyVertices {
         /// The block whose first vertex is out of reach.
         block: BlockId,

@@ -28,7 +28,7 @@ pub mod source;
 pub mod units;
 
 pub use source::{CitySource, LoadedCity, SourceError};
-pub use units::{BuildingsMode, DrawUnits};
+pub use units::{BuildingsMode, DrawOrder, DrawUnits};
 
 use crate::blocks::{detect, BlockError, BlockId, BlockLayout, BlockOptions};
 use crate::city::extrude::extrude_city;

@@ -5,6 +5,13 @@
 //! One renderer draws every kind of unit: [`DrawUnits::meshes`] holds the blocks' meshes (ids as
 //! in [`super::Scene::meshes`]), then one mesh per page at [`DrawUnits::page_id`], then one mesh
 //! per building at [`DrawUnits::building_id`]. The three id ranges are disjoint.
+//!
+//! The order of [`DrawUnits::meshes`] is the order the renderer lays the units out in its index
+//! buffer ([`crate::render::MeshRenderer`] keeps its input order): the buildings come block by
+//! block (the blocks in the layout's order, each block's buildings in its own order), so the
+//! buildings of a block are contiguous, and kept buildings that are neighbours in that order are
+//! one range of the index buffer, drawn with one call ([`DrawUnits::draw_calls`]). A block whose
+//! buildings are all kept is one call, as its block mesh is.
 
 use crate::blocks::{BlockId, BlockLayout};
 use crate::city::extrude::extrude_city;
@@ -43,6 +50,8 @@ pub struct DrawUnits {
     pub scene_graph: SceneGraphTree,
     /// Where the building meshes start in [`DrawUnits::meshes`].
     building_start: usize,
+    /// Where each unit lies in the renderer's layout of [`DrawUnits::meshes`].
+    order: DrawOrder,
     /// The walk tests buildings inside blocks.
     pub mode: BuildingsMode,
 }
@@ -111,10 +120,18 @@ impl DrawUnits {
             }
             meshes.push((BlockId(page_offset + p as u32), m));
         }
+        // Buildings block by block (the layout's order, each block's buildings in its order), so
+        // that a block's kept buildings that are neighbours merge into one draw (module docs).
         let building_start = meshes.len();
-        for (i, m) in per_building.into_iter().enumerate() {
-            if boxes[i].is_some() {
-                meshes.push((BlockId(building_offset + i as u32), m));
+        let mut per_building: Vec<Option<Mesh>> = per_building.into_iter().map(Some).collect();
+        for b in &layout.blocks {
+            for bb in buildings.of(b.id) {
+                let i = bb.id.0 as usize;
+                if boxes.get(i).is_some_and(Option::is_some) {
+                    if let Some(m) = per_building.get_mut(i).and_then(Option::take) {
+                        meshes.push((BlockId(building_offset + i as u32), m));
+                    }
+                }
             }
         }
         let n = meshes
@@ -126,6 +143,7 @@ impl DrawUnits {
         for (b, m) in &meshes {
             triangles[b.0 as usize] = m.triangle_count() as u64;
         }
+        let order = DrawOrder::new(&meshes);
         Ok(Self {
             meshes,
             triangles,
@@ -134,6 +152,7 @@ impl DrawUnits {
             buildings,
             scene_graph,
             building_start,
+            order,
             mode,
         })
     }
@@ -153,7 +172,8 @@ impl DrawUnits {
         unit.0.checked_sub(self.building_offset).map(BuildingId)
     }
 
-    /// The buildings' meshes alone, by unit id (for a building-level oracle).
+    /// The buildings' meshes alone, by unit id (for a building-level oracle), block by block
+    /// (see the module docs).
     pub fn building_meshes(&self) -> &[(BlockId, Mesh)] {
         &self.meshes[self.building_start..]
     }
@@ -161,5 +181,69 @@ impl DrawUnits {
     /// Triangles of unit `u` (0 for an unknown unit).
     pub fn unit_triangles(&self, u: BlockId) -> u64 {
         self.triangles.get(u.0 as usize).copied().unwrap_or(0)
+    }
+
+    /// The draw calls that drawing the units `ids` takes when the renderer merges neighbours
+    /// ([`DrawOrder::calls`] over [`DrawUnits::meshes`]).
+    pub fn draw_calls(&self, ids: &[BlockId]) -> usize {
+        self.order.calls(ids)
+    }
+}
+
+/// Where each unit's triangles lie when a list of meshes is laid out as the renderer lays it out
+/// ([`crate::render::MeshRenderer`]: grouped by unit id, the units in the order of their first
+/// appearance), to count the calls of a frame: the renderer draws each maximal run of visible
+/// units that are neighbours in that layout with one call ([`crate::render::Batching::Runs`]).
+#[derive(Clone, Debug, Default)]
+pub struct DrawOrder {
+    /// Per unit id, its first triangle and its end (empty for a unit without triangles).
+    spans: Vec<(u64, u64)>,
+}
+
+impl DrawOrder {
+    /// The layout of `meshes` (a unit listed several times is one group, at its first place).
+    pub fn new(meshes: &[(BlockId, Mesh)]) -> Self {
+        let n = meshes
+            .iter()
+            .map(|(b, _)| b.0 as usize + 1)
+            .max()
+            .unwrap_or(0);
+        let mut triangles = vec![0u64; n];
+        let mut first: Vec<usize> = vec![usize::MAX; n];
+        for (i, (b, m)) in meshes.iter().enumerate() {
+            triangles[b.0 as usize] += m.triangle_count() as u64;
+            first[b.0 as usize] = first[b.0 as usize].min(i);
+        }
+        let mut units: Vec<usize> = (0..n).filter(|&u| first[u] != usize::MAX).collect();
+        units.sort_by_key(|&u| first[u]);
+        let mut spans = vec![(0, 0); n];
+        let mut at = 0u64;
+        for u in units {
+            spans[u] = (at, at + triangles[u]);
+            at += triangles[u];
+        }
+        Self { spans }
+    }
+
+    /// The draw calls for the units `ids`: the number of maximal runs of them that are
+    /// contiguous in the layout (units without triangles take no room and no call; unknown ids
+    /// and repeats are ignored).
+    pub fn calls(&self, ids: &[BlockId]) -> usize {
+        let mut spans: Vec<(u64, u64)> = ids
+            .iter()
+            .filter_map(|&u| self.spans.get(u.0 as usize).copied())
+            .filter(|(f, e)| e > f)
+            .collect();
+        spans.sort_unstable();
+        spans.dedup();
+        let mut calls = 0;
+        let mut end = None;
+        for (f, e) in spans {
+            if end != Some(f) {
+                calls += 1;
+            }
+            end = Some(e);
+        }
+        calls
     }
 }

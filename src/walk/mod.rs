@@ -19,7 +19,7 @@ use crate::blocks::BlockId;
 use crate::geom::Camera;
 use crate::index::{CityIndex, CullQuery, CullStats, Structure};
 use crate::route::CameraRoute;
-use crate::scene::{BuildingsMode, DrawUnits, Scene};
+use crate::scene::{BuildingsMode, DrawOrder, DrawUnits, Scene};
 use crate::visibility::{
     CpuFrameRenderer, FrameRenderer, MeshOracle, OcclusionCulling, VisibilityOracle,
 };
@@ -166,6 +166,9 @@ pub struct FrameRecord {
     pub buildings: Option<usize>,
     /// Triangles drawn: of the kept blocks (pages), or of the kept buildings.
     pub triangles: u64,
+    /// Draw calls for what is drawn: one per run of kept units that are neighbours in the
+    /// renderer's buffer ([`DrawOrder::calls`]), counted whether or not frames are drawn.
+    pub draws: usize,
     /// Oracle-visible blocks the structure dropped (must be 0), when checked; oracle-visible
     /// *buildings* dropped for [`Structure::SceneGraph`] and the per-building modes.
     pub false_culls: Option<usize>,
@@ -223,6 +226,10 @@ pub struct BuildingsDecision {
     pub blocks_triangles: f64,
     /// Mean triangles drawn per frame with it.
     pub buildings_triangles: f64,
+    /// Mean draw calls per frame without it.
+    pub blocks_draws: f64,
+    /// Mean draw calls per frame with it.
+    pub buildings_draws: f64,
     /// Whether frames were drawn (else only triangles can decide).
     pub drawn: bool,
     /// Keep it: drawn frames are faster with it, or (nothing drawn) it removes triangles.
@@ -365,6 +372,8 @@ pub fn run_walk_with_far(
     let cameras = params.route.sample(params.frames);
     let triangles = scene.triangles_by_block();
     let units = scene.units.as_ref();
+    // The renderer's layout of the units, to count the calls of each frame.
+    let draw_order = DrawOrder::new(scene.draw_meshes());
     let cpu = CpuFrameRenderer::new(scene.draw_meshes(), params.size).with_ground(&scene.ground);
     let renderer: Option<&dyn FrameRenderer> = match &drawing {
         Drawing::Off => None,
@@ -549,6 +558,7 @@ pub fn run_walk_with_far(
                         .map(|b| triangles.get(b.0 as usize).copied().unwrap_or(0))
                         .sum(),
                 };
+                let draws = draw_order.calls(&draw_ids);
                 let kept_blocks = visible.len();
                 let visible = &draw_ids;
                 let keep_image = params.image_every > 0
@@ -640,6 +650,7 @@ pub fn run_walk_with_far(
                     blocks: kept_blocks,
                     buildings: buildings_kept,
                     triangles: tri,
+                    draws,
                     false_culls,
                 });
             }
@@ -722,7 +733,7 @@ fn index_modes(modes: &[CullMode], units: Option<&DrawUnits>, pages: bool) -> Ve
 /// Per block culling mode walked with and without the per-building test: whether the test paid
 /// for the reference structure (drawn frames: mean frame time; nothing drawn: triangles).
 fn buildings_decisions(frames: &[FrameRecord], reference: Structure) -> Vec<BuildingsDecision> {
-    let per = |m: CullMode| -> Option<(f64, f64, f64, bool)> {
+    let per = |m: CullMode| -> Option<(f64, f64, f64, bool, f64)> {
         let v: Vec<&FrameRecord> = frames
             .iter()
             .filter(|r| r.structure == reference && r.mode == m)
@@ -734,12 +745,13 @@ fn buildings_decisions(frames: &[FrameRecord], reference: Structure) -> Vec<Buil
                 v.iter().map(|r| r.cull_s).sum::<f64>() / n,
                 v.iter().map(|r| r.triangles as f64).sum::<f64>() / n,
                 v.iter().all(|r| r.render_s.is_some()),
+                v.iter().map(|r| r.draws as f64).sum::<f64>() / n,
             )
         })
     };
     let mut out = Vec::new();
     for base in [CullMode::Frustum, CullMode::FrustumOcclusion] {
-        let (Some((bs, bc, bt, bd)), Some((ws, wc, wt, wd))) =
+        let (Some((bs, bc, bt, bd, bn)), Some((ws, wc, wt, wd, wn))) =
             (per(base), per(base.with_buildings()))
         else {
             continue;
@@ -748,10 +760,12 @@ fn buildings_decisions(frames: &[FrameRecord], reference: Structure) -> Vec<Buil
         let pays = if drawn { ws < bs } else { wt < bt };
         let saved = if bt > 0.0 { 1.0 - wt / bt } else { 0.0 };
         let note = format!(
-            "per-building test after {base} ({reference}): {:.0} → {:.0} triangles per frame ({:.1} % fewer), cull {:.3} → {:.3} ms{}: {}",
+            "per-building test after {base} ({reference}): {:.0} → {:.0} triangles per frame ({:.1} % fewer) in {:.1} → {:.1} draw calls, cull {:.3} → {:.3} ms{}: {}",
             bt,
             wt,
             saved * 100.0,
+            bn,
+            wn,
             bc * 1e3,
             wc * 1e3,
             if drawn {
@@ -774,6 +788,8 @@ fn buildings_decisions(frames: &[FrameRecord], reference: Structure) -> Vec<Buil
             buildings_cull_s: wc,
             blocks_triangles: bt,
             buildings_triangles: wt,
+            blocks_draws: bn,
+            buildings_draws: wn,
             drawn,
             pays,
             note,

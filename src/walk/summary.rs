@@ -111,6 +111,7 @@ mod tests {
             },
             blocks: 3,
             triangles: tri,
+            draws: 3,
             buildings: None,
             false_culls: Some(frame % 2),
         }

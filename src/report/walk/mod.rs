@@ -419,6 +419,7 @@ pub(crate) mod tests {
                         blocks: 4,
                         buildings: None,
                         triangles: 120 + f as u64,
+                        draws: 4,
                         false_culls: Some(0),
                     });
                 }
