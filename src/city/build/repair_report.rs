@@ -21,6 +21,9 @@ fn repair_outcome(r: &Repaired) -> String {
         .join("; ")
 }
 
+/// One footprint feature's polygons, transformed and repaired (or why not), and its heights.
+type Outcome = (Vec<Result<Repaired, String>>, Heights);
+
 /// Accounts for the importer's own refusals and returns the buildings of the footprint layer,
 /// recording every feature in `report` (see the module documentation of [`super`]).
 pub(crate) fn build_footprints(
@@ -65,7 +68,7 @@ pub(crate) fn build_footprints(
             .filter_map(|f| polygons_of(&f.geometry))
             .flat_map(|ps| ps.into_iter().filter_map(|p| polygon_box(&p))),
     );
-    let outcomes: Vec<Option<(Vec<Result<Repaired, String>>, Heights)>> = footprints
+    let outcomes: Vec<Option<Outcome>> = footprints
         .features
         .par_iter()
         .map(|f| {
