@@ -166,6 +166,14 @@ const WEB_MERCATOR_LIMIT: f64 = std::f64::consts::PI * 6_378_137.0;
 /// Coordinates that come back from lon/lat further than this (metres, plus 1e-9 of their size)
 /// are outside the projection's valid range.
 const ROUND_TRIP_TOLERANCE_M: f64 = 1e-3;
+/// The largest box side (in a projected CRS's units, metres or feet) that
+/// [`MetricTransform::box_fits`] decides by its corners: a footprint's size, far below the
+/// scale on which a projection's range of validity bends.
+pub const BOX_CHECK_MAX: f64 = 1_000.0;
+/// [`MetricTransform::box_fits`] asks the corners of a box to come back from the ellipsoid
+/// within this fraction of the tolerance of a single point: a box near the edge of a
+/// projection's range (where the round trip turns to noise) is left to its vertices.
+const BOX_CHECK_TOLERANCE_SCALE: f64 = 1e-3;
 
 fn proj(definition: &str) -> Result<Proj, CrsError> {
     Proj::from_proj_string(definition).map_err(|source| CrsError::Projection {
@@ -332,6 +340,11 @@ impl MetricTransform {
     /// # Errors
     /// The [`CoordError`] that says what does not fit.
     pub fn check(&self, p: [f64; 2]) -> Result<(), CoordError> {
+        self.check_within(p, 1.0)
+    }
+
+    /// [`Self::check`] with the round-trip tolerance scaled by `scale`.
+    fn check_within(&self, p: [f64; 2], scale: f64) -> Result<(), CoordError> {
         let [x, y] = p;
         if !(x.is_finite() && y.is_finite()) {
             return Err(CoordError::NonFinite { x, y });
@@ -366,12 +379,44 @@ impl MetricTransform {
                 .source_lonlat
                 .project(&i.source, lonlat)
                 .map_err(|_| CoordError::OutsideProjection { x, y, crs: crs() })?;
-            let tol = ROUND_TRIP_TOLERANCE_M + 1e-9 * x.abs().max(y.abs());
+            let tol = scale * (ROUND_TRIP_TOLERANCE_M + 1e-9 * x.abs().max(y.abs()));
             if (back[0] - x).abs() > tol || (back[1] - y).abs() > tol {
                 return Err(CoordError::OutsideProjection { x, y, crs: crs() });
             }
         }
         Ok(())
+    }
+
+    /// True when every point of the box `[xmin, ymin, xmax, ymax]` passes [`Self::check`], as
+    /// its four corners tell; false when the box is not finite, is larger than
+    /// [`BOX_CHECK_MAX`] in a projected CRS, or a corner does not pass (the caller then checks
+    /// each point, to name the one that does not fit).
+    ///
+    /// For a geographic CRS, and for a CRS without a projection, the checks are bounds on each
+    /// coordinate, and a box whose corners are within them is within them: the answer is exact.
+    /// For a projected CRS (Web Mercator included) the corners must pass with a round trip
+    /// a thousand times closer than a single point needs ([`BOX_CHECK_TOLERANCE_SCALE`]): away
+    /// from the edge of the projection's range the round trip is smooth and far below the
+    /// tolerance, so that within a box of at most [`BOX_CHECK_MAX`] units whose corners pass,
+    /// every point passes; at the edge, where the round trip turns to noise (a box whose
+    /// corners passed at the plain tolerance had an inner point that did not), boxes are left
+    /// to their vertices. This is a deviation from checking each vertex, taken for speed (the
+    /// footprints' CRS check was a quarter of an import's instructions); a test walks boxes
+    /// across the edges of the Transverse Mercator and Web Mercator ranges and finds no box
+    /// that fits with a point inside that does not.
+    pub fn box_fits(&self, b: [f64; 4]) -> bool {
+        let [x0, y0, x1, y1] = b;
+        if !(b.iter().all(|v| v.is_finite()) && x0 <= x1 && y0 <= y1) {
+            return false;
+        }
+        if self.inner.as_ref().is_some_and(|i| {
+            !i.source.degrees && (x1 - x0 > BOX_CHECK_MAX || y1 - y0 > BOX_CHECK_MAX)
+        }) {
+            return false;
+        }
+        [[x0, y0], [x1, y0], [x1, y1], [x0, y1]]
+            .into_iter()
+            .all(|c| self.check_within(c, BOX_CHECK_TOLERANCE_SCALE).is_ok())
     }
 
     /// Metric ground coordinates → WGS84 longitude/latitude in degrees (the datum shift is the

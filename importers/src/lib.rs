@@ -308,6 +308,33 @@ pub enum Theme {
     Table(String),
 }
 
+/// Which attribute columns a reader keeps (a projection of the attribute table).
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub enum Columns {
+    /// Every column.
+    #[default]
+    All,
+    /// Only the columns of these names (exact, case-sensitive); the others are not parsed
+    /// where the format allows it (the Shapefile reader skips their `.dbf` bytes), else
+    /// dropped after reading.
+    Only(std::collections::BTreeSet<String>),
+}
+
+impl Columns {
+    /// The projection on the given names.
+    pub fn only<S: Into<String>>(names: impl IntoIterator<Item = S>) -> Self {
+        Columns::Only(names.into_iter().map(Into::into).collect())
+    }
+
+    /// True when the column `name` is kept.
+    pub fn wants(&self, name: &str) -> bool {
+        match self {
+            Columns::All => true,
+            Columns::Only(set) => set.contains(name),
+        }
+    }
+}
+
 /// Reads a layer, choosing the reader by the file's extension (`.shp`, `.geojson`/`.json`,
 /// `.gpkg`, `.osm.pbf`/`.pbf`). A GeoPackage path may name a table as `file.gpkg:table`.
 ///
@@ -315,6 +342,34 @@ pub enum Theme {
 /// [`ImportError`] naming the file when it cannot be read at all. Features that cannot be read are
 /// not errors: they are refused in the layer's [`ImportReport`].
 pub fn read_layer(path: &Path, theme: &Theme) -> Result<Layer, ImportError> {
+    read_layer_with(path, theme, &Columns::All)
+}
+
+/// [`read_layer`] keeping only the attribute `columns` asked for. A Shapefile's other columns
+/// are not parsed at all (so a value that cannot be read in a column not asked for costs its
+/// feature nothing); other formats drop them after reading.
+///
+/// # Errors
+/// As [`read_layer`].
+pub fn read_layer_with(
+    path: &Path,
+    theme: &Theme,
+    columns: &Columns,
+) -> Result<Layer, ImportError> {
+    let s = path.to_string_lossy();
+    if s.to_ascii_lowercase().ends_with(".shp") {
+        return shp::read_with(path, columns);
+    }
+    let mut layer = read_any(path, theme)?;
+    if let Columns::Only(_) = columns {
+        for f in &mut layer.features {
+            f.attributes.retain(|k, _| columns.wants(k));
+        }
+    }
+    Ok(layer)
+}
+
+fn read_any(path: &Path, theme: &Theme) -> Result<Layer, ImportError> {
     let s = path.to_string_lossy();
     let lower = s.to_ascii_lowercase();
     if let Some(idx) = lower.find(".gpkg:") {

@@ -25,8 +25,9 @@
 
 use crate::crs::Crs;
 use crate::rings;
-use crate::{AttrValue, Attributes, Feature, ImportError, ImportReport, Layer};
+use crate::{AttrValue, Attributes, Columns, Feature, ImportError, ImportReport, Layer};
 use geo_types::{Coord, Geometry, LineString, MultiLineString, MultiPoint, MultiPolygon, Point};
+use rayon::prelude::*;
 use shapefile::dbase;
 use shapefile::{Shape, ShapeReader};
 use std::collections::HashMap;
@@ -43,6 +44,19 @@ use std::path::{Path, PathBuf};
 /// [`ImportError::Format`] when the `.shp` and `.dbf` disagree on the number of records,
 /// [`ImportError::Crs`] for a `.prj` that cannot be used.
 pub fn read(path: &Path) -> Result<Layer, ImportError> {
+    read_with(path, &Columns::All)
+}
+
+/// [`read`] keeping only the attribute `columns` asked for: the `.dbf` bytes of the other
+/// columns are skipped, not parsed (so a value that cannot be read in a column not asked for
+/// costs its feature nothing).
+///
+/// The `.shp` and the `.dbf` are parsed side by side, and the records converted in parallel
+/// (rayon); the features, their order and the report are those of a sequential read.
+///
+/// # Errors
+/// As [`read`].
+pub fn read_with(path: &Path, columns: &Columns) -> Result<Layer, ImportError> {
     let io = |file: &Path| {
         let file = file.to_path_buf();
         move |source| ImportError::Io { file, source }
@@ -60,51 +74,42 @@ pub fn read(path: &Path) -> Result<Layer, ImportError> {
         why: "the .dbf holds the attribute table of the features".into(),
     })?;
     let mut report = ImportReport::default();
-
-    // Geometry: through the index when there is one and it is sound, else in sequence.
     let shx_path = companion(path, "shx");
-    let indexed = match &shx_path {
-        Some(shx) => {
-            let shx_bytes = std::fs::read(shx).map_err(io(shx))?;
-            match read_shapes_indexed(&shp_bytes, shx_bytes) {
-                Ok(shapes) => Some(shapes),
-                Err(e) => {
-                    report.notes.push(format!(
+    let shx_bytes = match &shx_path {
+        Some(shx) => Some(std::fs::read(shx).map_err(io(shx))?),
+        None => None,
+    };
+
+    // Geometry (through the index when there is one and it is sound, else in sequence) and
+    // attributes, side by side.
+    let (shapes, attributes) = rayon::join(
+        || -> Result<(Vec<Shape>, Option<String>), ImportError> {
+            let indexed = match (&shx_path, shx_bytes) {
+                (Some(shx), Some(bytes)) => match read_shapes_indexed(&shp_bytes, bytes) {
+                    Ok(shapes) => Ok(shapes),
+                    Err(e) => Err(format!(
                         "{} is damaged ({e}): it was ignored and the records were read in \
                          sequence from the .shp",
                         shx.display()
-                    ));
-                    None
-                }
+                    )),
+                },
+                _ => Err(format!(
+                    "no {} index: records were read in sequence from the .shp",
+                    path.with_extension("shx").display()
+                )),
+            };
+            match indexed {
+                // The shapes own their coordinates: the file's bytes are no longer needed.
+                Ok(s) => Ok((s, None)),
+                Err(note) => Ok((read_shapes_in_sequence(path, shp_bytes)?, Some(note))),
             }
-        }
-        None => {
-            report.notes.push(format!(
-                "no {} index: records were read in sequence from the .shp",
-                path.with_extension("shx").display()
-            ));
-            None
-        }
-    };
-    let shapes = match indexed {
-        Some(s) => {
-            // The shapes own their coordinates: the file's bytes are no longer needed.
-            drop(shp_bytes);
-            s
-        }
-        None => read_shapes_in_sequence(path, shp_bytes)?,
-    };
-
+        },
+        || read_dbf(&dbf_path, columns),
+    );
+    let (shapes, note) = shapes?;
+    report.notes.extend(note);
     // Attributes: a record that cannot be read costs its feature, not the layer.
-    let dbf_bytes = std::fs::read(&dbf_path).map_err(io(&dbf_path))?;
-    let decimals = dbf_decimals(&dbf_bytes);
-    let mut dbf =
-        dbase::Reader::new(Cursor::new(dbf_bytes)).map_err(|source| ImportError::Dbase {
-            file: dbf_path.clone(),
-            what: "not a readable dBase table".into(),
-            source,
-        })?;
-    let declared = dbf.header().num_records as usize;
+    let (declared, records) = attributes?;
     if declared != shapes.len() {
         return Err(ImportError::Format {
             file: path.to_path_buf(),
@@ -115,22 +120,6 @@ pub fn read(path: &Path) -> Result<Layer, ImportError> {
             ),
         });
     }
-    // The reader yields the same I/O error forever once the file ends: stop at the first one.
-    // Each record becomes its attributes as it is read (the dBase map is not kept).
-    let mut records: Vec<Result<Attributes, dbase::Error>> = Vec::with_capacity(declared);
-    for (i, r) in dbf.iter_records().take(declared).enumerate() {
-        if let Err(e) = &r {
-            if matches!(e.kind(), dbase::ErrorKind::IoError(_)) {
-                return Err(ImportError::Dbase {
-                    file: dbf_path.clone(),
-                    what: format!("record {i} of {declared} cannot be read (truncated file)"),
-                    source: r.expect_err("an error"),
-                });
-            }
-        }
-        records.push(r.map(|r| convert_record(r, &decimals)));
-    }
-    drop(dbf);
     if records.len() != shapes.len() {
         return Err(ImportError::Format {
             file: path.to_path_buf(),
@@ -146,9 +135,19 @@ pub fn read(path: &Path) -> Result<Layer, ImportError> {
     // CRS.
     let crs = read_prj(path, &mut report)?;
 
-    let mut features = Vec::with_capacity(shapes.len());
-    report.read = shapes.len();
-    for (i, (shape, record)) in shapes.into_iter().zip(records).enumerate() {
+    // Shapes to geometry in parallel; refusals and notes in record order.
+    let converted: Vec<(Result<Geometry, String>, Option<String>)> = shapes
+        .into_par_iter()
+        .enumerate()
+        .map(|(i, shape)| {
+            let mut notes = ImportReport::default();
+            let g = convert_shape(shape, i as u64, &mut notes);
+            (g, notes.notes.pop())
+        })
+        .collect();
+    let mut features = Vec::with_capacity(converted.len());
+    report.read = converted.len();
+    for (i, ((geometry, note), record)) in converted.into_iter().zip(records).enumerate() {
         let fid = i as u64;
         let record = match record {
             Ok(r) => r,
@@ -163,7 +162,8 @@ pub fn read(path: &Path) -> Result<Layer, ImportError> {
                 continue;
             }
         };
-        match convert_shape(shape, fid, &mut report) {
+        report.notes.extend(note);
+        match geometry {
             Ok(geometry) => features.push(Feature {
                 fid,
                 geometry,
@@ -184,6 +184,108 @@ pub fn read(path: &Path) -> Result<Layer, ImportError> {
         features,
         report,
     })
+}
+
+/// Every record of the `.dbf` as attributes (the `columns` asked for), with the number of
+/// records its header declares.
+fn read_dbf(
+    dbf_path: &Path,
+    columns: &Columns,
+) -> Result<(usize, Vec<Result<Attributes, dbase::Error>>), ImportError> {
+    let dbf_bytes = std::fs::read(dbf_path).map_err(|source| ImportError::Io {
+        file: dbf_path.to_path_buf(),
+        source,
+    })?;
+    let decimals = dbf_decimals(&dbf_bytes);
+    let mut dbf =
+        dbase::Reader::new(Cursor::new(dbf_bytes)).map_err(|source| ImportError::Dbase {
+            file: dbf_path.to_path_buf(),
+            what: "not a readable dBase table".into(),
+            source,
+        })?;
+    let declared = dbf.header().num_records as usize;
+    let plan = FieldPlan {
+        keep: dbf
+            .fields()
+            .iter()
+            .map(|f| columns.wants(f.name()))
+            .collect(),
+        decimals: dbf
+            .fields()
+            .iter()
+            .map(|f| decimals.get(f.name()).copied().unwrap_or(0))
+            .collect(),
+    };
+    // The reader yields the same I/O error forever once the file ends: stop at the first one.
+    // Each record becomes its attributes as it is read (no dBase map in between).
+    let mut records: Vec<Result<Attributes, dbase::Error>> = Vec::with_capacity(declared);
+    let previous = PLAN.replace(plan);
+    for (i, r) in dbf
+        .iter_records_as::<ProjectedRecord>()
+        .take(declared)
+        .enumerate()
+    {
+        if let Err(e) = &r {
+            if matches!(e.kind(), dbase::ErrorKind::IoError(_)) {
+                PLAN.set(previous);
+                return Err(ImportError::Dbase {
+                    file: dbf_path.to_path_buf(),
+                    what: format!("record {i} of {declared} cannot be read (truncated file)"),
+                    source: r.err().expect("an error"),
+                });
+            }
+        }
+        records.push(r.map(|r| r.0));
+    }
+    PLAN.set(previous);
+    Ok((declared, records))
+}
+
+/// How the fields of the table being read are turned into attributes: per field (in the
+/// table's order) whether it is kept, and its decimal count.
+#[derive(Clone, Debug, Default)]
+struct FieldPlan {
+    keep: Vec<bool>,
+    decimals: Vec<u8>,
+}
+
+thread_local! {
+    /// The plan of the table this thread is reading (`dbase` builds each record through a
+    /// trait function that takes no context).
+    static PLAN: std::cell::Cell<FieldPlan> = std::cell::Cell::new(FieldPlan::default());
+}
+
+/// One `.dbf` record as attributes, its fields parsed or skipped as [`PLAN`] says.
+struct ProjectedRecord(Attributes);
+
+impl dbase::ReadableRecord for ProjectedRecord {
+    fn read_using<S, M>(fields: &mut dbase::FieldIterator<S, M>) -> Result<Self, dbase::FieldError>
+    where
+        S: std::io::Read + std::io::Seek,
+        M: std::io::Read + std::io::Seek,
+    {
+        let plan = PLAN.take();
+        let mut out = Attributes::new();
+        let mut result = Ok(());
+        for (k, &keep) in plan.keep.iter().enumerate() {
+            if keep {
+                match fields.read_next_field() {
+                    Ok(v) => {
+                        out.insert(v.name.to_string(), field_value(v.value, plan.decimals[k]));
+                    }
+                    Err(e) => {
+                        result = Err(e);
+                        break;
+                    }
+                }
+            } else if let Err(e) = fields.skip_next_field() {
+                result = Err(e);
+                break;
+            }
+        }
+        PLAN.set(plan);
+        result.map(|()| ProjectedRecord(out))
+    }
 }
 
 /// Every shape, through the `.shx` index; any error (a bad header, an offset beyond the file,

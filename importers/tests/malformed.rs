@@ -541,3 +541,60 @@ fn numbers_in_text_are_read_whole() {
     assert_eq!(t(""), None);
     assert_eq!(AttrValue::Float(f64::NAN).as_f64(), None);
 }
+
+/// A column projection gives the features of a full read with only the columns asked for, and
+/// a value that cannot be read in a column not asked for costs its feature nothing, while in a
+/// column asked for it refuses the feature as before.
+#[test]
+fn shp_column_projection_skips_other_columns() {
+    use blockwalk_importers::{read_layer_with, Columns};
+    let full = shp::read(&data("helsinki/buildings.shp")).unwrap();
+    let cols = Columns::only(["height", "levels", "no_such_column"]);
+    let part = read_layer_with(&data("helsinki/buildings.shp"), &Theme::Any, &cols).unwrap();
+    assert_eq!(part.report, full.report);
+    assert_eq!(part.features.len(), full.features.len());
+    for (a, b) in part.features.iter().zip(&full.features) {
+        assert_eq!((a.fid, &a.geometry), (b.fid, &b.geometry));
+        let want: Vec<_> = b
+            .attributes
+            .iter()
+            .filter(|(k, _)| *k == "height" || *k == "levels")
+            .collect();
+        assert_eq!(a.attributes.iter().collect::<Vec<_>>(), want);
+    }
+    assert!(full.features[0].attributes.len() > 2);
+
+    // A numeric field of the first record overwritten with letters.
+    let dir = tempfile::tempdir().unwrap();
+    let shp_path = copy_shp("helsinki/buildings", dir.path());
+    let dbf = dir.path().join("l.dbf");
+    let mut bytes = std::fs::read(&dbf).unwrap();
+    let reader = shapefile::dbase::Reader::from_path(&dbf).unwrap();
+    let (mut off, mut target) = (0usize, None);
+    for f in reader.fields() {
+        if f.name() == "levels" {
+            target = Some((off, f.length() as usize));
+        }
+        off += f.length() as usize;
+    }
+    let (off, len) = target.expect("a levels field");
+    let header_len = u16::from_le_bytes([bytes[8], bytes[9]]) as usize;
+    let start = header_len + 1 + off;
+    bytes[start..start + len].fill(b'x');
+    std::fs::write(&dbf, bytes).unwrap();
+    let bad_all = shp::read(&shp_path).unwrap();
+    assert_eq!(bad_all.report.refused.len(), 1);
+    assert_eq!(bad_all.report.refused[0].fid, 0);
+    assert!(
+        bad_all.report.refused[0]
+            .reason
+            .contains("attribute record cannot be read"),
+        "{:?}",
+        bad_all.report.refused
+    );
+    let skipped = shp::read_with(&shp_path, &Columns::only(["height"])).unwrap();
+    assert!(skipped.report.refused.is_empty());
+    assert_eq!(skipped.features.len(), full.features.len());
+    let asked = shp::read_with(&shp_path, &Columns::only(["levels"])).unwrap();
+    assert_eq!(asked.report.refused, bad_all.report.refused);
+}

@@ -121,7 +121,7 @@ impl BuildingKind {
     /// The kind of a building's attributes (keys `building`, `building:use`, `type`; the first
     /// one that names a known use wins).
     pub fn from_attributes(attrs: &Attributes) -> BuildingKind {
-        for key in ["building", "building:use", "type"] {
+        for key in KIND_KEYS {
             if let Some(AttrValue::Text(t)) = attrs.get(key) {
                 let k = Self::from_tag(t);
                 if k != BuildingKind::Other {
@@ -334,11 +334,17 @@ impl Hasher for Fnv1a32 {
     }
 }
 
+/// The attributes [`BuildingKind::from_attributes`] reads, in order.
+pub const KIND_KEYS: [&str; 3] = ["building", "building:use", "type"];
+
+/// The attributes [`building_levels`] reads, in order.
+pub const LEVELS_KEYS: [&str; 4] = ["levels", "building:levels", "LEVELS", "Levels"];
+
 /// Storeys of a building: its levels attribute (`levels`, `building:levels`, `LEVELS`,
 /// `Levels`, rounded, at least 1) when usable, else `round(height / 3 m)`, at least 1; at most
 /// 255.
 pub fn building_levels(b: &Building) -> u32 {
-    let attr = ["levels", "building:levels", "LEVELS", "Levels"]
+    let attr = LEVELS_KEYS
         .iter()
         .filter_map(|k| b.attributes.get(*k).and_then(AttrValue::as_f64))
         .find(|l| l.is_finite() && *l >= 0.5);

@@ -5,11 +5,12 @@ use std::path::PathBuf;
 use std::time::Instant;
 
 use anyhow::Context;
-use blockwalk::city::build::{BuildError, BuildOptions, HeightFields};
+use blockwalk::city::build::{footprint_columns, BuildError, BuildOptions, HeightFields};
 use blockwalk::city::export::cityjson::{is_cityjson_seq, write_cityjson, write_cityjson_seq};
 use blockwalk::city::export::{write_geojson, write_glb};
 use blockwalk::city::extrude::try_extrude_city;
 use blockwalk::geom::predicates::polygon_area;
+use blockwalk::importers::Columns;
 use serde_json::json;
 
 use super::common::{peak_memory_bytes, spinner, CityArgs};
@@ -50,11 +51,21 @@ pub struct Args {
 }
 
 /// The city of `args` without a city folder's parcels, which `import` does not use (an explicit
-/// `--parcels` file is still read and reported).
-fn load_buildings(args: &CityArgs, opts: &BuildOptions) -> anyhow::Result<blockwalk::city::City> {
+/// `--parcels` file is still read and reported), and with only the footprint columns the
+/// buildings are made from unless `all_columns` (CityJSON exports the source attributes).
+fn load_buildings(
+    args: &CityArgs,
+    opts: &BuildOptions,
+    all_columns: bool,
+) -> anyhow::Result<blockwalk::city::City> {
     let source = args.source(0)?.without_folder_parcels()?;
+    let columns = if all_columns {
+        Columns::All
+    } else {
+        footprint_columns(&opts.heights)
+    };
     let pb = spinner("loading the city");
-    let loaded = source.load(opts, &mut |m| pb.set_message(m.to_string()));
+    let loaded = source.load_with_columns(opts, &columns, &mut |m| pb.set_message(m.to_string()));
     pb.finish_and_clear();
     Ok(loaded?.city)
 }
@@ -75,7 +86,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     };
 
     let t0 = Instant::now();
-    let city = match load_buildings(&args.city, &opts) {
+    let city = match load_buildings(&args.city, &opts, args.cityjson.is_some()) {
         Ok(c) => c,
         Err(e) => {
             // With --json, nothing usable left still gives one JSON object (with the reasons).

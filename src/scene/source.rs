@@ -5,7 +5,7 @@
 use crate::blocks::{BlockId, BlockLayout};
 use crate::city::build::{build_city, BuildError, BuildOptions};
 use crate::city::{City, Mesh};
-use crate::importers::{read_layer, ImportError, Layer, Theme};
+use crate::importers::{read_layer_with, Columns, ImportError, Layer, Theme};
 use crate::visibility::synthetic::SyntheticCity;
 use glam::DVec2;
 use std::path::{Path, PathBuf};
@@ -230,11 +230,28 @@ impl CitySource {
         &self,
         progress: &mut dyn FnMut(&str),
     ) -> Result<Option<Layers>, SourceError> {
+        self.read_layers_with(&Columns::All, progress)
+    }
+
+    /// [`Self::read_layers`] keeping only the footprint attribute `columns` asked for.
+    ///
+    /// # Errors
+    /// As [`Self::read_layers`].
+    pub fn read_layers_with(
+        &self,
+        columns: &Columns,
+        progress: &mut dyn FnMut(&str),
+    ) -> Result<Option<Layers>, SourceError> {
         let Some((fp, st, pa)) = self.layer_files()? else {
             return Ok(None);
         };
         let read = |path: &Path, theme: &Theme| {
-            read_layer(path, theme).map_err(|source| SourceError::Read {
+            let columns = if *theme == Theme::Buildings {
+                columns
+            } else {
+                &Columns::All
+            };
+            read_layer_with(path, theme, columns).map_err(|source| SourceError::Read {
                 file: path.to_path_buf(),
                 source: Box::new(source),
             })
@@ -266,6 +283,20 @@ impl CitySource {
         opts: &BuildOptions,
         progress: &mut dyn FnMut(&str),
     ) -> Result<LoadedCity, SourceError> {
+        self.load_with_columns(opts, &Columns::All, progress)
+    }
+
+    /// [`Self::load`] reading only the footprint attribute `columns` asked for
+    /// (`city::build::footprint_columns` gives the buildings and meshes of a full read).
+    ///
+    /// # Errors
+    /// As [`Self::load`].
+    pub fn load_with_columns(
+        &self,
+        opts: &BuildOptions,
+        columns: &Columns,
+        progress: &mut dyn FnMut(&str),
+    ) -> Result<LoadedCity, SourceError> {
         match self {
             CitySource::Synthetic { cols, rows, seed } => {
                 progress(&format!("generating a synthetic {cols}x{rows} grid"));
@@ -281,7 +312,7 @@ impl CitySource {
                 ..
             } => {
                 let (f, s, p) = self
-                    .read_layers(progress)?
+                    .read_layers_with(columns, progress)?
                     .expect("a file source has layers");
                 let mut opts = opts.clone();
                 opts.exclude_street_tags

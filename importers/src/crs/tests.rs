@@ -279,3 +279,112 @@ fn metric_points_go_to_wgs84_lonlat() {
         None
     );
 }
+
+/// `box_fits` against the check of every point of a 9 × 9 grid over the box, for boxes walked
+/// across the edges of each CRS's range (found by bisection on x, then on y): a box that fits
+/// by its corners has no grid point that does not.
+#[test]
+fn boxes_that_fit_by_their_corners_fit_inside() {
+    let transforms = [
+        utm33().metric_transform([457_000.0, 5_550_000.0]),
+        Crs::from_wkt(TM35_PRJ)
+            .unwrap()
+            .metric_transform([385_000.0, 6_671_000.0]),
+        Crs::from_wkt(BNG_ESRI_NO_EPSG)
+            .unwrap()
+            .metric_transform([530_000.0, 180_000.0]),
+        Crs::WebMercator.metric_transform([1_603_900.0, 6_464_700.0]),
+        Crs::Geographic { epsg: Some(4326) }.metric_transform([24.94, 60.17]),
+    ];
+    let ok = |t: &MetricTransform, p: [f64; 2]| t.check(p).is_ok();
+    // The edge between a point that passes and one that does not, along the segment a → b.
+    let edge = |t: &MetricTransform, mut a: [f64; 2], mut b: [f64; 2]| {
+        for _ in 0..200 {
+            let m = [0.5 * (a[0] + b[0]), 0.5 * (a[1] + b[1])];
+            if ok(t, m) {
+                a = m;
+            } else {
+                b = m;
+            }
+        }
+        a
+    };
+    let (mut fitted, mut refused) = (0, 0);
+    for t in &transforms {
+        let geo = matches!(t.crs, Crs::Geographic { .. });
+        let inside = if geo {
+            [24.9, 60.1]
+        } else {
+            t.from_metric([0.0, 0.0])
+        };
+        let inside = if ok(t, inside) {
+            inside
+        } else {
+            [500_000.0, 5_000_000.0]
+        };
+        assert!(ok(t, inside), "{:?}", t.crs);
+        let far = if geo { 400.0 } else { 1e9 };
+        let mut edges = Vec::new();
+        for dir in [
+            [1.0, 0.0],
+            [-1.0, 0.0],
+            [0.0, 1.0],
+            [0.0, -1.0],
+            [0.7, 0.7],
+            [-0.6, 0.8],
+        ] {
+            let b = [inside[0] + dir[0] * far, inside[1] + dir[1] * far];
+            if !ok(t, b) {
+                edges.push(edge(t, inside, b));
+            }
+        }
+        assert!(!edges.is_empty(), "{:?}: no edge found", t.crs);
+        let sizes: &[f64] = if geo {
+            &[1e-4, 0.01, 5.0]
+        } else {
+            &[1.0, 30.0, 300.0, 1000.0]
+        };
+        for e in &edges {
+            for &s in sizes {
+                for kx in -8..=8 {
+                    for ky in -8..=8 {
+                        let x0 = e[0] + kx as f64 * s / 8.0 - 0.5 * s;
+                        let y0 = e[1] + ky as f64 * s / 8.0 - 0.5 * s;
+                        let b = [x0, y0, x0 + s, y0 + s];
+                        if !t.box_fits(b) {
+                            refused += 1;
+                            continue;
+                        }
+                        fitted += 1;
+                        for i in 0..9 {
+                            for j in 0..9 {
+                                let p = [x0 + s * i as f64 / 8.0, y0 + s * j as f64 / 8.0];
+                                assert!(ok(t, p), "{:?}: box {b:?} fits but {p:?} does not", t.crs);
+                            }
+                        }
+                    }
+                }
+            }
+        }
+    }
+    // Both answers occur: the boxes do straddle the edges.
+    assert!(
+        fitted > 100 && refused > 100,
+        "{fitted} fitted, {refused} refused"
+    );
+}
+
+#[test]
+fn boxes_larger_than_the_limit_or_not_finite_are_left_to_the_vertices() {
+    let u = utm33().metric_transform([457_000.0, 5_550_000.0]);
+    let b = |x: f64, y: f64, s: f64| [x, y, x + s, y + s];
+    assert!(u.box_fits(b(457_000.0, 5_550_000.0, BOX_CHECK_MAX)));
+    assert!(!u.box_fits(b(457_000.0, 5_550_000.0, BOX_CHECK_MAX * 1.01)));
+    assert!(!u.box_fits([f64::NAN, 5_550_000.0, 457_010.0, 5_550_010.0]));
+    assert!(!u.box_fits([457_010.0, 5_550_000.0, 457_000.0, 5_550_010.0]));
+    assert!(!u.box_fits(b(4.6e7, 5_550_000.0, 10.0)));
+    // Geographic bounds are exact for any size.
+    let g = Crs::Geographic { epsg: Some(4326) }.metric_transform([24.94, 60.17]);
+    assert!(g.box_fits([-180.0, -90.0, 180.0, 90.0]));
+    assert!(!g.box_fits([-180.0, -90.0, 180.0, 90.5]));
+}

@@ -35,7 +35,7 @@
 
 use std::collections::BTreeMap;
 
-use blockwalk_importers::{format_groups, CrsError, Layer, MetricTransform, ReasonGroup};
+use blockwalk_importers::{format_groups, Columns, CrsError, Layer, MetricTransform, ReasonGroup};
 use serde::Serialize;
 
 use super::model::{Building, City, CityReport, LocalFrame};
@@ -237,6 +237,29 @@ fn with_layers(
         parcels: parcels_out,
         report,
     })
+}
+
+/// The footprint attributes a city's buildings are made from: the height fields of `hf` and
+/// what the buildings' appearance reads ([`crate::city::appearance::KIND_KEYS`],
+/// [`crate::city::appearance::LEVELS_KEYS`]). Reading only these
+/// ([`blockwalk_importers::read_layer_with`]) gives the same buildings and meshes; an export
+/// of the source attributes (CityJSON) needs them all.
+pub fn footprint_columns(hf: &HeightFields) -> Columns {
+    use crate::city::appearance::{KIND_KEYS, LEVELS_KEYS};
+    Columns::only(
+        [
+            &hf.height,
+            &hf.levels,
+            &hf.roof_levels,
+            &hf.min_height,
+            &hf.min_level,
+        ]
+        .into_iter()
+        .flatten()
+        .map(String::as_str)
+        .chain(KIND_KEYS)
+        .chain(LEVELS_KEYS),
+    )
 }
 
 /// Buildings per height source, as the report counts them.

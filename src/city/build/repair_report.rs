@@ -4,10 +4,12 @@
 use blockwalk_importers::{Layer, MetricTransform};
 use rayon::prelude::*;
 
-use super::geometry::{geometry_kind, polygons_of, to_metric_polygon};
-use super::heights::{heights_from_attributes, source_name, HeightFields};
+use super::geometry::{
+    geometry_kind, polygon_box, polygons_of, to_metric_polygon_checked, BoxCheck,
+};
+use super::heights::{heights_from_attributes, source_name, HeightFields, Heights};
 use super::HeightNote;
-use crate::city::model::{Building, BuildingId, CityReport, RefusalNote, RepairNote};
+use crate::city::model::{Building, BuildingId, CityReport, HeightSource, RefusalNote, RepairNote};
 use crate::geom::repair::{repair_polygon, Repaired};
 
 fn repair_outcome(r: &Repaired) -> String {
@@ -18,6 +20,9 @@ fn repair_outcome(r: &Repaired) -> String {
         .collect::<Vec<_>>()
         .join("; ")
 }
+
+/// One footprint feature's polygons, transformed and repaired (or why not), and its heights.
+type Outcome = (Vec<Result<Repaired, String>>, Heights);
 
 /// Accounts for the importer's own refusals and returns the buildings of the footprint layer,
 /// recording every feature in `report` (see the module documentation of [`super`]).
@@ -52,26 +57,38 @@ pub(crate) fn build_footprints(
         });
     }
 
-    // Transform and repair in parallel (the expensive part), account sequentially in order.
-    let outcomes: Vec<Option<Vec<Result<Repaired, String>>>> = footprints
+    // Transform, repair and heights in parallel (the expensive part), account sequentially in
+    // order.
+    // The CRS check of the footprints' boxes, block by block of a grid.
+    let check = BoxCheck::new(
+        transform,
+        footprints
+            .features
+            .iter()
+            .filter_map(|f| polygons_of(&f.geometry))
+            .flat_map(|ps| ps.into_iter().filter_map(|p| polygon_box(&p))),
+    );
+    let outcomes: Vec<Option<Outcome>> = footprints
         .features
         .par_iter()
         .map(|f| {
-            polygons_of(&f.geometry).map(|ps| {
-                ps.iter()
-                    .map(|p| {
-                        let m = to_metric_polygon(p, transform)?;
-                        repair_polygon(&m).map_err(|e| e.to_string())
-                    })
-                    .collect()
-            })
+            let parts: Vec<Result<Repaired, String>> = polygons_of(&f.geometry)?
+                .iter()
+                .map(|p| {
+                    let m = to_metric_polygon_checked(p, check.transform(), Some(&check))?;
+                    repair_polygon(&m).map_err(|e| e.to_string())
+                })
+                .collect();
+            Some((parts, heights_from_attributes(&f.attributes, hf)))
         })
         .collect();
 
     let mut buildings: Vec<Building> = Vec::with_capacity(footprints.features.len());
+    // Buildings per height source, in the order of `HeightSource`.
+    let mut per_source = [0usize; 3];
     for (f, outcome) in footprints.features.iter().zip(outcomes) {
         let base = format!("{lname}:{}", f.fid);
-        let Some(parts) = outcome else {
+        let Some((parts, heights)) = outcome else {
             report.buildings_refused.push(RefusalNote {
                 id: base,
                 reason: format!("{} is not a polygon", geometry_kind(&f.geometry)),
@@ -85,33 +102,33 @@ pub(crate) fn build_footprints(
             });
             continue;
         }
-        let heights = heights_from_attributes(&f.attributes, hf);
         let n_out: usize = parts
             .iter()
             .map(|r| r.as_ref().map(|r| r.polygons.len()).unwrap_or(0))
             .sum();
-        let single = n_out == 1 && parts.len() == 1;
+        let n_parts = parts.len();
+        let single = n_out == 1 && n_parts == 1;
         let mut what = Vec::new();
         let mut k = 0usize;
-        for (pi, part) in parts.iter().enumerate() {
+        for (pi, part) in parts.into_iter().enumerate() {
             match part {
                 Err(reason) => {
-                    if parts.len() > 1 {
+                    if n_parts > 1 {
                         what.push(format!("part {pi} refused: {reason}"));
                     } else {
-                        what.push(reason.clone());
+                        what.push(reason);
                     }
                 }
                 Ok(rep) => {
                     if rep.was_repaired() {
-                        let s = repair_outcome(rep);
-                        what.push(if parts.len() > 1 {
+                        let s = repair_outcome(&rep);
+                        what.push(if n_parts > 1 {
                             format!("part {pi}: {s}")
                         } else {
                             s
                         });
                     }
-                    for poly in &rep.polygons {
+                    for poly in rep.polygons {
                         let source_id = if single {
                             base.clone()
                         } else {
@@ -121,16 +138,13 @@ pub(crate) fn build_footprints(
                         buildings.push(Building {
                             id: BuildingId(buildings.len() as u32),
                             source_id,
-                            footprint: poly.clone(),
+                            footprint: poly,
                             height_m: heights.height_m,
                             min_height_m: heights.min_height_m,
                             height_source: heights.source,
                             attributes: f.attributes.clone(),
                         });
-                        *report
-                            .height_sources
-                            .entry(source_name(heights.source).to_string())
-                            .or_insert(0) += 1;
+                        per_source[heights.source as usize] += 1;
                     }
                 }
             }
@@ -160,6 +174,21 @@ pub(crate) fn build_footprints(
                     why: h.why,
                 });
             }
+        }
+    }
+    for (source, n) in [
+        HeightSource::Height,
+        HeightSource::Levels,
+        HeightSource::Default,
+    ]
+    .into_iter()
+    .zip(per_source)
+    {
+        if n > 0 {
+            *report
+                .height_sources
+                .entry(source_name(source).to_string())
+                .or_insert(0) += n;
         }
     }
     report.refused_by_reason = blockwalk_importers::group_reasons(
