@@ -3,7 +3,9 @@
 //!
 //! - Walls: two triangles per ring edge, with the edge's own outward normal; wall vertices are
 //!   not shared with other faces (flat shading), so closedness is a property of *positions*.
-//! - Roof and floor: the footprint triangulated with spade's constrained Delaunay triangulation,
+//! - Roof and floor: a strictly convex footprint without holes (exact turn test, wound once) is
+//!   fanned from its first vertex; any other footprint is triangulated with spade's constrained
+//!   Delaunay triangulation,
 //!   every ring edge a constraint; triangles outside the footprint (in a courtyard, or in the
 //!   convex hull outside the exterior) are dropped. Which triangles are inside is found by a
 //!   flood fill from the outer face that flips inside/outside at every constraint edge it
@@ -121,30 +123,50 @@ fn extrude_with(b: &Building, frame: &LocalFrame, s: &mut Scratch) -> Result<Mes
     s.starts.push(s.local.len());
     let n_in = s.local.len();
 
-    // Triangulate in local f64 (spade takes its vertex and edge lists by value).
-    let verts: Vec<Point2<f64>> = s.local.iter().map(|p| Point2::new(p.x, p.y)).collect();
-    let mut edges: Vec<[usize; 2]> = Vec::with_capacity(n_in);
-    for w in s.starts.windows(2) {
-        let (start, len) = (w[0], w[1] - w[0]);
-        edges.extend((0..len).map(|i| [start + i, start + (i + 1) % len]));
-    }
-    let mut conflicts = 0usize;
-    let cdt =
-        ConstrainedDelaunayTriangulation::<Point2<f64>>::try_bulk_load_cdt(verts, edges, |_| {
-            conflicts += 1
-        })
+    // A strictly convex footprint without holes (most buildings) is fanned from its first
+    // vertex: the same cap as any triangulation of it would cover, without building a CDT.
+    // Everything else goes through spade's constrained Delaunay triangulation.
+    let convex = s.starts.len() == 2 && is_strictly_convex(&s.local);
+    let cdt = if convex {
+        for p in &s.local {
+            spade::validate_vertex(&Point2::new(p.x, p.y)).map_err(|source| {
+                ExtrudeError::Triangulation {
+                    id: b.source_id.clone(),
+                    source,
+                }
+            })?;
+        }
+        s.cap.clear();
+        s.cap.extend((1..n_in as u32 - 1).map(|i| [0, i, i + 1]));
+        None
+    } else {
+        // Triangulate in local f64 (spade takes its vertex and edge lists by value).
+        let verts: Vec<Point2<f64>> = s.local.iter().map(|p| Point2::new(p.x, p.y)).collect();
+        let mut edges: Vec<[usize; 2]> = Vec::with_capacity(n_in);
+        for w in s.starts.windows(2) {
+            let (start, len) = (w[0], w[1] - w[0]);
+            edges.extend((0..len).map(|i| [start + i, start + (i + 1) % len]));
+        }
+        let mut conflicts = 0usize;
+        let cdt = ConstrainedDelaunayTriangulation::<Point2<f64>>::try_bulk_load_cdt(
+            verts,
+            edges,
+            |_| conflicts += 1,
+        )
         .map_err(|source| ExtrudeError::Triangulation {
             id: b.source_id.clone(),
             source,
         })?;
-    if conflicts > 0 || cdt.num_vertices() != n_in {
-        return Err(ExtrudeError::CrossingRings {
-            id: b.source_id.clone(),
-            crossings: conflicts,
-            duplicates: n_in - cdt.num_vertices(),
-        });
-    }
-    cap_triangles_into(&cdt, s);
+        if conflicts > 0 || cdt.num_vertices() != n_in {
+            return Err(ExtrudeError::CrossingRings {
+                id: b.source_id.clone(),
+                crossings: conflicts,
+                duplicates: n_in - cdt.num_vertices(),
+            });
+        }
+        cap_triangles_into(&cdt, s);
+        Some(cdt)
+    };
 
     // The footprint is already local (origin subtracted in f64): this is the one f32 rounding.
     let p32 = |x: f64, y: f64, z: f64| LocalFrame::round_to_f32(DVec3::new(x, y, z));
@@ -163,9 +185,14 @@ fn extrude_with(b: &Building, frame: &LocalFrame, s: &mut Scratch) -> Result<Mes
     // Roof (z1, normal +z) and floor (z0, normal −z, reversed).
     for (z, nz, flip) in [(z1, 1.0f32, false), (z0, -1.0, true)] {
         let base = m.positions.len() as u32;
-        for v in cdt.vertices() {
-            let p = v.position();
-            m.positions.push(p32(p.x, p.y, z));
+        match &cdt {
+            Some(cdt) => {
+                for v in cdt.vertices() {
+                    let p = v.position();
+                    m.positions.push(p32(p.x, p.y, z));
+                }
+            }
+            None => m.positions.extend(s.local.iter().map(|p| p32(p.x, p.y, z))),
         }
         m.normals.resize(m.positions.len(), Vec3::new(0.0, 0.0, nz));
         m.appearance.resize(m.positions.len(), va(0.0));
@@ -202,6 +229,43 @@ fn extrude_with(b: &Building, frame: &LocalFrame, s: &mut Scratch) -> Result<Mes
         }
     }
     Ok(m)
+}
+
+/// True when the open ring turns strictly left at every vertex (exact `orient2d`) and winds once
+/// (its x and y directions each change sign at most twice, so a star traced twice is not
+/// taken): a simple, strictly convex, counter-clockwise polygon, which the fan from any vertex
+/// triangulates.
+fn is_strictly_convex(ring: &[DVec2]) -> bool {
+    let n = ring.len();
+    if n < 3 {
+        return false;
+    }
+    let turns_left = (0..n).all(|i| {
+        orient2d(ring[(i + n - 1) % n], ring[i], ring[(i + 1) % n]) == Orientation::CounterClockwise
+    });
+    let sign_changes = |d: fn(DVec2, DVec2) -> f64| {
+        let mut last = 0.0f64;
+        let mut changes = 0;
+        for i in 0..n {
+            let v = d(ring[i], ring[(i + 1) % n]);
+            if v != 0.0 {
+                if last != 0.0 && (v > 0.0) != (last > 0.0) {
+                    changes += 1;
+                }
+                last = v;
+            }
+        }
+        // Close the cycle: the first non-zero direction against the last.
+        let first = (0..n)
+            .map(|i| d(ring[i], ring[(i + 1) % n]))
+            .find(|&v| v != 0.0)
+            .unwrap_or(0.0);
+        if first != 0.0 && last != 0.0 && (first > 0.0) != (last > 0.0) {
+            changes += 1;
+        }
+        changes
+    };
+    turns_left && sign_changes(|a, b| b.x - a.x) <= 2 && sign_changes(|a, b| b.y - a.y) <= 2
 }
 
 /// [`super::appearance::ring_u`] of an open ring of local points, into `out` (cleared first): the same sums in the
@@ -655,6 +719,111 @@ mod tests {
                 let cdt = cdt_of(&lp);
                 prop_assert_eq!(cap_triangles(&cdt), cap_triangles_by_centroid(&cdt, &lp));
             }
+        }
+    }
+
+    /// Which footprints take the fan: strictly convex, counter-clockwise, wound once.
+    #[test]
+    fn convex_fast_path_takes_only_simple_strictly_convex_rings() {
+        let v = |pts: &[(f64, f64)]| {
+            pts.iter()
+                .map(|&(x, y)| DVec2::new(x, y))
+                .collect::<Vec<_>>()
+        };
+        assert!(is_strictly_convex(&v(&[
+            (0.0, 0.0),
+            (4.0, 0.0),
+            (4.0, 3.0),
+            (0.0, 3.0)
+        ])));
+        assert!(is_strictly_convex(&v(&[
+            (0.0, 0.0),
+            (1.0, 0.0),
+            (0.0, 1.0)
+        ])));
+        // Clockwise, a collinear vertex, a reflex vertex, a degenerate ring.
+        assert!(!is_strictly_convex(&v(&[
+            (0.0, 0.0),
+            (0.0, 3.0),
+            (4.0, 3.0),
+            (4.0, 0.0)
+        ])));
+        assert!(!is_strictly_convex(&v(&[
+            (0.0, 0.0),
+            (2.0, 0.0),
+            (4.0, 0.0),
+            (4.0, 3.0),
+            (0.0, 3.0)
+        ])));
+        assert!(!is_strictly_convex(&v(&[
+            (0.0, 0.0),
+            (4.0, 0.0),
+            (2.0, 1.0),
+            (4.0, 3.0),
+            (0.0, 3.0)
+        ])));
+        assert!(!is_strictly_convex(&v(&[(0.0, 0.0), (4.0, 0.0)])));
+        // A pentagram: it turns left at every vertex but winds twice.
+        let star: Vec<(f64, f64)> = (0..5)
+            .map(|k| {
+                let a = std::f64::consts::TAU * (2 * k) as f64 / 5.0;
+                (a.cos(), a.sin())
+            })
+            .collect();
+        let ring = v(&star);
+        let n = ring.len();
+        assert!((0..n).all(
+            |i| orient2d(ring[(i + n - 1) % n], ring[i], ring[(i + 1) % n])
+                == Orientation::CounterClockwise
+        ));
+        assert!(!is_strictly_convex(&ring));
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(300))]
+        /// Convex footprints (the fan) give closed prisms whose roof is the footprint and whose
+        /// volume is area × height, like the triangulated ones; a hole sends the same ring
+        /// through spade, with the same roof area less the hole.
+        #[test]
+        fn convex_footprints_fan_into_closed_prisms(
+            n in 3usize..24, seed in any::<u64>(),
+            off in prop_oneof![Just(0.0), Just(1.0e7)],
+            h in 1.0f64..200.0,
+        ) {
+            use rand::{Rng, SeedableRng};
+            let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
+            let mut angles: Vec<f64> = (0..n).map(|_| rng.random_range(0.0..std::f64::consts::TAU)).collect();
+            angles.sort_by(f64::total_cmp);
+            angles.dedup_by(|a, b| (*a - *b).abs() < 1e-3);
+            prop_assume!(angles.len() >= 3);
+            let mut ring: Vec<(f64, f64)> = angles.iter().map(|a| (off + 30.0 * a.cos(), off + 20.0 * a.sin())).collect();
+            ring.push(ring[0]);
+            let p = Polygon::new(LineString::from(ring), vec![]);
+            let frame = LocalFrame { origin: DVec3::new(off + 2.0, off - 1.0, 0.0) };
+            let local: Vec<DVec2> = open_ring(&p.exterior().0).iter().map(|&c| frame.to_local_xy(c)).collect();
+            prop_assume!(is_strictly_convex(&local));
+            let m = try_extrude_building(&building(p.clone(), h, 0.0), &frame).unwrap();
+            prop_assert!(check_closed(&m).is_ok(), "{:?}", check_closed(&m));
+            let area = rounded_area(&p, &frame);
+            prop_assert!(((roof_area(&m) - area) / area).abs() < 1e-9);
+            let v = signed_volume(&m);
+            let expect = area * (h as f32 as f64);
+            prop_assert!(((v - expect) / expect).abs() < 1e-6, "{} vs {}", v, expect);
+            // Fan: n − 2 roof triangles.
+            let roof = m.indices.chunks_exact(3).filter(|t| m.normals[t[0] as usize].z > 0.5).count();
+            prop_assert_eq!(roof, local.len() - 2);
+            // The same exterior with a small hole goes through the triangulation.
+            let hole = LineString::from(vec![(off - 1.0, off - 1.0), (off - 1.0, off + 1.0), (off + 1.0, off + 1.0), (off + 1.0, off - 1.0), (off - 1.0, off - 1.0)]);
+            // (only when the hole lies inside: a thin triangle may not hold it)
+            {
+                use geo::Contains;
+                prop_assume!(p.contains(&hole));
+            }
+            let ph = Polygon::new(p.exterior().clone(), vec![hole]);
+            let mh = try_extrude_building(&building(ph.clone(), h, 0.0), &frame).unwrap();
+            prop_assert!(check_closed(&mh).is_ok());
+            let area_h = rounded_area(&ph, &frame);
+            prop_assert!(((roof_area(&mh) - area_h) / area_h).abs() < 1e-9);
         }
     }
 
