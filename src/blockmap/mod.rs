@@ -27,6 +27,7 @@ pub mod build;
 pub mod cast;
 pub mod colors;
 pub mod compare;
+pub mod diagnose;
 pub mod error;
 pub mod image;
 pub mod layout;
