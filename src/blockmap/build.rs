@@ -1011,3 +1011,22 @@ pub fn nearest_facade(b: &SourceBuilding, p: DVec2) -> Option<(DVec2, f32)> {
     }
     best.map(|(_, n, u)| (n, u))
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn kept_area_of_two_half_planes() {
+        // One half-plane: half the square; two perpendicular ones: a quarter.
+        assert!((kept_area(DVec2::X, 0.0) - 0.5).abs() < 1e-12);
+        let q = kept_area_of(&[(DVec2::X, 0.0), (DVec2::Y, 0.0)]);
+        assert!((q - 0.25).abs() < 1e-12, "{q}");
+        // Two parallel sides of a strip 0.2 wide.
+        let s = kept_area_of(&[(DVec2::X, 0.1), (DVec2::NEG_X, 0.1)]);
+        assert!((s - 0.2).abs() < 1e-12, "{s}");
+        // Disjoint half-planes keep nothing; none keeps the square.
+        assert_eq!(kept_area_of(&[(DVec2::X, -0.2), (DVec2::NEG_X, -0.2)]), 0.0);
+        assert!((kept_area_of(&[]) - 1.0).abs() < 1e-12);
+    }
+}

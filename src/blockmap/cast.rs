@@ -855,6 +855,54 @@ mod tests {
     }
 
     #[test]
+    fn two_edges_keep_a_convex_corner() {
+        use crate::blockmap::layout::{encode_offset_up, encode_unit};
+        // Kept: the south-west quarter (x ≤ 0 and y ≤ 0 about the centre): n₁ = +x, n₂ = +y.
+        let mut m = edge_map(1.0, 0.0, 0.0);
+        m.set_edge2_bytes(
+            10,
+            10,
+            Some([
+                encode_unit(0.0),
+                encode_unit(1.0),
+                encode_offset_up(0.0).unwrap(),
+            ]),
+        );
+        assert!(m.edges(10, 10)[1].is_some());
+        // Vertical rays: the kept quarter's roof; the three other quarters are empty (one
+        // half-plane alone kept the north-west one).
+        assert!(matches!(
+            both(&m, DVec3::new(10.25, 10.25, 150.0), DVec3::NEG_Z),
+            Hit::Roof { i: 10, j: 10, .. }
+        ));
+        for (x, y) in [(10.75, 10.25), (10.25, 10.75), (10.75, 10.75)] {
+            assert_eq!(both(&m, DVec3::new(x, y, 150.0), DVec3::NEG_Z), Hit::Miss);
+        }
+        // From the north the second edge, half a texel in, with its normal.
+        let h = both(&m, DVec3::new(10.25, 40.0, 30.0), DVec3::NEG_Y);
+        assert!(
+            matches!(h, Hit::Wall { i: 10, j: 10, face: Face::Edge2, t } if (t - 29.5).abs() < 1e-9),
+            "{h:?}"
+        );
+        let r = m.tex_ray(DVec3::new(10.25, 40.0, 30.0), DVec3::NEG_Y);
+        assert_eq!(surface(&m, &r, &h).unwrap().normal, Vec3::Y);
+        // From the east the first edge.
+        let h = both(&m, DVec3::new(40.0, 10.25, 30.0), DVec3::NEG_X);
+        assert!(
+            matches!(h, Hit::Wall { face: Face::Edge, t, .. } if (t - 29.5).abs() < 1e-9),
+            "{h:?}"
+        );
+        // A second edge without a first is not read (the casters' rule).
+        let mut only2 = m.clone();
+        only2.set_edge_bytes(10, 10, None);
+        assert_eq!(only2.edges(10, 10), [None, None]);
+        assert!(matches!(
+            both(&only2, DVec3::new(10.75, 10.75, 150.0), DVec3::NEG_Z),
+            Hit::Roof { .. }
+        ));
+    }
+
+    #[test]
     fn leap_gives_the_same_hit_in_fewer_steps() {
         let m = tower_map();
         let dm = m.distance_map();

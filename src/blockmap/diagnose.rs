@@ -34,7 +34,7 @@ use super::tree::MapTree;
 use crate::blocks::BlockId;
 use crate::city::Mesh;
 use crate::geom::Camera;
-use crate::visibility::oracle::{render_ids, SKY};
+use crate::visibility::oracle::{render_ids, shade_with_ground_depth, SKY};
 use glam::{DVec2, DVec3, DVec4};
 use serde::Serialize;
 use std::collections::BTreeMap;
@@ -119,6 +119,9 @@ pub struct FrameDiagnosis {
     pub beyond_bound: usize,
     /// Largest silhouette distance of a mismatched pixel.
     pub silhouette_px_max: f64,
+    /// Pixels whose coverage differs without the ground but agrees with it (the ground's depth
+    /// test hid the difference).
+    pub hidden_by_ground: usize,
     /// Pixels that are silhouettes of the mesh frame (covered with an uncovered 4-neighbour or
     /// the reverse): the band a shift of a pixel can touch.
     pub mesh_silhouette_pixels: usize,
@@ -135,6 +138,10 @@ pub struct FrameDiagnosis {
 pub struct FrameInput<'a> {
     /// Buildings (f64) and one mesh per building.
     pub source: &'a Source<'a>,
+    /// The ground layers, when the frames are drawn with them (the walk's frames): coverage is
+    /// then, as in `walk::far`, a pixel that differs from the frame without buildings, and the
+    /// ground's depth test can hide a building's lower walls in one frame and not in the other.
+    pub ground: Option<&'a Mesh>,
     /// The maps.
     pub tree: &'a MapTree,
     /// What the frame draws: maps and near blocks.
@@ -252,6 +259,7 @@ pub fn ray_prism(b: &SourceBuilding, o: DVec3, d: DVec3) -> Option<f64> {
 pub fn diagnose_frame(input: &FrameInput) -> FrameDiagnosis {
     let FrameInput {
         source,
+        ground,
         tree,
         selection,
         camera,
@@ -299,8 +307,42 @@ pub fn diagnose_frame(input: &FrameInput) -> FrameDiagnosis {
             src[k] = MESH;
         }
     }
-    let mesh_cov: Vec<bool> = mesh.ids.iter().map(|&i| i != SKY).collect();
-    let hyb_cov: Vec<bool> = src.iter().map(|&s| s != 0).collect();
+    let mut mesh_cov: Vec<bool> = mesh.ids.iter().map(|&i| i != SKY).collect();
+    let mut hyb_cov: Vec<bool> = src.iter().map(|&s| s != 0).collect();
+    // With the ground: the frames as the walk draws and measures them (the CPU hybrid
+    // renderer's composite), and which pixels the ground's depth test decided.
+    let mut ground_decided = vec![false; w * h];
+    let mut hidden_by_ground = 0usize;
+    if let Some(g) = ground {
+        let none: Vec<(BlockId, &Mesh)> = Vec::new();
+        let (bg, _) = shade_with_ground_depth(&none, g, camera, width, height);
+        let (mimg, _) = shade_with_ground_depth(&all, g, camera, width, height);
+        let (mut himg, hdepth) = shade_with_ground_depth(&near, g, camera, width, height);
+        for (k, px) in himg.pixels_mut().enumerate() {
+            if far.hit[k] && far.depth[k] < hdepth[k] {
+                *px = image::Rgba(far.color[k]);
+            }
+        }
+        let cov = |img: &image::RgbaImage| -> Vec<bool> {
+            img.pixels()
+                .zip(bg.pixels())
+                .map(|(a, b)| a.0[..3] != b.0[..3])
+                .collect()
+        };
+        let (mc, hc) = (cov(&mimg), cov(&himg));
+        for k in 0..w * h {
+            let id_mis = mesh_cov[k] != hyb_cov[k];
+            let sh_mis = mc[k] != hc[k];
+            if sh_mis && !id_mis {
+                ground_decided[k] = true;
+            }
+            if id_mis && !sh_mis {
+                hidden_by_ground += 1;
+            }
+        }
+        mesh_cov = mc;
+        hyb_cov = hc;
+    }
     let mask = |cov: &[bool]| {
         let mut m = vec![false; w * h];
         for (x, y) in super::compare::silhouette_pixels(cov, w, h) {
@@ -387,12 +429,31 @@ pub fn diagnose_frame(input: &FrameInput) -> FrameDiagnosis {
                 two
             };
             // Node, cause, building, texel, point.
-            let mut building: Option<u32> = None;
+            let mut building: Option<u32> = if mesh.ids[k] != SKY {
+                Some(mesh.ids[k])
+            } else {
+                None
+            };
             let mut map_i: Option<usize> = None;
             let mut texel: Option<[u32; 2]> = None;
             let mut point: Option<DVec3> = None;
             let mut edge_dist: Option<f64> = None;
-            let class = if extra {
+            let class = if ground_decided[k] {
+                // Both frames agree without the ground: its depth test decided this pixel.
+                format!(
+                    "{}/ground-depth/{}",
+                    if extra { "extra" } else { "missing" },
+                    match src[k] {
+                        0 => "none",
+                        MESH => "mesh",
+                        _ => "map",
+                    }
+                )
+            } else if extra && src[k] == 0 || !extra && mesh.ids[k] == SKY {
+                // The two coverages disagree in kind (a depth test against the ground turned
+                // an extra pixel into a missing one or the reverse).
+                "mixed/ground-depth/-".to_string()
+            } else if extra {
                 if src[k] == MESH {
                     "extra/mesh/-".to_string()
                 } else {
@@ -469,7 +530,6 @@ pub fn diagnose_frame(input: &FrameInput) -> FrameDiagnosis {
                 }
             } else {
                 let b = mesh.ids[k];
-                building = Some(b);
                 let sb = source.buildings[b as usize].as_ref();
                 let q = sb.and_then(|sb| ray_prism(sb, o, d)).map(|t| o + d * t);
                 let q = q.unwrap_or_else(|| {
@@ -607,6 +667,7 @@ pub fn diagnose_frame(input: &FrameInput) -> FrameDiagnosis {
         c.edge_distance_texels_mean = if s.2 > 0 { s.1 / s.2 as f64 } else { 0.0 };
     }
     out.coverage_error = out.mismatched as f64 / (w * h).max(1) as f64;
+    out.hidden_by_ground = hidden_by_ground;
     details.sort_by(|a, b| {
         (b.silhouette_px / b.allowed_px)
             .total_cmp(&(a.silhouette_px / a.allowed_px))
@@ -650,7 +711,8 @@ impl FrameDiagnosis {
         let mut s = format!(
             "{}x{}, τ = {} px, {} maps, {} mesh blocks: {} mismatched pixels ({:.3} % of the frame), \
              {} beyond the bound, silhouette px max {:.1}; mesh silhouette pixels {} ({:.2} %); \
-             buildings on screen by pixels <4 / 4–15 / ≥16: {:?}\n\n",
+             buildings on screen by pixels <4 / 4–15 / ≥16: {:?}; mismatched without the ground \
+             but not with it: {}\n\n",
             self.width,
             self.height,
             self.tau_px,
@@ -663,6 +725,7 @@ impl FrameDiagnosis {
             self.mesh_silhouette_pixels,
             100.0 * self.mesh_silhouette_pixels as f64 / (self.width * self.height).max(1) as f64,
             self.buildings_by_px,
+            self.hidden_by_ground,
         );
         s.push_str("| class | pixels | share | beyond bound | sil px mean / max | seam | bldg <4 / 4–15 / ≥16 px | edge dist (texels) |\n|---|---|---|---|---|---|---|---|\n");
         let mut rows: Vec<(&String, &ClassFigures)> = self.classes.iter().collect();

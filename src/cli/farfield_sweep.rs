@@ -57,6 +57,10 @@ pub struct Args {
     /// (a second where it fits the footprint more closely; the default), to measure each.
     #[arg(long, default_value_t = 2, value_parser = clap::value_parser!(u8).range(0..=2))]
     pub edges: u8,
+    /// The fly-over's near plane as a share of its height above the highest roof (0: the
+    /// lens's default, 0.5 m).
+    #[arg(long, default_value_t = FLYOVER_NEAR_SHARE)]
+    pub flyover_near_share: f64,
 }
 
 /// One configuration's figures.
@@ -82,7 +86,25 @@ pub struct Row {
 
 /// A high fly-over: across the city's box from south-west to north-east at an altitude of
 /// 0.8 × its larger side, looking ahead and down 35°, so that most of the city stays in view.
+/// The near plane lies at half the height above the highest roof (nothing is nearer), as a
+/// viewer sets it for a view from high up: with the lens's 0.5 m, Depth32Float cannot tell a
+/// wall's lower metres from the ground kilometres away, and the ground's depth test then decides
+/// pixels differently for meshes and maps (issue 12's diagnosis: half the fly-over's mismatched
+/// pixels on the 80k city).
 pub fn flyover_route(bounds: Aabb3, aspect: f64) -> anyhow::Result<CameraRoute> {
+    flyover_route_with_near(bounds, aspect, FLYOVER_NEAR_SHARE)
+}
+
+/// The near plane of [`flyover_route`] as a share of the height above the highest roof.
+pub const FLYOVER_NEAR_SHARE: f64 = 0.5;
+
+/// [`flyover_route`] with the near plane at `near_share` of the height above the highest roof
+/// (`0`: the lens's default near plane).
+pub fn flyover_route_with_near(
+    bounds: Aabb3,
+    aspect: f64,
+    near_share: f64,
+) -> anyhow::Result<CameraRoute> {
     let e = bounds.extent();
     let side = e.x.max(e.y).max(100.0);
     let z = bounds.max.z + 0.8 * side;
@@ -97,10 +119,16 @@ pub fn flyover_route(bounds: Aabb3, aspect: f64) -> anyhow::Result<CameraRoute> 
         )
     };
     let (ca, cb) = (look(a), look(b));
+    let base = Lens::default();
     let lens = Lens {
         aspect,
         far: 4.0 * side + z * 2.0,
-        ..Lens::default()
+        near: if near_share > 0.0 {
+            (near_share * (z - bounds.max.z)).max(base.near)
+        } else {
+            base.near
+        },
+        ..base
     };
     Ok(CameraRoute::new(
         "flyover",
@@ -112,9 +140,9 @@ pub fn flyover_route(bounds: Aabb3, aspect: f64) -> anyhow::Result<CameraRoute> 
     )?)
 }
 
-fn route_of(name: &str, scene: &Scene, size: Size) -> anyhow::Result<CameraRoute> {
+fn route_of(name: &str, scene: &Scene, size: Size, near_share: f64) -> anyhow::Result<CameraRoute> {
     if name == "flyover" {
-        return flyover_route(scene.city_bounds(), size.aspect());
+        return flyover_route_with_near(scene.city_bounds(), size.aspect(), near_share);
     }
     let choice: RouteChoice = name.parse().unwrap_or(RouteChoice::Paper);
     Ok(super::walk::resolve_route(&choice, scene, size)?.0)
@@ -122,6 +150,11 @@ fn route_of(name: &str, scene: &Scene, size: Size) -> anyhow::Result<CameraRoute
 
 pub fn run(args: Args) -> anyhow::Result<()> {
     anyhow::ensure!(args.frames >= 2, "--frames {}: at least 2", args.frames);
+    anyhow::ensure!(
+        args.flyover_near_share.is_finite() && (0.0..1.0).contains(&args.flyover_near_share),
+        "--flyover-near-share {}: expected a share in [0, 1)",
+        args.flyover_near_share
+    );
     anyhow::ensure!(
         args.taus.iter().all(|t| t.is_finite() && *t > 0.0),
         "--taus: expected positive numbers of pixels"
@@ -137,7 +170,12 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let routes: Vec<(String, CameraRoute)> = args
         .routes
         .iter()
-        .map(|r| Ok((r.clone(), route_of(r, &scene, args.size)?)))
+        .map(|r| {
+            Ok((
+                r.clone(),
+                route_of(r, &scene, args.size, args.flyover_near_share)?,
+            ))
+        })
         .collect::<anyhow::Result<_>>()?;
     let building_meshes = if args.diagnose {
         blockwalk::city::extrude::extrude_city(&scene.city)
@@ -367,6 +405,7 @@ fn diagnose(
         }
         let d = diagnose_frame(&FrameInput {
             source,
+            ground: Some(&scene.ground),
             tree: maps,
             selection: &s,
             camera: cam,
