@@ -299,14 +299,17 @@ pub fn diagnose_frame(input: &FrameInput) -> FrameDiagnosis {
     }
     // Hybrid per pixel: source 0 = nothing, 1 + m = map m, MESH = a near mesh.
     const MESH: u32 = u32::MAX;
-    let mut src = vec![0u32; w * h];
-    for k in 0..w * h {
-        if far.hit[k] && far.depth[k] < near_ids.depth[k] {
-            src[k] = far.map[k] + 1;
-        } else if near_ids.ids[k] != SKY {
-            src[k] = MESH;
-        }
-    }
+    let src: Vec<u32> = (0..w * h)
+        .map(|k| {
+            if far.hit[k] && far.depth[k] < near_ids.depth[k] {
+                far.map[k] + 1
+            } else if near_ids.ids[k] != SKY {
+                MESH
+            } else {
+                0
+            }
+        })
+        .collect();
     let mut mesh_cov: Vec<bool> = mesh.ids.iter().map(|&i| i != SKY).collect();
     let mut hyb_cov: Vec<bool> = src.iter().map(|&s| s != 0).collect();
     // With the ground: the frames as the walk draws and measures them (the CPU hybrid
