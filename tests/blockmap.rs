@@ -704,7 +704,7 @@ fn scene_builds_the_maps_in_one_call() {
         );
     }
     assert_eq!(s["maps"], maps.maps.maps.len());
-    assert_eq!(s["bytes"], maps.maps.maps.len() * 112 * 1024);
+    assert_eq!(s["bytes"], maps.maps.maps.len() * 128 * 1024);
 }
 
 #[test]
