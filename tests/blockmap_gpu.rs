@@ -214,6 +214,12 @@ fn gpu_ray_caster_equals_the_cpu_reference() {
         return;
     };
     let (maps, levels) = helsinki_maps();
+    // The maps exercise both edge sections (one and two half-planes per texel).
+    let (e1, e2): (usize, usize) = maps.iter().fold((0, 0), |(a, b), m| {
+        (a + m.edge_texels(), b + m.edge2_texels())
+    });
+    eprintln!("{e1} texels with an edge, {e2} with two");
+    assert!(e2 > 0 && e1 > e2, "{e1} / {e2}");
     let refs: Vec<&BlockMap> = maps.iter().collect();
     let r = GpuFrameRenderer::with_gpu(gpu, &[], &Mesh::default(), (W, H))
         .unwrap()

@@ -242,6 +242,10 @@ pub struct BuildOptions {
     pub edges: bool,
     /// How the maps of inner quadtree nodes are built (a tree option: single maps ignore it).
     pub parents: super::children::Parents,
+    /// With [`BuildOptions::edges`], store a second half-plane where two hold a texel's
+    /// footprint part more closely than one (a convex corner, a building narrower than the
+    /// texel; `layout` doc).
+    pub two_edges: bool,
 }
 
 impl Default for BuildOptions {
@@ -255,6 +259,7 @@ impl Default for BuildOptions {
             ao_radius_m: 30.0,
             edges: true,
             parents: super::children::Parents::Polygons,
+            two_edges: true,
         }
     }
 }
@@ -279,6 +284,8 @@ pub struct BuildStats {
     pub ao: Option<super::ao::AoStats>,
     /// Texels with a footprint edge (half-plane).
     pub edge_texels: usize,
+    /// Of those, texels with a second half-plane.
+    pub edge2_texels: usize,
     /// Of those, texels filled only because a footprint overlaps them (the sampling left them
     /// empty).
     pub edge_filled_texels: usize,
@@ -346,12 +353,12 @@ pub fn build_map(
     };
     let index_of = |id: u32| source.buildings[id as usize].as_ref();
     let mut owner = owner;
-    let edge_bytes = if opts.edges {
-        let e = footprint_edges(&bs, min, map.texel_m(), k, &mut owner);
+    let (edge_bytes, edge2_bytes) = if opts.edges {
+        let e = footprint_edges(&bs, min, map.texel_m(), k, &mut owner, opts.two_edges);
         stats.edge_filled_texels = e.filled;
-        e.bytes
+        (e.bytes, e.bytes2)
     } else {
-        vec![None; k * k]
+        (vec![None; k * k], vec![None; k * k])
     };
     for j in 0..k {
         for i in 0..k {
@@ -372,6 +379,10 @@ pub fn build_map(
         if e.is_some() && owner[t] != SKY {
             map.set_edge_bytes((t % k) as u32, (t / k) as u32, *e);
             stats.edge_texels += 1;
+            if edge2_bytes[t].is_some() {
+                map.set_edge2_bytes((t % k) as u32, (t / k) as u32, edge2_bytes[t]);
+                stats.edge2_texels += 1;
+            }
         }
     }
     let mut seen: Vec<u32> = owner.iter().copied().filter(|&o| o != SKY).collect();
@@ -405,7 +416,7 @@ pub fn build_map(
                     bits |= 1 << s;
                 }
             }
-            if let Some(e) = map.edge(i as u32, j as u32) {
+            for e in map.edges(i as u32, j as u32).into_iter().flatten() {
                 // The side the edge faces most shows the edge wall's column.
                 let best = SIDES
                     .iter()
@@ -519,12 +530,14 @@ pub fn build_map(
 /// The footprint edges of a map: per texel, the edge bytes ([`BlockMap::set_edge_bytes`]).
 struct Edges {
     bytes: Vec<Option<[u8; 3]>>,
+    /// The second half-plane of a texel, when two hold its footprint part more closely.
+    bytes2: Vec<Option<[u8; 3]>>,
     filled: usize,
 }
 
 /// Clips a ring to the axis-aligned box `[lo, hi]` (Sutherland–Hodgman; a non-convex ring may
 /// give degenerate edges along the box, whose shoelace area is still exact).
-fn clip_ring(ring: &[DVec2], lo: DVec2, hi: DVec2) -> Vec<DVec2> {
+pub(crate) fn clip_ring(ring: &[DVec2], lo: DVec2, hi: DVec2) -> Vec<DVec2> {
     let mut poly: Vec<DVec2> = ring.to_vec();
     // (axis, bound, keep below)
     for (axis, bound, below) in [
@@ -570,31 +583,43 @@ fn clip_ring(ring: &[DVec2], lo: DVec2, hi: DVec2) -> Vec<DVec2> {
 }
 
 /// Signed shoelace area.
-fn shoelace(p: &[DVec2]) -> f64 {
+pub(crate) fn shoelace(p: &[DVec2]) -> f64 {
     let n = p.len();
     (0..n).map(|q| p[q].perp_dot(p[(q + 1) % n])).sum::<f64>() * 0.5
 }
 
 /// Area of the part of the unit square centred on 0 where `n·q ≤ o`.
 pub fn kept_area(n: DVec2, o: f64) -> f64 {
-    let sq = [
+    kept_area_of(&[(n, o)])
+}
+
+/// Area of the part of the unit square centred on 0 inside every half-plane `n·q ≤ o` of
+/// `planes` (Sutherland–Hodgman on the convex square).
+pub fn kept_area_of(planes: &[(DVec2, f64)]) -> f64 {
+    let mut poly = vec![
         DVec2::new(-0.5, -0.5),
         DVec2::new(0.5, -0.5),
         DVec2::new(0.5, 0.5),
         DVec2::new(-0.5, 0.5),
     ];
-    let mut out = Vec::with_capacity(5);
-    for q in 0..4 {
-        let (a, b) = (sq[q], sq[(q + 1) % 4]);
-        let (ga, gb) = (n.dot(a) - o, n.dot(b) - o);
-        if ga <= 0.0 {
-            out.push(a);
+    for &(n, o) in planes {
+        let mut out = Vec::with_capacity(poly.len() + 1);
+        for q in 0..poly.len() {
+            let (a, b) = (poly[q], poly[(q + 1) % poly.len()]);
+            let (ga, gb) = (n.dot(a) - o, n.dot(b) - o);
+            if ga <= 0.0 {
+                out.push(a);
+            }
+            if (ga <= 0.0) != (gb <= 0.0) {
+                out.push(a + (b - a) * (ga / (ga - gb)));
+            }
         }
-        if (ga <= 0.0) != (gb <= 0.0) {
-            out.push(a + (b - a) * (ga / (ga - gb)));
+        poly = out;
+        if poly.is_empty() {
+            return 0.0;
         }
     }
-    shoelace(&out).abs()
+    shoelace(&poly).abs()
 }
 
 /// Finds, for every texel a footprint edge crosses, the half-plane of least area (within the
@@ -609,6 +634,7 @@ fn footprint_edges(
     s: f64,
     k: usize,
     owner: &mut [u32],
+    two_edges: bool,
 ) -> Edges {
     use super::layout::{decode_offset, decode_unit, encode_offset_up};
     // Per texel, the (building, ring, edge) crossing it.
@@ -665,6 +691,7 @@ fn footprint_edges(
         })
         .collect();
     let mut bytes = vec![None; k * k];
+    let mut bytes2 = vec![None; k * k];
     let mut filled = 0usize;
     let mut pts: Vec<DVec2> = Vec::new();
     let mut crossing: Vec<u32> = Vec::new();
@@ -703,8 +730,9 @@ fn footprint_edges(
         if total <= 1e-9 {
             continue; // the footprints only touch the texel
         }
-        // The best supporting line.
-        let mut best: Option<(f64, [u8; 3])> = None;
+        // The supporting lines of the crossing edges (quantised normal, offset rounded up so
+        // that each holds every footprint point of the texel).
+        let mut lines: Vec<(DVec2, f64, [u8; 3])> = Vec::new();
         for &(p, r, e) in &cross[t] {
             let ring = &bs[p as usize].rings[r as usize];
             let (a, c) = (ring[e as usize], ring[(e as usize + 1) % ring.len()]);
@@ -725,26 +753,62 @@ fn footprint_edges(
             let Some(bo) = encode_offset_up(need + 1e-6) else {
                 continue;
             };
-            let area = kept_area(nq, decode_offset(bo) as f64);
+            if lines.iter().any(|l| l.2 == [bx, by, bo]) {
+                continue;
+            }
+            lines.push((nq, decode_offset(bo) as f64, [bx, by, bo]));
+        }
+        // The best line, then the best pair when two lines keep less (by more than a
+        // hundredth of the texel): a convex corner, or two sides of a thin building.
+        let mut best: Option<(f64, [u8; 3])> = None;
+        for l in &lines {
+            let area = kept_area(l.0, l.1);
             if area < 1.0 - 1e-6 && best.is_none_or(|(ba, _)| area < ba) {
-                best = Some((area, [bx, by, bo]));
+                best = Some((area, l.2));
             }
         }
+        let mut best2: Option<(f64, [u8; 3], [u8; 3])> = None;
+        if two_edges {
+            for a in 0..lines.len() {
+                for b in a + 1..lines.len() {
+                    let area = kept_area_of(&[(lines[a].0, lines[a].1), (lines[b].0, lines[b].1)]);
+                    if best2.is_none_or(|(ba, _, _)| area < ba) {
+                        best2 = Some((area, lines[a].2, lines[b].2));
+                    }
+                }
+            }
+        }
+        let pair = match (best, best2) {
+            (Some((a1, _)), Some((a2, _, _))) if a2 < a1 - 0.01 => best2,
+            (None, Some((a2, _, _))) if a2 < 1.0 - 0.01 => best2,
+            _ => None,
+        };
         if owner[t] == SKY {
             // An empty texel gets a column only when that lowers its area error: the column's
             // excess (kept − covered) must be below the footprint area it would add (covered).
             // A whole square between two buildings, or a half-plane around a building much
             // smaller than the texel (upper levels: 100 m texels), adds more than it fixes.
             let covered = total.min(1.0);
-            if best.is_none_or(|(kept, _)| kept >= 2.0 * covered) {
+            let kept = pair.map_or(best.map(|b| b.0), |p| Some(p.0));
+            if kept.is_none_or(|kept| kept >= 2.0 * covered) {
                 continue;
             }
             owner[t] = best_area.2;
             filled += 1;
         }
-        bytes[t] = best.map(|b| b.1);
+        match pair {
+            Some((_, e1, e2)) => {
+                bytes[t] = Some(e1);
+                bytes2[t] = Some(e2);
+            }
+            None => bytes[t] = best.map(|b| b.1),
+        }
     }
-    Edges { bytes, filled }
+    Edges {
+        bytes,
+        bytes2,
+        filled,
+    }
 }
 
 /// The building whose roof is highest over each texel centre of the `k × k` grid with lower
@@ -951,4 +1015,23 @@ pub fn nearest_facade(b: &SourceBuilding, p: DVec2) -> Option<(DVec2, f32)> {
         }
     }
     best.map(|(_, n, u)| (n, u))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn kept_area_of_two_half_planes() {
+        // One half-plane: half the square; two perpendicular ones: a quarter.
+        assert!((kept_area(DVec2::X, 0.0) - 0.5).abs() < 1e-12);
+        let q = kept_area_of(&[(DVec2::X, 0.0), (DVec2::Y, 0.0)]);
+        assert!((q - 0.25).abs() < 1e-12, "{q}");
+        // Two parallel sides of a strip 0.2 wide.
+        let s = kept_area_of(&[(DVec2::X, 0.1), (DVec2::NEG_X, 0.1)]);
+        assert!((s - 0.2).abs() < 1e-12, "{s}");
+        // Disjoint half-planes keep nothing; none keeps the square.
+        assert_eq!(kept_area_of(&[(DVec2::X, -0.2), (DVec2::NEG_X, -0.2)]), 0.0);
+        assert!((kept_area_of(&[]) - 1.0).abs() < 1e-12);
+    }
 }

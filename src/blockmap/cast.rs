@@ -93,6 +93,8 @@ pub enum Face {
     /// The footprint edge stored for the texel (the side of its half-plane, see
     /// [`super::layout::Edge`]); its normal is the edge's, read from the map by [`surface`].
     Edge,
+    /// The texel's second footprint edge ([`BlockMap::edge2`]).
+    Edge2,
 }
 
 impl Face {
@@ -103,7 +105,7 @@ impl Face {
             Face::East => Vec3::X,
             Face::South => Vec3::NEG_Y,
             Face::North => Vec3::Y,
-            Face::Inside | Face::Edge => Vec3::Z,
+            Face::Inside | Face::Edge | Face::Edge2 => Vec3::Z,
         }
     }
 }
@@ -378,32 +380,21 @@ fn cast_generic<T: Real>(map: &BlockMap, ray: &TexRay<T>, opts: &CastOptions) ->
         let zb = ray.o[2] + t_out * ray.d[2];
         let code = map.height_code(w.i as u32, w.j as u32);
         let h = T::of(code as f64) / k255;
-        let edge = if code > 0 {
-            map.edge(w.i as u32, w.j as u32)
+        let [edge, edge2] = if code > 0 {
+            map.edges(w.i as u32, w.j as u32)
         } else {
-            None
+            [None, None]
         };
         if let Some(e) = edge {
-            // The cell's solid is (half-plane ∩ square) × [0, h].
+            // The cell's solid is (half-plane ∩ square) × [0, h], or, with a second edge,
+            // (both half-planes ∩ square) × [0, h].
             let half = T::of(0.5);
-            let (nx, ny, eo) = (
-                T::of(e.n[0] as f64),
-                T::of(e.n[1] as f64),
-                T::of(e.o as f64),
-            );
             let cx = T::of(w.i as f64) + half;
             let cy = T::of(w.j as f64) + half;
-            let g_in = (ray.o[0] + t_in * ray.d[0] - cx) * nx
-                + (ray.o[1] + t_in * ray.d[1] - cy) * ny
-                - eo;
-            let g_out = (ray.o[0] + t_out * ray.d[0] - cx) * nx
-                + (ray.o[1] + t_out * ray.d[1] - cy) * ny
-                - eo;
             if !(steps == 1 && entered_top) {
                 margin = margin.min((za - h).abs().to64());
             }
             margin = margin.min((zb - h).abs().to64());
-            margin = margin.min(g_in.abs().to64()).min(g_out.abs().to64());
             // [z_lo, z_hi]: where the segment is at or below the roof.
             let mut z_ok = true;
             let mut z_roof = false;
@@ -418,32 +409,46 @@ fn cast_generic<T: Real>(map: &BlockMap, ray: &TexRay<T>, opts: &CastOptions) ->
             } else {
                 z_ok = false;
             }
-            // [g_lo, g_hi]: where the segment is inside the half-plane.
-            let mut g_ok = true;
-            let mut g_edge = false;
-            let (mut g_lo, mut g_hi) = (t_in, t_out);
-            if g_in <= T::ZERO {
-                if g_out > T::ZERO {
-                    g_hi = t_in + (t_out - t_in) * (g_in / (g_in - g_out));
+            // [g_lo, g_hi]: where the segment is inside the half-plane(s).
+            let g1 = plane_interval(ray, &e, cx, cy, t_in, t_out);
+            margin = margin.min(g1.g_in.abs().to64()).min(g1.g_out.abs().to64());
+            let g2 = match edge2 {
+                Some(e2) => {
+                    let g = plane_interval(ray, &e2, cx, cy, t_in, t_out);
+                    margin = margin.min(g.g_in.abs().to64()).min(g.g_out.abs().to64());
+                    g
                 }
-            } else if g_out <= T::ZERO {
-                g_lo = t_in + (t_out - t_in) * (g_in / (g_in - g_out));
-                g_edge = true;
-            } else {
-                g_ok = false;
-            }
-            if z_ok && g_ok {
-                let lo = z_lo.mx(g_lo);
-                let hi = z_hi.mn(g_hi);
+                None => Interval {
+                    ok: true,
+                    edge: false,
+                    lo: t_in,
+                    hi: t_out,
+                    g_in: -T::ONE,
+                    g_out: -T::ONE,
+                },
+            };
+            if z_ok && g1.ok && g2.ok {
+                let lo = z_lo.mx(g1.lo).mx(g2.lo);
+                let hi = z_hi.mn(g1.hi).mn(g2.hi);
                 margin = margin.min((hi - lo).abs().to64() * dir_scale(ray));
+                if g1.edge && g2.edge {
+                    margin = margin.min((g1.lo - g2.lo).abs().to64() * dir_scale(ray));
+                }
                 if lo <= hi {
                     let (i, j) = (w.i as u32, w.j as u32);
-                    let hit = if g_edge && g_lo > z_lo {
+                    let hit = if g2.edge && g2.lo > z_lo && g2.lo > g1.lo {
+                        Hit::Wall {
+                            i,
+                            j,
+                            face: Face::Edge2,
+                            t: g2.lo.to64(),
+                        }
+                    } else if g1.edge && g1.lo > z_lo {
                         Hit::Wall {
                             i,
                             j,
                             face: Face::Edge,
-                            t: g_lo.to64(),
+                            t: g1.lo.to64(),
                         }
                     } else if z_roof {
                         Hit::Roof {
@@ -526,6 +531,57 @@ fn cast_generic<T: Real>(map: &BlockMap, ray: &TexRay<T>, opts: &CastOptions) ->
     miss(steps, margin)
 }
 
+/// Where a ray's segment `[t_in, t_out]` in a cell lies inside a half-plane `n·q ≤ o` (`q`
+/// relative to the cell centre `(cx, cy)`).
+struct Interval<T> {
+    /// Some part of the segment is inside.
+    ok: bool,
+    /// The segment enters the half-plane inside the cell (through its side).
+    edge: bool,
+    lo: T,
+    hi: T,
+    /// The half-plane function at both ends (for the tie margins).
+    g_in: T,
+    g_out: T,
+}
+
+fn plane_interval<T: Real>(
+    ray: &TexRay<T>,
+    e: &super::layout::Edge,
+    cx: T,
+    cy: T,
+    t_in: T,
+    t_out: T,
+) -> Interval<T> {
+    let (nx, ny, eo) = (
+        T::of(e.n[0] as f64),
+        T::of(e.n[1] as f64),
+        T::of(e.o as f64),
+    );
+    let g_in = (ray.o[0] + t_in * ray.d[0] - cx) * nx + (ray.o[1] + t_in * ray.d[1] - cy) * ny - eo;
+    let g_out =
+        (ray.o[0] + t_out * ray.d[0] - cx) * nx + (ray.o[1] + t_out * ray.d[1] - cy) * ny - eo;
+    let mut out = Interval {
+        ok: true,
+        edge: false,
+        lo: t_in,
+        hi: t_out,
+        g_in,
+        g_out,
+    };
+    if g_in <= T::ZERO {
+        if g_out > T::ZERO {
+            out.hi = t_in + (t_out - t_in) * (g_in / (g_in - g_out));
+        }
+    } else if g_out <= T::ZERO {
+        out.lo = t_in + (t_out - t_in) * (g_in / (g_in - g_out));
+        out.edge = true;
+    } else {
+        out.ok = false;
+    }
+    out
+}
+
 /// How far `o + t·d` lies from the nearest grid line in x or y (except axis `skip`), texels.
 fn cell_margin<T: Real>(ray: &TexRay<T>, t: T, skip: usize) -> f64 {
     let mut m = f64::INFINITY;
@@ -582,8 +638,11 @@ pub fn surface(map: &BlockMap, ray: &TexRay<f64>, hit: &Hit) -> Option<Surface> 
         Hit::Wall { i, j, face, t } => {
             let off = map.wall_offset(i, j);
             // The edge's normal (a hit on the half-plane's side), else the cell face's.
-            let edge_normal = match (face, map.edge(i, j)) {
-                (Face::Edge, Some(e)) => Some(Vec3::new(e.n[0], e.n[1], 0.0).normalize_or(Vec3::Z)),
+            let [e1, e2] = map.edges(i, j);
+            let edge_normal = match (face, e1, e2) {
+                (Face::Edge, Some(e), _) | (Face::Edge2, _, Some(e)) => {
+                    Some(Vec3::new(e.n[0], e.n[1], 0.0).normalize_or(Vec3::Z))
+                }
                 _ => None,
             };
             if off == 0 || face == Face::Inside {
@@ -792,6 +851,54 @@ mod tests {
         assert!(matches!(
             both(&whole, DVec3::new(40.0, 10.95, 30.0), DVec3::NEG_X),
             Hit::Wall { face: Face::East, t, .. } if (t - 29.0).abs() < 1e-9
+        ));
+    }
+
+    #[test]
+    fn two_edges_keep_a_convex_corner() {
+        use crate::blockmap::layout::{encode_offset_up, encode_unit};
+        // Kept: the south-west quarter (x ≤ 0 and y ≤ 0 about the centre): n₁ = +x, n₂ = +y.
+        let mut m = edge_map(1.0, 0.0, 0.0);
+        m.set_edge2_bytes(
+            10,
+            10,
+            Some([
+                encode_unit(0.0),
+                encode_unit(1.0),
+                encode_offset_up(0.0).unwrap(),
+            ]),
+        );
+        assert!(m.edges(10, 10)[1].is_some());
+        // Vertical rays: the kept quarter's roof; the three other quarters are empty (one
+        // half-plane alone kept the north-west one).
+        assert!(matches!(
+            both(&m, DVec3::new(10.25, 10.25, 150.0), DVec3::NEG_Z),
+            Hit::Roof { i: 10, j: 10, .. }
+        ));
+        for (x, y) in [(10.75, 10.25), (10.25, 10.75), (10.75, 10.75)] {
+            assert_eq!(both(&m, DVec3::new(x, y, 150.0), DVec3::NEG_Z), Hit::Miss);
+        }
+        // From the north the second edge, half a texel in, with its normal.
+        let h = both(&m, DVec3::new(10.25, 40.0, 30.0), DVec3::NEG_Y);
+        assert!(
+            matches!(h, Hit::Wall { i: 10, j: 10, face: Face::Edge2, t } if (t - 29.5).abs() < 1e-9),
+            "{h:?}"
+        );
+        let r = m.tex_ray(DVec3::new(10.25, 40.0, 30.0), DVec3::NEG_Y);
+        assert_eq!(surface(&m, &r, &h).unwrap().normal, Vec3::Y);
+        // From the east the first edge.
+        let h = both(&m, DVec3::new(40.0, 10.25, 30.0), DVec3::NEG_X);
+        assert!(
+            matches!(h, Hit::Wall { face: Face::Edge, t, .. } if (t - 29.5).abs() < 1e-9),
+            "{h:?}"
+        );
+        // A second edge without a first is not read (the casters' rule).
+        let mut only2 = m.clone();
+        only2.set_edge_bytes(10, 10, None);
+        assert_eq!(only2.edges(10, 10), [None, None]);
+        assert!(matches!(
+            both(&only2, DVec3::new(10.75, 10.75, 150.0), DVec3::NEG_Z),
+            Hit::Roof { .. }
         ));
     }
 

@@ -383,6 +383,45 @@ pub fn nearest_distance(sil: &[(i64, i64)], x: i64, y: i64) -> f64 {
         .sqrt()
 }
 
+/// Distance from `(x, y)` to the nearest set pixel of `mask` (`w × h`), searching square rings
+/// of growing radius (the first hit at ring `r` bounds the answer by `r·√2`, so rings up to
+/// that bound are searched too); none when the mask is empty. The same distance as
+/// [`nearest_distance`] over the mask's pixels, in time proportional to the answer's square
+/// instead of the silhouette's length.
+pub fn nearest_in_mask(mask: &[bool], w: usize, h: usize, x: i64, y: i64) -> Option<f64> {
+    let (wi, hi) = (w as i64, h as i64);
+    let rmax = wi.max(hi);
+    let mut best2: Option<i64> = None;
+    for r in 0..=rmax {
+        if let Some(b) = best2 {
+            if r * r > b {
+                break;
+            }
+        }
+        let mut visit = |px: i64, py: i64| {
+            if px >= 0 && py >= 0 && px < wi && py < hi && mask[(py * wi + px) as usize] {
+                let d2 = (px - x) * (px - x) + (py - y) * (py - y);
+                if best2.is_none_or(|b| d2 < b) {
+                    best2 = Some(d2);
+                }
+            }
+        };
+        if r == 0 {
+            visit(x, y);
+            continue;
+        }
+        for d in -r..=r {
+            visit(x + d, y - r);
+            visit(x + d, y + r);
+        }
+        for d in -r + 1..r {
+            visit(x - r, y + d);
+            visit(x + r, y + d);
+        }
+    }
+    best2.map(|b| (b as f64).sqrt())
+}
+
 /// Sub-samples per pixel side of the second look at pixels beyond the bound.
 const SUB: u32 = 4;
 

@@ -267,7 +267,7 @@ impl<'a> BuildingGrid<'a> {
     }
 }
 
-fn in_polygon(b: &SourceBuilding, p: DVec2) -> bool {
+pub(crate) fn in_polygon(b: &SourceBuilding, p: DVec2) -> bool {
     if p.x < b.min.x || p.x > b.max.x || p.y < b.min.y || p.y > b.max.y {
         return false;
     }
@@ -298,7 +298,7 @@ fn seg_dist(a: DVec2, c: DVec2, p: DVec2) -> (f64, DVec2) {
     ((q - p).length(), q)
 }
 
-fn horizontal_distance(b: &SourceBuilding, p: DVec2) -> f64 {
+pub(crate) fn horizontal_distance(b: &SourceBuilding, p: DVec2) -> f64 {
     if in_polygon(b, p) {
         return 0.0;
     }
@@ -342,11 +342,11 @@ fn horizontal_exit(polys: &[&SourceBuilding], p: DVec2, bound: f64) -> f64 {
     best
 }
 
-/// A texel column's footprint: a convex polygon (world xy, counter-clockwise, at most 5
+/// A texel column's footprint: a convex polygon (world xy, counter-clockwise, at most 6
 /// vertices) and its height.
 #[derive(Clone, Copy, Debug)]
 struct Part {
-    v: [DVec2; 5],
+    v: [DVec2; 6],
     n: usize,
     h: f64,
 }
@@ -371,63 +371,76 @@ impl Part {
     }
 }
 
-/// The columns of texel `(i, j)` (outside the map: the ground, height 0): the whole square at
-/// the texel's height, or, for a texel with a footprint edge, the part inside the edge's
-/// half-plane at that height and the rest at 0.
-fn cell_parts(map: &BlockMap, i: i64, j: i64) -> ([Part; 2], usize) {
-    let s = map.texel_m();
-    let m = map.meta.min;
-    let lo = DVec2::new(m[0] + i as f64 * s, m[1] + j as f64 * s);
-    let sq = [
-        lo,
-        lo + DVec2::new(s, 0.0),
-        lo + DVec2::new(s, s),
-        lo + DVec2::new(0.0, s),
-    ];
-    let h = map.texel_height_m(i, j).unwrap_or(0.0);
-    let whole = |h: f64| {
-        let mut v = [DVec2::ZERO; 5];
-        v[..4].copy_from_slice(&sq);
-        Part { v, n: 4, h }
-    };
-    let edge = if h > 0.0 {
-        map.edge(i as u32, j as u32)
-    } else {
-        None
-    };
-    let Some(e) = edge else {
-        return ([whole(h), whole(h)], 1);
-    };
-    let n = DVec2::new(e.n[0] as f64, e.n[1] as f64);
-    let c = lo + DVec2::splat(0.5 * s);
-    let g = |p: DVec2| n.dot((p - c) / s) - e.o as f64;
-    let mut parts = [
+/// Splits the convex `part` by the half-plane `g ≤ 0` into the part inside (height of
+/// `part`) and the part outside (height `h_out`), either possibly empty.
+fn split(part: &Part, g: &dyn Fn(DVec2) -> f64, h_out: f64) -> [Part; 2] {
+    let mut out = [
         Part {
-            v: [DVec2::ZERO; 5],
+            v: [DVec2::ZERO; 6],
             n: 0,
-            h,
+            h: part.h,
         },
         Part {
-            v: [DVec2::ZERO; 5],
+            v: [DVec2::ZERO; 6],
             n: 0,
-            h: 0.0,
+            h: h_out,
         },
     ];
-    for q in 0..4 {
-        let (a, b) = (sq[q], sq[(q + 1) % 4]);
+    let v = part.verts();
+    for q in 0..v.len() {
+        let (a, b) = (v[q], v[(q + 1) % v.len()]);
         let (ga, gb) = (g(a), g(b));
-        let pa = &mut parts[usize::from(ga > 0.0)];
+        let pa = &mut out[usize::from(ga > 0.0)];
         pa.v[pa.n] = a;
         pa.n += 1;
         if (ga <= 0.0) != (gb <= 0.0) {
             let x = a + (b - a) * (ga / (ga - gb));
-            for part in &mut parts {
-                part.v[part.n] = x;
-                part.n += 1;
+            for o in &mut out {
+                o.v[o.n] = x;
+                o.n += 1;
             }
         }
     }
-    (parts, 2)
+    out
+}
+
+/// The columns of texel `(i, j)` (outside the map: the ground, height 0): the whole square at
+/// the texel's height, or, for a texel with footprint edges, the part inside the edges'
+/// half-planes at that height and the rest (one convex piece per half-plane) at 0.
+fn cell_parts(map: &BlockMap, i: i64, j: i64) -> ([Part; 3], usize) {
+    let s = map.texel_m();
+    let m = map.meta.min;
+    let lo = DVec2::new(m[0] + i as f64 * s, m[1] + j as f64 * s);
+    let h = map.texel_height_m(i, j).unwrap_or(0.0);
+    let mut v = [DVec2::ZERO; 6];
+    v[..4].copy_from_slice(&[
+        lo,
+        lo + DVec2::new(s, 0.0),
+        lo + DVec2::new(s, s),
+        lo + DVec2::new(0.0, s),
+    ]);
+    let whole = Part { v, n: 4, h };
+    let [e1, e2] = if h > 0.0 {
+        map.edges(i as u32, j as u32)
+    } else {
+        [None, None]
+    };
+    let Some(e1) = e1 else {
+        return ([whole, whole, whole], 1);
+    };
+    let c = lo + DVec2::splat(0.5 * s);
+    let g = |e: super::layout::Edge| {
+        let n = DVec2::new(e.n[0] as f64, e.n[1] as f64);
+        move |p: DVec2| n.dot((p - c) / s) - e.o as f64
+    };
+    let [inside, rest] = split(&whole, &g(e1), 0.0);
+    match e2 {
+        None => ([inside, rest, rest], 2),
+        Some(e2) => {
+            let [solid, rest2] = split(&inside, &g(e2), 0.0);
+            ([solid, rest, rest2], 3)
+        }
+    }
 }
 
 /// Height of the map's column over `xy` (0 over empty ground and outside the map).

@@ -16,6 +16,7 @@
 //! | `[K, 2K)` roof | colour r | g | b | AO (255 = open sky) |
 //! | `[2K, 2K + 256)` walls | colour r | g | b | AO; last row of each slice: the column's normal xyz, A = 255 |
 //! | `[2K + 256, 3K + 256)` edges | edge normal x | edge normal y | offset `o` | 255 = the texel has an edge, 0 = whole square |
+//! | `[3K + 256, 4K + 256)` second edges | normal x | normal y | offset `o` | 255 = a second half-plane (only with a first) |
 //!
 //! - Offset `c` of height-map row `j` addresses image column `2K + c − 1` (column `2K + 255` is
 //!   never used: offset 0 is reserved, BLOCKMAPS.md A.4-3) in slice `s = ⌊j·S/K⌋`, whose rows are
@@ -30,6 +31,13 @@
 //!   The builder computes `o` with the *decoded* `n` and rounds it up, so the stored half-plane
 //!   still holds every footprint point of the texel (conservative). Maps written before the
 //!   section existed (`(2K + 256) × K` PNGs) read as maps without edges.
+//! - Second edges: a texel whose footprint part no single half-plane holds closely (a convex
+//!   corner inside the texel, or a building narrower than the texel: two parallel sides) keeps
+//!   `square ∩ H₁ ∩ H₂`, both half-planes encoded as above and each holding every footprint
+//!   point of the texel, so the intersection does too. The diagnosis of issue 12
+//!   (`blockmap::diagnose`) found the one-half-plane excess of such texels to be the largest
+//!   class of wrong pixels on fly-overs. Maps written with one edge section (`(3K + 256) × K`)
+//!   read as maps without second edges.
 
 use super::BlockMapError;
 use crate::geom::Aabb3;
@@ -47,10 +55,11 @@ pub const WALL_COLUMNS: u32 = 256;
 /// normal).
 pub const EDGE_OFFSET_RANGE: f32 = 0.75;
 
-/// Image width of a map of side `k`: roof, shape and edge sections (`3K`) plus the wall columns.
+/// Image width of a map of side `k`: shape, roof and two edge sections (`4K`) plus the wall
+/// columns.
 #[inline]
 pub const fn image_width(k: u32) -> u32 {
-    3 * k + WALL_COLUMNS
+    4 * k + WALL_COLUMNS
 }
 
 /// A footprint edge inside a texel, decoded: the texel's solid is the part of its square where
@@ -165,6 +174,7 @@ impl BlockMap {
                 *t = [0, 0, 128, 128];
                 texels[(j * w + k + i) as usize] = [0, 0, 0, 255];
                 texels[(j * w + 2 * k + WALL_COLUMNS + i) as usize] = [128, 128, 128, 0];
+                texels[(j * w + 3 * k + WALL_COLUMNS + i) as usize] = [128, 128, 128, 0];
             }
         }
         Ok(Self {
@@ -188,7 +198,7 @@ impl BlockMap {
     pub fn k(&self) -> u32 {
         self.meta.k
     }
-    /// Image width `3K + 256`.
+    /// Image width `4K + 256`.
     #[inline]
     pub fn width(&self) -> u32 {
         image_width(self.meta.k)
@@ -203,7 +213,7 @@ impl BlockMap {
     pub fn dz_m(&self) -> f64 {
         (self.meta.zmax - self.meta.zmin) / 255.0
     }
-    /// Bytes of the texture (`(3K + 256)·K·4`: 112 KiB at K = 64).
+    /// Bytes of the texture (`(4K + 256)·K·4`: 128 KiB at K = 64).
     pub fn bytes(&self) -> usize {
         self.texels.len() * 4
     }
@@ -278,6 +288,40 @@ impl BlockMap {
             Some([x, y, o]) => [x, y, o, 255],
             None => [128, 128, 128, 0],
         };
+    }
+    /// Image column of the second edge texel of height-map column `i`.
+    #[inline]
+    pub fn edge2_u(&self, i: u32) -> u32 {
+        3 * self.meta.k + WALL_COLUMNS + i
+    }
+    /// The second footprint edge of texel `(i, j)`, if it has one (only read with a first).
+    #[inline]
+    pub fn edge2(&self, i: u32, j: u32) -> Option<Edge> {
+        Edge::decode(self.texel(self.edge2_u(i), j))
+    }
+    /// Sets (or clears) the second edge bytes of texel `(i, j)`, as [`BlockMap::set_edge_bytes`].
+    pub fn set_edge2_bytes(&mut self, i: u32, j: u32, e: Option<[u8; 3]>) {
+        let u = self.edge2_u(i);
+        *self.texel_mut(u, j) = match e {
+            Some([x, y, o]) => [x, y, o, 255],
+            None => [128, 128, 128, 0],
+        };
+    }
+    /// The half-planes of texel `(i, j)`: none, the first, or both (a second edge counts only
+    /// with a first, as the casters read them).
+    pub fn edges(&self, i: u32, j: u32) -> [Option<Edge>; 2] {
+        match self.edge(i, j) {
+            None => [None, None],
+            Some(e) => [Some(e), self.edge2(i, j)],
+        }
+    }
+    /// Texels with two edges.
+    pub fn edge2_texels(&self) -> usize {
+        let k = self.k();
+        (0..k)
+            .flat_map(|j| (0..k).map(move |i| (i, j)))
+            .filter(|&(i, j)| self.height_code(i, j) > 0 && self.edges(i, j)[1].is_some())
+            .count()
     }
     /// Texels with an edge.
     pub fn edge_texels(&self) -> usize {
@@ -442,41 +486,42 @@ impl BlockMap {
         if !ALLOWED_K.contains(&meta.k) {
             return Err(bad(format!("K = {} is not 32, 64 or 128", meta.k)));
         }
-        let legacy = img.dimensions() == (2 * meta.k + WALL_COLUMNS, meta.k);
-        if img.dimensions() != (image_width(meta.k), meta.k) && !legacy {
-            return Err(bad(format!(
-                "image is {:?}, K = {} needs {}x{} (or {}x{} without edges)",
-                img.dimensions(),
-                meta.k,
-                image_width(meta.k),
-                meta.k,
-                2 * meta.k + WALL_COLUMNS,
-                meta.k
-            )));
-        }
+        // Older layouts: without edges (`2K + 256`) or with one edge section (`3K + 256`).
+        let sections = (2..=4)
+            .find(|n| img.dimensions() == (n * meta.k + WALL_COLUMNS, meta.k))
+            .ok_or_else(|| {
+                bad(format!(
+                    "image is {:?}, K = {} needs {}x{} (or {}x{} / {}x{} from older layouts)",
+                    img.dimensions(),
+                    meta.k,
+                    image_width(meta.k),
+                    meta.k,
+                    3 * meta.k + WALL_COLUMNS,
+                    meta.k,
+                    2 * meta.k + WALL_COLUMNS,
+                    meta.k
+                ))
+            })?;
         if meta.slices == 0 || !meta.slices.is_power_of_two() || meta.k / meta.slices < 2 {
             return Err(bad(format!(
                 "slice count {} is invalid for K = {}",
                 meta.slices, meta.k
             )));
         }
-        let texels = if legacy {
-            // A map from before the edge section: the same texels, no edges.
-            let (w0, k) = (2 * meta.k + WALL_COLUMNS, meta.k);
-            let mut t = Vec::with_capacity((image_width(k) * k) as usize);
-            for row in img
-                .pixels()
-                .map(|p| p.0)
-                .collect::<Vec<_>>()
-                .chunks(w0 as usize)
-            {
-                t.extend_from_slice(row);
-                t.extend(std::iter::repeat_n([128, 128, 128, 0], k as usize));
-            }
-            t
-        } else {
-            img.pixels().map(|p| p.0).collect()
-        };
+        let k = meta.k;
+        let w0 = sections * k + WALL_COLUMNS;
+        let pad = ((4 - sections) * k) as usize;
+        let mut texels = Vec::with_capacity((image_width(k) * k) as usize);
+        for row in img
+            .pixels()
+            .map(|p| p.0)
+            .collect::<Vec<_>>()
+            .chunks(w0 as usize)
+        {
+            // The missing edge sections read as texels without edges.
+            texels.extend_from_slice(row);
+            texels.extend(std::iter::repeat_n([128, 128, 128, 0], pad));
+        }
         Ok(Self { meta, texels })
     }
 }
@@ -497,7 +542,7 @@ mod tests {
 
     #[test]
     fn sizes_follow_the_layout() {
-        for (k, kib) in [(32, 44), (64, 112), (128, 320)] {
+        for (k, kib) in [(32, 48), (64, 128), (128, 384)] {
             let m = BlockMap::empty(k, DVec3::ZERO, 100.0, 30.0).unwrap();
             assert_eq!(m.bytes(), kib * 1024, "K = {k}");
         }
@@ -545,6 +590,28 @@ mod tests {
         old.save(&png).unwrap();
         let back = BlockMap::read(&png).unwrap();
         assert_eq!(back, m);
+        // One edge section: the first edges stay, no second edge.
+        let mut m1 = BlockMap::empty(32, DVec3::ZERO, 32.0, 10.0).unwrap();
+        m1.texel_mut(5, 6)[0] = 9;
+        m1.set_edge_bytes(5, 6, Some([255, 128, 140]));
+        let w1 = 3 * 32 + WALL_COLUMNS;
+        let mut one = image::RgbaImage::new(w1, 32);
+        for (x, y, p) in one.enumerate_pixels_mut() {
+            *p = image::Rgba(m1.texel(x, y));
+        }
+        m1.write(dir.path(), "b").unwrap();
+        one.save(dir.path().join("b.png")).unwrap();
+        let back = BlockMap::read(&dir.path().join("b.png")).unwrap();
+        assert_eq!(back, m1);
+        assert!(back.edge(5, 6).is_some() && back.edge2(5, 6).is_none());
+        // A width of no layout is a clear error.
+        image::RgbaImage::new(w1 + 1, 32)
+            .save(dir.path().join("b.png"))
+            .unwrap();
+        assert!(matches!(
+            BlockMap::read(&dir.path().join("b.png")),
+            Err(BlockMapError::BadFile { .. })
+        ));
     }
 
     #[test]

@@ -3,8 +3,8 @@
 //! a reference ray caster equal to the GPU's and a measured error bound.
 //!
 //! - [`layout`]: [`BlockMap`], the RGBA8 `(2K + 256) × K` texture (seed 002 §4.2.1) plus a
-//!   `K × K` section of footprint edges (one half-plane per boundary texel, blockwalk's
-//!   addition), its box, PNG + JSON storage, and the optional 2007 distance map (seed 000
+//!   two `K × K` sections of footprint edges (one or two half-planes per boundary texel,
+//!   blockwalk's addition), its box, PNG + JSON storage, and the optional 2007 distance map (seed 000
 //!   §3.1–3.2).
 //! - [`build`]: construction from the prisms (seed 000 §3.3, seed 002 §4.3.2): top-down
 //!   orthographic sampling through the oracle's rasteriser, exposed texels, unfolded wall
@@ -19,6 +19,8 @@
 //! - [`select`]: which nodes a frame draws as maps and which blocks as meshes (seed 000 §4–5).
 //! - [`compare`]: ray-cast image against the oracle's mesh image: coverage error, the projected
 //!   bound at silhouettes, 3D point error, colour PSNR.
+//! - [`diagnose`]: every coverage-mismatched pixel of a hybrid frame classified by cause
+//!   (issue 12).
 //! - [`image`]: images of maps as the GPU draws them ([`cast_image`]), and the CPU fallback of
 //!   hybrid frames ([`CpuHybridRenderer`]: meshes near, maps far, composited by depth).
 //! - [`colors`]: the one definition of colours and light used by all of the above.
@@ -30,6 +32,7 @@ pub mod cast;
 pub mod children;
 pub mod colors;
 pub mod compare;
+pub mod diagnose;
 pub mod error;
 pub mod image;
 pub mod layout;

@@ -48,6 +48,19 @@ pub struct Args {
     /// Print one JSON object instead of the table.
     #[arg(long)]
     pub json: bool,
+    /// Classify the coverage-mismatched pixels of each configuration's worst frames (largest
+    /// coverage error, largest silhouette distance) by cause (`blockmap::diagnose`), into
+    /// `OUT/diagnose_ROUTE_kK_tauT.{json,md}`.
+    #[arg(long)]
+    pub diagnose: bool,
+    /// Half-planes per texel the maps store: 0 (whole texels), 1 (one footprint edge) or 2
+    /// (a second where it fits the footprint more closely; the default), to measure each.
+    #[arg(long, default_value_t = 2, value_parser = clap::value_parser!(u8).range(0..=2))]
+    pub edges: u8,
+    /// The fly-over's near plane as a share of its height above the highest roof (0: the
+    /// lens's default, 0.5 m).
+    #[arg(long, default_value_t = FLYOVER_NEAR_SHARE)]
+    pub flyover_near_share: f64,
 }
 
 /// One configuration's figures.
@@ -73,7 +86,25 @@ pub struct Row {
 
 /// A high fly-over: across the city's box from south-west to north-east at an altitude of
 /// 0.8 × its larger side, looking ahead and down 35°, so that most of the city stays in view.
+/// The near plane lies at half the height above the highest roof (nothing is nearer), as a
+/// viewer sets it for a view from high up: with the lens's 0.5 m, Depth32Float cannot tell a
+/// wall's lower metres from the ground kilometres away, and the ground's depth test then decides
+/// pixels differently for meshes and maps (issue 12's diagnosis: half the fly-over's mismatched
+/// pixels on the 80k city).
 pub fn flyover_route(bounds: Aabb3, aspect: f64) -> anyhow::Result<CameraRoute> {
+    flyover_route_with_near(bounds, aspect, FLYOVER_NEAR_SHARE)
+}
+
+/// The near plane of [`flyover_route`] as a share of the height above the highest roof.
+pub const FLYOVER_NEAR_SHARE: f64 = 0.5;
+
+/// [`flyover_route`] with the near plane at `near_share` of the height above the highest roof
+/// (`0`: the lens's default near plane).
+pub fn flyover_route_with_near(
+    bounds: Aabb3,
+    aspect: f64,
+    near_share: f64,
+) -> anyhow::Result<CameraRoute> {
     let e = bounds.extent();
     let side = e.x.max(e.y).max(100.0);
     let z = bounds.max.z + 0.8 * side;
@@ -88,10 +119,16 @@ pub fn flyover_route(bounds: Aabb3, aspect: f64) -> anyhow::Result<CameraRoute> 
         )
     };
     let (ca, cb) = (look(a), look(b));
+    let base = Lens::default();
     let lens = Lens {
         aspect,
         far: 4.0 * side + z * 2.0,
-        ..Lens::default()
+        near: if near_share > 0.0 {
+            (near_share * (z - bounds.max.z)).max(base.near)
+        } else {
+            base.near
+        },
+        ..base
     };
     Ok(CameraRoute::new(
         "flyover",
@@ -103,9 +140,9 @@ pub fn flyover_route(bounds: Aabb3, aspect: f64) -> anyhow::Result<CameraRoute> 
     )?)
 }
 
-fn route_of(name: &str, scene: &Scene, size: Size) -> anyhow::Result<CameraRoute> {
+fn route_of(name: &str, scene: &Scene, size: Size, near_share: f64) -> anyhow::Result<CameraRoute> {
     if name == "flyover" {
-        return flyover_route(scene.city_bounds(), size.aspect());
+        return flyover_route_with_near(scene.city_bounds(), size.aspect(), near_share);
     }
     let choice: RouteChoice = name.parse().unwrap_or(RouteChoice::Paper);
     Ok(super::walk::resolve_route(&choice, scene, size)?.0)
@@ -113,6 +150,11 @@ fn route_of(name: &str, scene: &Scene, size: Size) -> anyhow::Result<CameraRoute
 
 pub fn run(args: Args) -> anyhow::Result<()> {
     anyhow::ensure!(args.frames >= 2, "--frames {}: at least 2", args.frames);
+    anyhow::ensure!(
+        args.flyover_near_share.is_finite() && (0.0..1.0).contains(&args.flyover_near_share),
+        "--flyover-near-share {}: expected a share in [0, 1)",
+        args.flyover_near_share
+    );
     anyhow::ensure!(
         args.taus.iter().all(|t| t.is_finite() && *t > 0.0),
         "--taus: expected positive numbers of pixels"
@@ -128,15 +170,38 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let routes: Vec<(String, CameraRoute)> = args
         .routes
         .iter()
-        .map(|r| Ok((r.clone(), route_of(r, &scene, args.size)?)))
+        .map(|r| {
+            Ok((
+                r.clone(),
+                route_of(r, &scene, args.size, args.flyover_near_share)?,
+            ))
+        })
         .collect::<anyhow::Result<_>>()?;
+    let building_meshes = if args.diagnose {
+        blockwalk::city::extrude::extrude_city(&scene.city)
+    } else {
+        Vec::new()
+    };
+    let source = if args.diagnose {
+        Some(blockwalk::blockmap::Source::new(
+            &scene.city,
+            &scene.layout,
+            &building_meshes,
+        )?)
+    } else {
+        None
+    };
     let mut rows = Vec::new();
     let mut notes = Vec::new();
     let mut files = Vec::new();
     let mut reports = Vec::new();
     for &k in &args.ks {
         let t0 = std::time::Instant::now();
-        let maps = super::walk::build_far_maps(&scene, k, args.json)?;
+        let maps = if args.edges == 2 {
+            super::walk::build_far_maps(&scene, k, args.json)?
+        } else {
+            build_maps_with_edges(&scene, k, args.edges)?
+        };
         let build_s = t0.elapsed().as_secs_f64();
         if !args.json {
             outln!(
@@ -188,6 +253,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                         left_out_after: None,
                     });
                 let j = far_json(&rec.far, &d, &far.select);
+                if let Some(src) = &source {
+                    let p = args.out.join(format!("diagnose_{rname}_k{k}_tau{tau}"));
+                    diagnose(&scene, src, &maps, route, &args, &rec.far, far.select, &p)?;
+                    files.push(p.with_extension("md"));
+                }
                 let g = |key: &str| j[key].as_f64();
                 let row = Row {
                     city: scene.name.clone(),
@@ -263,6 +333,97 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         }
         outln!("table: {}", args.out.join("sweep.md").display());
     }
+    Ok(())
+}
+
+/// The far-field maps as `walk::build_far_maps` builds them, with `edges` half-planes per texel
+/// at most.
+fn build_maps_with_edges(
+    scene: &Scene,
+    k: u32,
+    edges: u8,
+) -> anyhow::Result<blockwalk::blockmap::MapTree> {
+    use blockwalk::blockmap::{BuildOptions, CityMapsOptions, Stop, TreeOptions};
+    let opts = CityMapsOptions {
+        tree: TreeOptions {
+            build: BuildOptions {
+                k,
+                edges: edges > 0,
+                two_edges: edges > 1,
+                ..BuildOptions::default()
+            },
+            stop: Stop::Competitive,
+        },
+        checks: 0,
+        ..CityMapsOptions::default()
+    };
+    Ok(scene
+        .blockmaps(&opts, &|_, _| {})
+        .with_context(|| format!("building the BlockMaps of {}", scene.name))?
+        .maps)
+}
+
+/// Classifies the mismatched pixels of the frames with the largest coverage error and the
+/// largest silhouette distance, replaying the walk's selection up to them (the selector's
+/// hysteresis depends on the frames before).
+#[allow(clippy::too_many_arguments)]
+fn diagnose(
+    scene: &Scene,
+    source: &blockwalk::blockmap::Source,
+    maps: &blockwalk::blockmap::MapTree,
+    route: &CameraRoute,
+    args: &Args,
+    records: &[blockwalk::walk::FarRecord],
+    opts: SelectOptions,
+    path: &std::path::Path,
+) -> anyhow::Result<()> {
+    use blockwalk::blockmap::diagnose::{diagnose_frame, FrameInput};
+    let key = |f: &dyn Fn(&blockwalk::walk::ImageError) -> f64| {
+        records
+            .iter()
+            .filter_map(|r| r.image.as_ref().map(|i| (r.frame, f(i))))
+            .fold(None, |a: Option<(usize, f64)>, (fr, v)| match a {
+                Some((_, b)) if b >= v => a,
+                _ => Some((fr, v)),
+            })
+            .map(|x| x.0)
+    };
+    let mut frames: Vec<usize> = [key(&|i| i.coverage_error), key(&|i| i.silhouette_px)]
+        .into_iter()
+        .flatten()
+        .collect();
+    frames.dedup();
+    let cameras = route.sample(args.frames);
+    let mut sel = blockwalk::blockmap::Selector::new(maps, &scene.bounds, opts)?;
+    let mut md = String::new();
+    let mut js = Vec::new();
+    let (w, h) = args.size.pair();
+    for (f, cam) in cameras.iter().enumerate() {
+        let s = sel.select(cam, h, None);
+        if !frames.contains(&f) {
+            continue;
+        }
+        let d = diagnose_frame(&FrameInput {
+            source,
+            ground: Some(&scene.ground),
+            tree: maps,
+            selection: &s,
+            camera: cam,
+            width: w,
+            height: h,
+            tau_px: opts.tau_px,
+        });
+        md.push_str(&format!("## frame {f}\n\n{}\n", d.table()));
+        if !args.json {
+            outln!("frame {f}:\n{}", d.table());
+        }
+        js.push(serde_json::json!({"frame": f, "diagnosis": d}));
+    }
+    let p = path.with_extension("md");
+    std::fs::write(&p, md).with_context(|| format!("writing {}", p.display()))?;
+    let p = path.with_extension("json");
+    std::fs::write(&p, serde_json::to_string_pretty(&js)?)
+        .with_context(|| format!("writing {}", p.display()))?;
     Ok(())
 }
 

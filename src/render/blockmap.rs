@@ -4,9 +4,9 @@
 //! - **Storage**: maps are uploaded once as `Rgba8Uint` 2D texture arrays, one array ("page")
 //!   per K and per up to 256 maps (WebGPU's default `max_texture_array_layers`, BLOCKMAPS.md
 //!   C.3); the shader reads them with integer `textureLoad`s (`textureSample` is not allowed in
-//!   the non-uniform loop). Each layer is the whole `(3K + 256) × K` image, so a texel's
+//!   the non-uniform loop). Each layer is the whole `(4K + 256) × K` image, so a texel's
 //!   footprint edge ([`crate::blockmap::layout`]) is one more load at `2K + 256 + i`, only in
-//!   non-empty cells.
+//!   non-empty cells, and its second edge one more at `3K + 256 + i`, only where a first exists.
 //! - **Draw**: one instanced draw of 36 vertices per page that has selected maps, one instance per
 //!   map, in the order `far` lists them within a page (so two maps of different pages at exactly
 //!   the same depth may resolve otherwise than [`crate::blockmap::cast_image`]'s "first listed

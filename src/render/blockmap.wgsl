@@ -4,7 +4,9 @@
 // shades the hit as `blockmap::cast::surface` + `blockmap::colors::lit`, and writes its depth.
 // A non-empty cell with a footprint edge (image column 2K + 256 + i, A = 255) is the part of the
 // cell inside the edge's half-plane: the ray's segment in the cell is cut with it and with the
-// height slab, and a hit on the half-plane's side is an EDGE wall with the edge's normal.
+// height slab, and a hit on the half-plane's side is an EDGE wall with the edge's normal. A second
+// edge (image column 3K + 256 + i, A = 255, read only with a first) cuts the segment too, and a hit
+// on its side is an EDGE2 wall.
 //
 // The rays and the depth are those of `blockmap::image` (see its module doc): the view direction
 // of the pixel centre `(px·sx + cx, py·sy + cy, −1)`, mapped to texture space per map with
@@ -81,6 +83,7 @@ const SOUTH: u32 = 2u;
 const NORTH: u32 = 3u;
 const INSIDE: u32 = 4u;
 const EDGE: u32 = 5u;
+const EDGE2: u32 = 6u;
 // blockmap::layout::EDGE_OFFSET_RANGE.
 const EDGE_RANGE: f32 = 0.75;
 
@@ -190,14 +193,10 @@ fn walk_map(o: vec3<f32>, d: vec3<f32>, k: i32, layer: i32) -> Hit {
             e = texel(layer, 2 * k + 256 + i, j);
         }
         if code > 0u && e.w == 255u {
-            // blockmap::cast: (half-plane ∩ square) × [0, h].
-            let nx = decode_unit(e.x);
-            let ny = decode_unit(e.y);
-            let eo = (f32(e.z) - 128.0) / 127.0 * EDGE_RANGE;
+            // blockmap::cast: (half-plane(s) ∩ square) × [0, h].
+            let e2 = texel(layer, 3 * k + 256 + i, j);
             let cx = f32(i) + 0.5;
             let cy = f32(j) + 0.5;
-            let g_in = (o.x + t_in * d.x - cx) * nx + (o.y + t_in * d.y - cy) * ny - eo;
-            let g_out = (o.x + t_out * d.x - cx) * nx + (o.y + t_out * d.y - cy) * ny - eo;
             var z_ok = true;
             var z_roof = false;
             var z_lo = t_in;
@@ -212,30 +211,25 @@ fn walk_map(o: vec3<f32>, d: vec3<f32>, k: i32, layer: i32) -> Hit {
             } else {
                 z_ok = false;
             }
-            var g_ok = true;
-            var g_edge = false;
-            var g_lo = t_in;
-            var g_hi = t_out;
-            if g_in <= 0.0 {
-                if g_out > 0.0 {
-                    g_hi = t_in + (t_out - t_in) * (g_in / (g_in - g_out));
-                }
-            } else if g_out <= 0.0 {
-                g_lo = t_in + (t_out - t_in) * (g_in / (g_in - g_out));
-                g_edge = true;
-            } else {
-                g_ok = false;
+            let g1 = plane_interval(o, d, e, cx, cy, t_in, t_out);
+            var g2 = Interval(true, false, t_in, t_out);
+            if e2.w == 255u {
+                g2 = plane_interval(o, d, e2, cx, cy, t_in, t_out);
             }
-            if z_ok && g_ok {
-                let lo = max(z_lo, g_lo);
-                let hi = min(z_hi, g_hi);
+            if z_ok && g1.ok && g2.ok {
+                let lo = max(max(z_lo, g1.lo), g2.lo);
+                let hi = min(min(z_hi, g1.hi), g2.hi);
                 if lo <= hi {
                     h.i = i;
                     h.j = j;
-                    if g_edge && g_lo > z_lo {
+                    if g2.edge && g2.lo > z_lo && g2.lo > g1.lo {
+                        h.kind = WALL;
+                        h.face = EDGE2;
+                        h.t = g2.lo;
+                    } else if g1.edge && g1.lo > z_lo {
                         h.kind = WALL;
                         h.face = EDGE;
-                        h.t = g_lo;
+                        h.t = g1.lo;
                     } else if z_roof {
                         h.kind = ROOF;
                         h.t = z_lo;
@@ -292,6 +286,43 @@ fn walk_map(o: vec3<f32>, d: vec3<f32>, k: i32, layer: i32) -> Hit {
     return h;
 }
 
+// blockmap::cast::Interval: where the segment [t_in, t_out] is inside a half-plane.
+struct Interval {
+    ok: bool,
+    edge: bool,
+    lo: f32,
+    hi: f32,
+};
+
+// blockmap::cast::plane_interval.
+fn plane_interval(
+    o: vec3<f32>,
+    d: vec3<f32>,
+    e: vec4<u32>,
+    cx: f32,
+    cy: f32,
+    t_in: f32,
+    t_out: f32,
+) -> Interval {
+    let nx = decode_unit(e.x);
+    let ny = decode_unit(e.y);
+    let eo = (f32(e.z) - 128.0) / 127.0 * EDGE_RANGE;
+    let g_in = (o.x + t_in * d.x - cx) * nx + (o.y + t_in * d.y - cy) * ny - eo;
+    let g_out = (o.x + t_out * d.x - cx) * nx + (o.y + t_out * d.y - cy) * ny - eo;
+    var r = Interval(true, false, t_in, t_out);
+    if g_in <= 0.0 {
+        if g_out > 0.0 {
+            r.hi = t_in + (t_out - t_in) * (g_in / (g_in - g_out));
+        }
+    } else if g_out <= 0.0 {
+        r.lo = t_in + (t_out - t_in) * (g_in / (g_in - g_out));
+        r.edge = true;
+    } else {
+        r.ok = false;
+    }
+    return r;
+}
+
 // blockmap::layout::decode_unit.
 fn decode_unit(b: u32) -> f32 {
     return clamp((f32(b) - 128.0) / 127.0, -1.0, 1.0);
@@ -340,8 +371,11 @@ fn fs_main(in: VsOut) -> FsOut {
     // The edge's normal on the half-plane's side (blockmap::cast::surface).
     var edge_n = vec3<f32>(0.0, 0.0, 1.0);
     var has_edge_n = false;
-    if h.kind == WALL && h.face == EDGE {
-        let e = texel(layer, 2 * k + 256 + h.i, h.j);
+    if h.kind == WALL && (h.face == EDGE || h.face == EDGE2) {
+        var e = texel(layer, 2 * k + 256 + h.i, h.j);
+        if h.face == EDGE2 {
+            e = texel(layer, 3 * k + 256 + h.i, h.j);
+        }
         if e.w == 255u {
             let raw_e = vec3<f32>(decode_unit(e.x), decode_unit(e.y), 0.0);
             let rcp_e = 1.0 / length(raw_e);
