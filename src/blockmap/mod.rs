@@ -2,7 +2,7 @@
 //! layout of seed 002 (Di Benedetto 2011, ch. 4), built on the CPU from the extruded prisms, with
 //! a reference ray caster equal to the GPU's and a measured error bound.
 //!
-//! - [`layout`]: [`BlockMap`], the RGBA8 `(2K + 256) × K` texture (seed 002 §4.2.1) plus a
+//! - [`layout`]: [`BlockMap`], the RGBA8 `(2K + 256) × K` texture (seed 002 §4.2.1) plus
 //!   two `K × K` sections of footprint edges (one or two half-planes per boundary texel,
 //!   blockwalk's addition), its box, PNG + JSON storage, and the optional 2007 distance map (seed 000
 //!   §3.1–3.2).
