@@ -395,57 +395,12 @@ pub fn build_map(
     }
 
     // 2. Exposed texels and their lower sides.
-    let h = |i: i64, j: i64| -> u8 {
-        if i < 0 || j < 0 || i >= k as i64 || j >= k as i64 {
-            0
-        } else {
-            map.height_code(i as u32, j as u32)
-        }
-    };
-    const SIDES: [(i64, i64); 4] = [(-1, 0), (1, 0), (0, -1), (0, 1)];
-    let mut exposed = vec![0u8; k * k]; // bit s: side SIDES[s] is lower
-    for j in 0..k as i64 {
-        for i in 0..k as i64 {
-            let c = h(i, j);
-            if c == 0 {
-                continue;
-            }
-            let mut bits = 0u8;
-            for (s, (di, dj)) in SIDES.iter().enumerate() {
-                if h(i + di, j + dj) < c {
-                    bits |= 1 << s;
-                }
-            }
-            for e in map.edges(i as u32, j as u32).into_iter().flatten() {
-                // The side the edge faces most shows the edge wall's column.
-                let best = SIDES
-                    .iter()
-                    .enumerate()
-                    .map(|(s, (di, dj))| (s, e.n[0] * *di as f32 + e.n[1] * *dj as f32))
-                    .fold(
-                        (0usize, f32::NEG_INFINITY),
-                        |a, b| if b.1 > a.1 { b } else { a },
-                    );
-                bits |= 1 << best.0;
-            }
-            exposed[(j as usize) * k + i as usize] = bits;
-        }
-    }
+    let exposed = exposed_sides(&map);
     stats.exposed_texels = exposed.iter().filter(|&&b| b != 0).count();
 
     // 3. Slices and offsets.
-    let mut slices = 1u32;
-    let orders = loop {
-        let rows = opts.k / slices;
-        let orders: Vec<Vec<usize>> = (0..slices)
-            .map(|s| unfold(&exposed, k, (s * rows) as usize, ((s + 1) * rows) as usize))
-            .collect();
-        let worst = orders.iter().map(Vec::len).max().unwrap_or(0);
-        if worst <= 255 || rows / 2 < opts.min_slice_rows {
-            break orders;
-        }
-        slices *= 2;
-    };
+    let orders = wall_slices(&exposed, k, opts);
+    let slices = orders.len() as u32;
     map.meta.slices = slices;
     stats.slices = slices;
     let rows = opts.k / slices;
@@ -455,22 +410,10 @@ pub fn build_map(
         if n > 255 {
             stats.shared_columns += n - 255;
         }
-        // Column of each texel; on overflow neighbours along the unfolding share (seed 000 §3.3).
-        let col_of = |idx: usize| -> u8 {
-            if n <= 255 {
-                (idx + 1) as u8
-            } else {
-                (idx * 255 / n + 1) as u8
-            }
-        };
-        // Accumulate per column: normal sum, colour sums per row, count.
-        let ncol = n.min(255);
-        let mut nsum = vec![DVec3::ZERO; ncol];
-        let mut csum = vec![[0f64; 3]; ncol * colour_rows as usize];
-        let mut cnt = vec![0u32; ncol];
+        let mut sums = ColumnSums::new(n, colour_rows as usize);
         for (idx, &t) in order.iter().enumerate() {
             let (i, j) = (t % k, t / k);
-            let c = col_of(idx);
+            let c = wall_column(idx, n);
             map.texel_mut(i as u32, j as u32)[1] = c;
             let id = owner[t];
             let Some(b) = index_of(id) else { continue };
@@ -484,11 +427,11 @@ pub fn build_map(
                 let dir = DVec2::new(*di as f64, *dj as f64);
                 let mid = centre + dir * (0.5 * s_m);
                 let (n, u) = nearest_facade(b, mid).unwrap_or((dir, 0.0));
-                nsum[slot] += n.extend(0.0);
+                sums.nsum[slot] += n.extend(0.0);
                 // The side's colour: the facade around the nearest point, averaged over the
                 // texel's width (two u samples) and each row's height (two z samples).
                 for r in 0..colour_rows as usize {
-                    let acc = &mut csum[slot * colour_rows as usize + r];
+                    let acc = sums.colour_mut(slot, r);
                     for du in [-0.25f32, 0.25] {
                         for dz in [0.25f64, 0.75] {
                             let z = ((r as f64 + dz) / colour_rows as f64 * zmax).min(b.z1);
@@ -499,25 +442,13 @@ pub fn build_map(
                         }
                     }
                 }
-                cnt[slot] += 4;
+                // Colours are summed over 4 samples per side, normals once per side.
+                sums.cnt[slot] += 4;
             }
         }
-        let row0 = s as u32 * rows;
-        for slot in 0..ncol {
-            let u = 2 * opts.k + slot as u32;
-            if cnt[slot] == 0 {
-                continue;
-            }
-            for r in 0..colour_rows {
-                let a = csum[slot * colour_rows as usize + r as usize];
-                let c = colors::to_bytes(a.map(|v| (v / cnt[slot] as f64) as f32));
-                *map.texel_mut(u, row0 + r) = [c[0], c[1], c[2], 255];
-            }
-            let n = nsum[slot].normalize_or(DVec3::X).as_vec3();
-            // Colours were summed over 4 samples per side, normals once per side.
-            *map.texel_mut(u, row0 + rows - 1) =
-                [encode_unit(n.x), encode_unit(n.y), encode_unit(n.z), 255];
-        }
+        sums.write(&mut map, s as u32 * rows, rows, |mean| {
+            colors::to_bytes(mean.map(|v| v as f32))
+        });
     }
     // 5. Ambient occlusion (seed 002 §4.2.1), when asked for.
     if opts.ao {
@@ -525,6 +456,132 @@ pub fn build_map(
     }
     let kept: Vec<u32> = bs.iter().map(|b| b.id.0).collect();
     Ok((map, kept, stats))
+}
+
+/// The four sides of a texel: bit `s` of an exposed mask is side `SIDES[s]` (Δi, Δj).
+pub(crate) const SIDES: [(i64, i64); 4] = [(-1, 0), (1, 0), (0, -1), (0, 1)];
+
+/// Step 2 of a map's construction, from its heights and footprint edges: per texel (row-major),
+/// bit `s` set when side [`SIDES`]`[s]` faces a lower column, or is the side a footprint edge of
+/// the texel faces most (an edge wall shows that side's column).
+pub(crate) fn exposed_sides(map: &BlockMap) -> Vec<u8> {
+    let k = map.k() as usize;
+    let h = |i: i64, j: i64| -> u8 {
+        if i < 0 || j < 0 || i >= k as i64 || j >= k as i64 {
+            0
+        } else {
+            map.height_code(i as u32, j as u32)
+        }
+    };
+    let mut exposed = vec![0u8; k * k];
+    for j in 0..k as i64 {
+        for i in 0..k as i64 {
+            let c = h(i, j);
+            if c == 0 {
+                continue;
+            }
+            let mut bits = 0u8;
+            for (s, (di, dj)) in SIDES.iter().enumerate() {
+                if h(i + di, j + dj) < c {
+                    bits |= 1 << s;
+                }
+            }
+            for e in map.edges(i as u32, j as u32).into_iter().flatten() {
+                let best = SIDES
+                    .iter()
+                    .enumerate()
+                    .map(|(s, (di, dj))| (s, e.n[0] * *di as f32 + e.n[1] * *dj as f32))
+                    .fold(
+                        (0usize, f32::NEG_INFINITY),
+                        |a, b| if b.1 > a.1 { b } else { a },
+                    );
+                bits |= 1 << best.0;
+            }
+            exposed[(j as usize) * k + i as usize] = bits;
+        }
+    }
+    exposed
+}
+
+/// Step 3: the fewest slices (powers of two, each at least `opts.min_slice_rows` rows) whose
+/// unfolded exposed texels fit 255 wall columns, or the thinnest allowed; per slice, its texels
+/// in unfolding order. The slice count is the vector's length.
+pub(crate) fn wall_slices(exposed: &[u8], k: usize, opts: &BuildOptions) -> Vec<Vec<usize>> {
+    let mut slices = 1u32;
+    loop {
+        let rows = opts.k / slices;
+        let orders: Vec<Vec<usize>> = (0..slices)
+            .map(|s| unfold(exposed, k, (s * rows) as usize, ((s + 1) * rows) as usize))
+            .collect();
+        let worst = orders.iter().map(Vec::len).max().unwrap_or(0);
+        if worst <= 255 || rows / 2 < opts.min_slice_rows {
+            return orders;
+        }
+        slices *= 2;
+    }
+}
+
+/// The wall column (1..=255) of the `idx`-th of a slice's `n` exposed texels; on overflow,
+/// neighbours along the unfolding share a column (seed 000 §3.3).
+pub(crate) fn wall_column(idx: usize, n: usize) -> u8 {
+    if n <= 255 {
+        (idx + 1) as u8
+    } else {
+        (idx * 255 / n + 1) as u8
+    }
+}
+
+/// Step 4's sums for one slice's wall columns: per column, the normal sum, the colour sums per
+/// colour row and the sample count.
+pub(crate) struct ColumnSums {
+    pub(crate) nsum: Vec<DVec3>,
+    csum: Vec<[f64; 3]>,
+    pub(crate) cnt: Vec<u32>,
+    colour_rows: usize,
+}
+
+impl ColumnSums {
+    /// Sums for a slice of `n` exposed texels (at most 255 columns).
+    pub(crate) fn new(n: usize, colour_rows: usize) -> Self {
+        let ncol = n.min(255);
+        Self {
+            nsum: vec![DVec3::ZERO; ncol],
+            csum: vec![[0.0; 3]; ncol * colour_rows],
+            cnt: vec![0; ncol],
+            colour_rows,
+        }
+    }
+
+    /// The colour sum of column `slot` (0-based), colour row `r`.
+    pub(crate) fn colour_mut(&mut self, slot: usize, r: usize) -> &mut [f64; 3] {
+        &mut self.csum[slot * self.colour_rows + r]
+    }
+
+    /// Writes every column with samples into the slice starting at image row `row0` of
+    /// `rows` rows: the mean colours (`to_rgb` turns a mean sum into bytes) and, in the last
+    /// row, the normalised normal sum.
+    pub(crate) fn write(
+        &self,
+        map: &mut BlockMap,
+        row0: u32,
+        rows: u32,
+        to_rgb: impl Fn([f64; 3]) -> [u8; 3],
+    ) {
+        let k = map.k();
+        for (slot, &cnt) in self.cnt.iter().enumerate() {
+            if cnt == 0 {
+                continue;
+            }
+            let u = 2 * k + slot as u32;
+            for r in 0..self.colour_rows {
+                let c = to_rgb(self.csum[slot * self.colour_rows + r].map(|v| v / cnt as f64));
+                *map.texel_mut(u, row0 + r as u32) = [c[0], c[1], c[2], 255];
+            }
+            let n = self.nsum[slot].normalize_or(DVec3::X).as_vec3();
+            *map.texel_mut(u, row0 + rows - 1) =
+                [encode_unit(n.x), encode_unit(n.y), encode_unit(n.z), 255];
+        }
+    }
 }
 
 /// The footprint edges of a map: per texel, the edge bytes ([`BlockMap::set_edge_bytes`]).

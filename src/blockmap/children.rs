@@ -54,9 +54,12 @@
 //! sibling's solid; the measurement is what checks it. Leaves are built from the polygons, so
 //! ε stays non-increasing downward and boxes nest as with [`Parents::Polygons`].
 
-use super::build::{build_map, kept_area, unfold, BuildOptions, BuildStats, Source};
+use super::build::{
+    build_map, exposed_sides, kept_area, wall_column, wall_slices, BuildOptions, BuildStats,
+    ColumnSums, Source, SIDES,
+};
 use super::error::{map_surface_distance, measure};
-use super::layout::{decode_offset, decode_unit, encode_offset_up, encode_unit, BlockMap};
+use super::layout::{decode_offset, decode_unit, encode_offset_up, BlockMap};
 use super::tree::{select_nodes, MapTree, NodeMap, TreeOptions};
 use super::BlockMapError;
 use crate::blocks::{BlockId, BlockLayout};
@@ -357,63 +360,12 @@ pub fn build_from_children(
             stats.edge_texels += 1;
         }
     }
-    // 2. Exposed texels and their lower sides (the polygon builder's rule, step 2).
-    let h = |map: &BlockMap, i: i64, j: i64| -> u8 {
-        if i < 0 || j < 0 || i >= k as i64 || j >= k as i64 {
-            0
-        } else {
-            map.height_code(i as u32, j as u32)
-        }
-    };
-    const SIDES: [(i64, i64); 4] = [(-1, 0), (1, 0), (0, -1), (0, 1)];
-    let mut exposed = vec![0u8; k * k];
-    for j in 0..k as i64 {
-        for i in 0..k as i64 {
-            let c = h(&map, i, j);
-            if c == 0 {
-                continue;
-            }
-            let mut bits = 0u8;
-            for (sd, (di, dj)) in SIDES.iter().enumerate() {
-                if h(&map, i + di, j + dj) < c {
-                    bits |= 1 << sd;
-                }
-            }
-            if let Some(e) = map.edge(i as u32, j as u32) {
-                let side = SIDES
-                    .iter()
-                    .enumerate()
-                    .map(|(sd, (di, dj))| (sd, e.n[0] * *di as f32 + e.n[1] * *dj as f32))
-                    .fold(
-                        (0usize, f32::NEG_INFINITY),
-                        |a, b| if b.1 > a.1 { b } else { a },
-                    );
-                bits |= 1 << side.0;
-            }
-            exposed[j as usize * k + i as usize] = bits;
-        }
-    }
+    // 2. Exposed texels and their lower sides, and 3. slices and offsets: the polygon
+    // builder's steps.
+    let exposed = exposed_sides(&map);
     stats.exposed_texels = exposed.iter().filter(|&&b| b != 0).count();
-    // 3. Slices and offsets (step 3 of the polygon builder).
-    let mut slices = 1u32;
-    let orders = loop {
-        let rows = opts.k / slices;
-        let orders: Vec<Vec<usize>> = (0..slices)
-            .map(|sl| {
-                unfold(
-                    &exposed,
-                    k,
-                    (sl * rows) as usize,
-                    ((sl + 1) * rows) as usize,
-                )
-            })
-            .collect();
-        let worst = orders.iter().map(Vec::len).max().unwrap_or(0);
-        if worst <= 255 || rows / 2 < opts.min_slice_rows {
-            break orders;
-        }
-        slices *= 2;
-    };
+    let orders = wall_slices(&exposed, k, opts);
+    let slices = orders.len() as u32;
     map.meta.slices = slices;
     stats.slices = slices;
     let rows = opts.k / slices;
@@ -424,20 +376,10 @@ pub fn build_from_children(
         if n > 255 {
             stats.shared_columns += n - 255;
         }
-        let col_of = |idx: usize| -> u8 {
-            if n <= 255 {
-                (idx + 1) as u8
-            } else {
-                (idx * 255 / n + 1) as u8
-            }
-        };
-        let ncol = n.min(255);
-        let mut nsum = vec![DVec3::ZERO; ncol];
-        let mut csum = vec![[0f64; 3]; ncol * colour_rows];
-        let mut cnt = vec![0u32; ncol];
+        let mut sums = ColumnSums::new(n, colour_rows);
         for (idx, &t) in order.iter().enumerate() {
             let (i, j) = ((t % k) as u32, (t / k) as u32);
-            let col = col_of(idx);
+            let col = wall_column(idx, n);
             map.texel_mut(i, j)[1] = col;
             let slot = col as usize - 1;
             let from = walled[t].or(best[t]);
@@ -453,24 +395,25 @@ pub fn build_from_children(
                         dir += DVec3::new(*di as f64, *dj as f64, 0.0);
                     }
                 }
-                nsum[slot] += dir.normalize_or(DVec3::X);
+                sums.nsum[slot] += dir.normalize_or(DVec3::X);
                 for r in 0..colour_rows {
+                    let acc = sums.colour_mut(slot, r);
                     for ch in 0..3 {
-                        csum[slot * colour_rows + r][ch] += roof[ch] as f64;
+                        acc[ch] += roof[ch] as f64;
                     }
                 }
-                cnt[slot] += 1;
+                sums.cnt[slot] += 1;
                 continue;
             }
             let u = m.wall_u(off);
             let nt = m.texel(u, m.wall_normal_row(f.j));
-            nsum[slot] += DVec3::new(
+            sums.nsum[slot] += DVec3::new(
                 decode_unit(nt[0]) as f64,
                 decode_unit(nt[1]) as f64,
                 decode_unit(nt[2]) as f64,
             );
             for r in 0..colour_rows {
-                let acc = &mut csum[slot * colour_rows + r];
+                let acc = sums.colour_mut(slot, r);
                 for dz in [0.25f64, 0.75] {
                     let z = (r as f64 + dz) / colour_rows as f64 * zmax;
                     let z01 = (z / m.meta.zmax).clamp(0.0, 1.0) as f32;
@@ -480,23 +423,11 @@ pub fn build_from_children(
                     }
                 }
             }
-            cnt[slot] += 1;
+            sums.cnt[slot] += 1;
         }
-        let row0 = sl as u32 * rows;
-        for slot in 0..ncol {
-            if cnt[slot] == 0 {
-                continue;
-            }
-            let u = 2 * opts.k + slot as u32;
-            for r in 0..colour_rows {
-                let a = csum[slot * colour_rows + r];
-                let c = a.map(|v| (v / cnt[slot] as f64).round().clamp(0.0, 255.0) as u8);
-                *map.texel_mut(u, row0 + r as u32) = [c[0], c[1], c[2], 255];
-            }
-            let nn = nsum[slot].normalize_or(DVec3::X).as_vec3();
-            *map.texel_mut(u, row0 + rows - 1) =
-                [encode_unit(nn.x), encode_unit(nn.y), encode_unit(nn.z), 255];
-        }
+        sums.write(&mut map, sl as u32 * rows, rows, |mean| {
+            mean.map(|v| v.round().clamp(0.0, 255.0) as u8)
+        });
     }
     if opts.ao {
         stats.ao = Some(super::ao::compute(&mut map, &exposed, opts.ao_radius_m));
