@@ -197,11 +197,13 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let mut reports = Vec::new();
     for &k in &args.ks {
         let t0 = std::time::Instant::now();
-        let maps = if args.edges == 2 {
-            super::walk::build_far_maps(&scene, k, args.json)?
-        } else {
-            build_maps_with_edges(&scene, k, args.edges)?
+        let build = blockwalk::blockmap::BuildOptions {
+            k,
+            edges: args.edges > 0,
+            two_edges: args.edges > 1,
+            ..Default::default()
         };
+        let maps = super::walk::build_far_maps_with(&scene, build, args.json)?;
         let build_s = t0.elapsed().as_secs_f64();
         if !args.json {
             outln!(
@@ -334,33 +336,6 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         outln!("table: {}", args.out.join("sweep.md").display());
     }
     Ok(())
-}
-
-/// The far-field maps as `walk::build_far_maps` builds them, with `edges` half-planes per texel
-/// at most.
-fn build_maps_with_edges(
-    scene: &Scene,
-    k: u32,
-    edges: u8,
-) -> anyhow::Result<blockwalk::blockmap::MapTree> {
-    use blockwalk::blockmap::{BuildOptions, CityMapsOptions, Stop, TreeOptions};
-    let opts = CityMapsOptions {
-        tree: TreeOptions {
-            build: BuildOptions {
-                k,
-                edges: edges > 0,
-                two_edges: edges > 1,
-                ..BuildOptions::default()
-            },
-            stop: Stop::Competitive,
-        },
-        checks: 0,
-        ..CityMapsOptions::default()
-    };
-    Ok(scene
-        .blockmaps(&opts, &|_, _| {})
-        .with_context(|| format!("building the BlockMaps of {}", scene.name))?
-        .maps)
 }
 
 /// Classifies the mismatched pixels of the frames with the largest coverage error and the

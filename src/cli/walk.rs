@@ -87,13 +87,24 @@ pub struct Args {
 
 /// The BlockMaps of `scene` at `k` (seed 000 §4's competitive stop), with a spinner.
 pub fn build_far_maps(scene: &Scene, k: u32, quiet: bool) -> anyhow::Result<MapTree> {
-    use blockwalk::blockmap::{BuildOptions, CityMapsOptions, Stop, TreeOptions};
+    let build = blockwalk::blockmap::BuildOptions {
+        k,
+        ..Default::default()
+    };
+    build_far_maps_with(scene, build, quiet)
+}
+
+/// [`build_far_maps`] with the given map options (the side K is `build.k`).
+pub fn build_far_maps_with(
+    scene: &Scene,
+    build: blockwalk::blockmap::BuildOptions,
+    quiet: bool,
+) -> anyhow::Result<MapTree> {
+    use blockwalk::blockmap::{CityMapsOptions, Stop, TreeOptions};
+    let k = build.k;
     let opts = CityMapsOptions {
         tree: TreeOptions {
-            build: BuildOptions {
-                k,
-                ..BuildOptions::default()
-            },
+            build,
             stop: Stop::Competitive,
         },
         checks: 0,
