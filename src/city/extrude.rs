@@ -281,15 +281,16 @@ fn ear_clip(r: &[DVec2], cap: &mut Vec<[u32; 3]>, links: &mut Vec<(u32, u32)>) -
     if !(3..=EAR_CLIP_MAX).contains(&n) || !ring_is_simple(r) {
         return false;
     }
-    // Counter-clockwise: twice the signed area, summed in f64 (a simple ring's sign is robust
-    // unless it is degenerate, which the final strict turn test refuses).
-    let area2: f64 = (0..n)
-        .map(|i| {
-            let (a, b) = (r[i], r[(i + 1) % n]);
-            a.x * b.y - b.x * a.y
+    // Counter-clockwise, exactly: the turn at the lowest-leftmost vertex, which is convex in a
+    // simple ring (collinear there only for a degenerate ring, refused as well).
+    let m = (0..n)
+        .min_by(|&a, &b| {
+            (r[a].x, r[a].y)
+                .partial_cmp(&(r[b].x, r[b].y))
+                .unwrap_or(std::cmp::Ordering::Equal)
         })
-        .sum();
-    if area2 <= 0.0 {
+        .unwrap_or(0);
+    if orient2d(r[(m + n - 1) % n], r[m], r[(m + 1) % n]) != Orientation::CounterClockwise {
         return false;
     }
     links.clear();
