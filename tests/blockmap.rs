@@ -105,7 +105,10 @@ fn ray(m: &BlockMap, o: DVec3, d: DVec3) -> TexRay<f64> {
 }
 
 proptest! {
-    #![proptest_config(ProptestConfig::with_cases(256))]
+    // 256 compared cases each; ties (a margin under 1e-4 anywhere on the walk) are rejected, and
+    // on the sparse maps of the leap test about four rays in five are ties, so the default limit
+    // of 1,024 rejects was reached by chance.
+    #![proptest_config(ProptestConfig { cases: 256, max_global_rejects: 16_384, ..ProptestConfig::default() })]
 
     #[test]
     fn caster_f32_equals_f64_twin_general(seed in 0u64..1000, k in prop::sample::select(vec![32u32, 64, 128]),
