@@ -380,7 +380,9 @@ fn cast_generic<T: Real>(map: &BlockMap, ray: &TexRay<T>, opts: &CastOptions) ->
         let zb = ray.o[2] + t_out * ray.d[2];
         let code = map.height_code(w.i as u32, w.j as u32);
         let h = T::of(code as f64) / k255;
-        let [edge, edge2] = if code > 0 {
+        // A segment wholly above the column misses it whatever its half-planes: they are read
+        // only when the segment reaches down to the column's height (as the shader does).
+        let [edge, edge2] = if code > 0 && za.mn(zb) <= h {
             map.edges(w.i as u32, w.j as u32)
         } else {
             [None, None]

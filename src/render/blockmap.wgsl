@@ -188,8 +188,11 @@ fn walk_map(o: vec3<f32>, d: vec3<f32>, k: i32, layer: i32) -> Hit {
         let zb = o.z + t_out * d.z;
         let code = texel(layer, i, j).x;
         let hh = f32(code) / 255.0;
+        // A segment wholly above the column cannot hit it, whatever its half-planes: their
+        // texel is read only when the segment reaches down to the column's height (the hit is
+        // the same; most cells a steep ray crosses above the roofs cost one read instead of two).
         var e = vec4<u32>(0u);
-        if code > 0u {
+        if code > 0u && min(za, zb) <= hh {
             e = texel(layer, 2 * k + 256 + i, j);
         }
         if code > 0u && e.w == 255u {
