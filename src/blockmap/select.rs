@@ -19,13 +19,17 @@
 //! sets are disjoint ([`Selector::new`] checks both), every block that is not culled is drawn
 //! exactly once: as a mesh or inside exactly one drawn map.
 //!
-//! **Hysteresis** (against popping, BLOCKMAPS.md C.1): a node drawn as a map in the previous
-//! frame stays a map while `e ≤ τ·(1 + h)`; any other node becomes a map when `e ≤ τ`. The
-//! default `h = 0.25` is the 1.25 ratio BLOCKMAPS.md C.1 suggests: a node switches back to meshes
-//! only after its projected error grew by a quarter since it could first be drawn as a map, which
-//! at a constant speed is a quarter of the distance it took to get there. (This deviates from the
-//! note's form `τ/1.25 … τ` only in where the band sits: here the switch to a map happens at τ,
-//! so a fresh frame and a walk select the same maps when the camera approaches.)
+//! **Hysteresis** (against popping, BLOCKMAPS.md C.1), inside τ: a node refined in the previous
+//! frame becomes a map only when `e ≤ τ/(1 + h)`; a node drawn as a map in the previous frame
+//! stays a map while `e ≤ τ`; a node the previous frame did not decide (a first frame, a node that
+//! was culled or under a map) becomes a map when `e ≤ τ`. The default `h = 0.25` is the 1.25 ratio
+//! BLOCKMAPS.md C.1 suggests, in its form `τ/1.25 … τ`. So every drawn map has `e ≤ τ` on every
+//! frame, which the screen-space bound of issue 12 (no mismatched pixel farther than
+//! `1 px + τ/cos²θ` from a silhouette) needs, and a walk towards the city selects the same maps as
+//! fresh frames of the same cameras. A band above τ (maps held up to `τ·(1 + h)`) was measured
+//! against it on the fly-over of the 80k generated city (τ = 1, K = 64, 1280×1024, 8 frames):
+//! coverage error max 1.26 % against 0.85 % with no band, because a camera flying towards the
+//! city holds maps at up to 1.25 px on most frames.
 
 use super::tree::MapTree;
 use crate::blocks::BlockId;
@@ -44,7 +48,8 @@ pub const DEFAULT_HYSTERESIS: f64 = 0.25;
 pub struct SelectOptions {
     /// Largest projected error of a drawn map, pixels (τ; seed 000 §5 uses 1).
     pub tau_px: f64,
-    /// Hysteresis `h ≥ 0`: a map of the previous frame stays until `e > τ·(1 + h)`.
+    /// Hysteresis `h ≥ 0`: a node refined in the previous frame becomes a map only when
+    /// `e ≤ τ/(1 + h)` (a map stays one while `e ≤ τ`).
     pub hysteresis: f64,
 }
 
@@ -74,7 +79,8 @@ pub struct SelectStats {
     pub mesh_blocks: u64,
     /// Mesh candidates (blocks under refined nodes) tested one by one.
     pub blocks_tested: u64,
-    /// Maps kept only thanks to the hysteresis (τ < e ≤ τ·(1 + h)).
+    /// Nodes kept refined only by the hysteresis (refined in the previous frame and
+    /// `τ/(1 + h) < e ≤ τ`): drawn finer than τ asks, for fewer switches.
     pub held_by_hysteresis: u64,
 }
 
@@ -383,13 +389,13 @@ impl Selector {
             let as_map = match (frozen, self.previous[i]) {
                 (true, AS_MAP) => true,
                 (true, REFINED) => false,
-                (_, AS_MAP) => e <= tau * (1.0 + self.opts.hysteresis.max(0.0)),
+                (_, REFINED) => e <= tau / (1.0 + self.opts.hysteresis.max(0.0)),
                 _ => e <= tau,
             };
+            if !as_map && !frozen && self.previous[i] == REFINED && e <= tau {
+                out.stats.held_by_hysteresis += 1;
+            }
             if as_map {
-                if e > tau {
-                    out.stats.held_by_hysteresis += 1;
-                }
                 decided[i] = AS_MAP;
                 out.maps.push(i);
                 out.stats.maps += 1;

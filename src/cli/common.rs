@@ -164,7 +164,7 @@ pub struct FarArgs {
     /// BlockMap height-map side K (32, 64 or 128).
     #[arg(long, value_parser = parse_k, default_value_t = 64)]
     pub k: u32,
-    /// Hysteresis h: a map stays a map until its error exceeds τ·(1 + h).
+    /// Hysteresis h: a node drawn finer in the previous frame becomes a map only when its error is at most τ/(1 + h) (a map stays one while its error is at most τ).
     #[arg(long, default_value_t = blockwalk::blockmap::select::DEFAULT_HYSTERESIS)]
     pub hysteresis: f64,
 }
