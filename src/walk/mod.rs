@@ -6,12 +6,14 @@
 //! culling time plus, when drawing, the time of drawing the blocks the structure kept (GPU time
 //! from timestamp queries when the renderer has them, else wall time).
 
+pub mod bound;
 mod far;
 mod summary;
 
+pub use bound::{BoundFigures, BoundGeometry, FrameBound};
 pub use far::{
-    changed_pixels, coverage, far_json, image_error, FarDecision, FarField, FarMode, FarRecord,
-    ImageError, OcclusionDecision,
+    changed_pixels, coverage, far_json, image_error, image_error_with_bound, FarDecision, FarField,
+    FarMode, FarRecord, ImageError, OcclusionDecision,
 };
 pub use summary::{summarise, SummaryRow};
 
@@ -457,6 +459,21 @@ pub fn run_walk_with_far(
         }
         far_decision = Some(decision);
     }
+    // The exact geometry of the silhouette bound's second look, when given.
+    let bound_geometry = far
+        .as_ref()
+        .and_then(|f| f.source.map(|s| bound::BoundGeometry::new(s, f.maps)));
+    if far
+        .as_ref()
+        .is_some_and(|f| f.reference && f.source.is_none())
+    {
+        notes.push(
+            "silhouette bound not checked: no building geometry was given to the far field \
+             (silhouette_ratio_max and the bound's counts are null; silhouette_px_max is the raw \
+             image distance)"
+                .into(),
+        );
+    }
     let mut far_records: Vec<FarRecord> = Vec::new();
     let mut cull_map = scene.occlusion.as_ref().map(|c| c.new_map());
     // The per-building modes draw their own cull map (the block culling's is the culler's).
@@ -611,6 +628,8 @@ pub fn run_walk_with_far(
                             },
                             mesh_frame_s,
                             triangles: &triangles,
+                            bound: bound_geometry.as_ref(),
+                            tau_px: far.as_ref().map_or(1.0, |x| x.select.tau_px),
                         },
                         &mut notes,
                     );
@@ -810,6 +829,10 @@ struct FarFrame<'a, 'm> {
     mesh_image: Option<&'a image::RgbaImage>,
     mesh_frame_s: f64,
     triangles: &'a [u64],
+    /// The exact geometry of the bound's second look, when given.
+    bound: Option<&'a bound::BoundGeometry<'a>>,
+    /// τ of the bound `1 + τ/cos²θ`.
+    tau_px: f64,
 }
 
 /// Selects, draws and (with a mesh image) measures one hybrid frame.
@@ -882,7 +905,10 @@ fn far_frame(
             ));
             return rec;
         };
-        let mut err = image_error(mesh, hyb, &bg);
+        let fb = x
+            .bound
+            .map(|g| bound::FrameBound::new(g, &sel, x.camera, x.tau_px));
+        let mut err = far::image_error_with_bound(mesh, hyb, &bg, fb.as_ref());
         if let Some(fr) = frozen.filter(|fr| !far::same_selection(fr, &sel)) {
             match r.draw_with_far(x.camera, &fr.meshes, &fr.maps, true) {
                 Ok(d) => {
