@@ -33,6 +33,10 @@
 //!    Pixels settled by the lattice or the twin are counted as *sub-pixel*; the rest are
 //!    violations (ratio `raw/r` > 1).
 //!
+//! τ is the selection's threshold, as the issue states the bound; a map the hysteresis keeps
+//! (`e ≤ τ·(1 + h)`) may project its ε up to `τ·(1 + h)`, and its pixels are judged with τ all
+//! the same (the stricter reading).
+//!
 //! The exact prisms ignore the ground layers' depth test (the frames draw the ground, and a
 //! depth test against it may hide a wall's lowest centimetres in one frame and not the other):
 //! such a pixel is geometry at distance 0 and is counted as sub-pixel, not hidden.
@@ -336,8 +340,8 @@ struct Look<'f, 'g, 'a> {
     inv: DMat4,
     forward: DVec3,
     rays: FrameRays,
-    /// Per drawn map (same order as `selection.maps`), its texture-space ray constants.
-    xforms: Vec<(usize, MapXform)>,
+    /// Per map of the tree, its texture-space ray constants when the frame draws it.
+    xforms: Vec<Option<MapXform>>,
     grid: ScreenGrid,
     /// Quarter-pixel lattice offsets `(dx, dy, d)` within the largest `r`, nearest first.
     lattice: Vec<(f64, f64, f64)>,
@@ -354,13 +358,12 @@ impl<'f, 'g, 'a> Look<'f, 'g, 'a> {
                 .then(a.0.total_cmp(&b.0))
         });
         let maps = &frame.geometry.tree.maps;
-        let xforms = frame
-            .selection
-            .maps
-            .iter()
-            .filter(|&&m| m < maps.len())
-            .map(|&m| (m, MapXform::new(&maps[m].map, cam)))
-            .collect();
+        let mut xforms = vec![None; maps.len()];
+        for &m in &frame.selection.maps {
+            if let Some(nm) = maps.get(m) {
+                xforms[m] = Some(MapXform::new(&nm.map, cam));
+            }
+        }
         let mut look = Self {
             frame,
             w,
@@ -540,7 +543,7 @@ impl<'f, 'g, 'a> Look<'f, 'g, 'a> {
         let mut best: Option<(usize, f32)> = None;
         for it in self.grid.at(px, py) {
             let Kind::Map(m) = it.kind else { continue };
-            let Some(x) = self.xforms.iter().find(|(i, _)| *i == m).map(|(_, x)| x) else {
+            let Some(x) = self.xforms.get(m).and_then(|x| x.as_ref()) else {
                 continue;
             };
             let c = cast_f32(&maps[m].map, &x.ray(v, fr.near), &CastOptions::default());

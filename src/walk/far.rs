@@ -11,7 +11,11 @@
 //! - **silhouette distance**: the largest distance, in pixels, of a coverage-mismatched pixel
 //!   from a silhouette pixel of the frame that does not cover it (a pixel only the hybrid covers:
 //!   the mesh frame's; only the mesh covers: the hybrid frame's), the form of BLOCKMAPS.md D.3-2
-//!   that `blockmap::compare` derives (≤ 1 px + τ/cos²θ where the bound holds);
+//!   that `blockmap::compare` derives (≤ 1 px + τ/cos²θ where the bound holds). This raw figure
+//!   knows neither τ nor θ nor the geometry; with the city's buildings ([`FarField::source`])
+//!   each mismatched pixel is also checked against its own allowed distance, with a second look
+//!   at quarter-pixel spacing for sub-pixel features and the maps' declared thin features
+//!   counted apart ([`super::bound`]): the ratio, violations, sub-pixel and thin counts;
 //! - **popping**: between the hybrid frame and the same camera drawn with the previous frame's
 //!   decisions kept ([`crate::blockmap::Selector::select_frozen`]), so that only what the
 //!   selection changed differs: pixels whose coverage changes (`popping_px`, the geometric pop)
@@ -432,5 +436,71 @@ mod tests {
             changed_pixels(&frame(5, [200, 0, 0]), &frame(5, [190, 0, 0])),
             16
         );
+        // Without the geometry the bound is not judged.
+        assert_eq!(e.silhouette_ratio_max, None);
+        assert_eq!(e.beyond_bound, None);
+    }
+
+    fn record(frame: usize, image: Option<ImageError>) -> FarRecord {
+        FarRecord {
+            frame,
+            mode: CullMode::Frustum,
+            select_s: 0.001,
+            render_s: Some(0.01),
+            frame_s: 0.011,
+            mesh_frame_s: 0.02,
+            passes: Vec::new(),
+            mesh_blocks: 1,
+            mesh_triangles: 12,
+            far_nodes: 1,
+            far_blocks: 1,
+            far_pixels: None,
+            stats: SelectStats::default(),
+            image,
+            gpu_time: false,
+        }
+    }
+
+    #[test]
+    fn far_json_sums_the_bound_and_is_null_without_the_geometry() {
+        let checked = |ratio: f64, v: u64, s: u64, t: u64| ImageError {
+            silhouette_px: 3.0 * ratio,
+            silhouette_ratio_max: Some(ratio),
+            beyond_bound: Some(v),
+            beyond_bound_subpixel: Some(s),
+            beyond_bound_thin: Some(t),
+            worst_bound_px: Some([0, 0]),
+            ..ImageError::default()
+        };
+        let d = FarDecision {
+            used: true,
+            reason: None,
+            left_out_after: None,
+        };
+        let o = SelectOptions::default();
+        let recs = vec![
+            record(0, Some(checked(0.5, 0, 3, 1))),
+            record(1, Some(checked(1.7, 2, 5, 0))),
+        ];
+        let j = far_json(&recs, &d, &o);
+        assert_eq!(j["silhouette_ratio_max"], serde_json::json!(1.7));
+        assert_eq!(j["silhouette_bound_violations"], serde_json::json!(2));
+        assert_eq!(j["silhouette_subpixel"], serde_json::json!(8));
+        assert_eq!(j["silhouette_thin"], serde_json::json!(1));
+        assert_eq!(j["silhouette_px_max"], serde_json::json!(3.0 * 1.7));
+        // One frame measured without the geometry: the bound's figures are null, the raw one is
+        // kept.
+        let mut recs = recs;
+        recs.push(record(2, Some(ImageError::default())));
+        let j = far_json(&recs, &d, &o);
+        for k in [
+            "silhouette_ratio_max",
+            "silhouette_bound_violations",
+            "silhouette_subpixel",
+            "silhouette_thin",
+        ] {
+            assert!(j[k].is_null(), "{k}: {}", j[k]);
+        }
+        assert!(j["silhouette_px_max"].is_number());
     }
 }
