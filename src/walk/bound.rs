@@ -173,6 +173,17 @@ enum Kind {
     Map(usize),
 }
 
+/// A box on the screen.
+#[derive(Clone, Copy, Debug)]
+enum Projected {
+    /// Off the screen (or beyond the far plane).
+    Off,
+    /// Crossing the near plane: a candidate everywhere.
+    Everywhere,
+    /// Its corners' image box, pixels (min, max).
+    Box([f64; 2], [f64; 2]),
+}
+
 /// Cell side of the screen grid, pixels.
 const CELL: f64 = 4.0;
 
@@ -420,8 +431,7 @@ impl<'f, 'g, 'a> Look<'f, 'g, 'a> {
                 }
             }
         }
-        let project = |lo: DVec3, hi: DVec3| -> Option<Option<([f64; 2], [f64; 2])>> {
-            // None: off screen; Some(None): crosses the near plane (everywhere).
+        let project = |lo: DVec3, hi: DVec3| -> Projected {
             let mut a = [f64::INFINITY; 2];
             let mut b = [f64::NEG_INFINITY; 2];
             let mut beyond_far = true;
@@ -433,7 +443,7 @@ impl<'f, 'g, 'a> Look<'f, 'g, 'a> {
                 );
                 let q = cfw * DVec4::new(p.x, p.y, p.z, 1.0);
                 if q.w < cam.near {
-                    return Some(None);
+                    return Projected::Everywhere;
                 }
                 if q.w <= cam.far {
                     beyond_far = false;
@@ -449,9 +459,9 @@ impl<'f, 'g, 'a> Look<'f, 'g, 'a> {
                 || a[0] > w + margin
                 || a[1] > h + margin
             {
-                return None;
+                return Projected::Off;
             }
-            Some(Some((a, b)))
+            Projected::Box(a, b)
         };
         let cols = (w / CELL).ceil() as usize;
         let rows = (h / CELL).ceil() as usize;
@@ -462,7 +472,7 @@ impl<'f, 'g, 'a> Look<'f, 'g, 'a> {
             everywhere: Vec::new(),
             items: Vec::new(),
         };
-        let projected: Vec<Option<Option<([f64; 2], [f64; 2])>>> = kinds
+        let projected: Vec<Projected> = kinds
             .par_iter()
             .map(|(_, lo, hi)| project(*lo, *hi))
             .collect();
@@ -471,8 +481,8 @@ impl<'f, 'g, 'a> Look<'f, 'g, 'a> {
         for ((kind, _, _), p) in kinds.iter().zip(projected) {
             let n = grid.items.len() as u32;
             match p {
-                None => continue,
-                Some(None) => {
+                Projected::Off => continue,
+                Projected::Everywhere => {
                     grid.items.push(Item {
                         kind: *kind,
                         lo: [f64::NEG_INFINITY; 2],
@@ -480,7 +490,7 @@ impl<'f, 'g, 'a> Look<'f, 'g, 'a> {
                     });
                     grid.everywhere.push(n);
                 }
-                Some(Some((a, b))) => {
+                Projected::Box(a, b) => {
                     let lo = [a[0] - slack, a[1] - slack];
                     let hi = [b[0] + slack, b[1] + slack];
                     grid.items.push(Item {
@@ -663,5 +673,109 @@ impl<'f, 'g, 'a> Look<'f, 'g, 'a> {
         let f = self.h as f64 / (2.0 * (0.5 * cam.fov_y).tan());
         let e_px = eps * f / d;
         Some(e_px * e / eps.max(1e-12))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::blocks::BlockId;
+    use crate::visibility::synthetic::SyntheticCity;
+    use glam::DVec2;
+    use rand::{Rng, SeedableRng};
+
+    /// The screen grid hands every prism a ray meets to the search: the nearest hit through
+    /// random image points equals the brute force over every building, from random eyes.
+    #[test]
+    fn the_screen_grid_misses_no_prism() {
+        let sc = SyntheticCity::generate(3, 3, 5, DVec2::new(5.0e5, 6.0e6));
+        let meshes = crate::city::extrude::extrude_city(&sc.city);
+        let source = Source::new(&sc.city, &sc.layout, &meshes).unwrap();
+        let tree = MapTree::default();
+        let geom = BoundGeometry::new(&source, &tree);
+        let sel = Selection {
+            maps: Vec::new(),
+            meshes: (0..sc.layout.blocks.len() as u32).map(BlockId).collect(),
+            stats: Default::default(),
+        };
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(3);
+        let (w, h) = (96u32, 54u32);
+        let mut hits = 0;
+        for _ in 0..12 {
+            let eye = DVec3::new(
+                rng.random_range(-60.0..300.0),
+                rng.random_range(-60.0..300.0),
+                rng.random_range(2.0..200.0),
+            );
+            let target = DVec3::new(
+                rng.random_range(0.0..250.0),
+                rng.random_range(0.0..250.0),
+                0.0,
+            );
+            let mut cam = Camera::looking_at(eye, target);
+            cam.near = 1.0;
+            let fb = FrameBound::new(&geom, &sel, &cam, 1.0);
+            let beyond = [Beyond {
+                x: 0,
+                y: 0,
+                extra: true,
+                raw: 9.0,
+                r: 2.0,
+            }];
+            let look = Look::new(&fb, w, h, &beyond);
+            for _ in 0..300 {
+                let (px, py) = (
+                    rng.random_range(0.0..w as f64),
+                    rng.random_range(0.0..h as f64),
+                );
+                let fast = look.prism_hit(px, py, |_| true);
+                let (o, d) = image_ray_with(&cam, &look.inv, px, py, w, h);
+                let brute = source
+                    .buildings
+                    .iter()
+                    .enumerate()
+                    .filter_map(|(i, b)| {
+                        let t = ray_prism(b.as_ref()?, o, d)?;
+                        let depth = t * d.dot(cam.forward());
+                        (depth >= cam.near && depth <= cam.far).then_some((i as u32, t))
+                    })
+                    .min_by(|a, b| a.1.total_cmp(&b.1));
+                assert_eq!(fast, brute, "eye {eye}, point ({px}, {py})");
+                hits += usize::from(brute.is_some());
+            }
+        }
+        assert!(hits > 300, "{hits} rays met a prism");
+    }
+
+    #[test]
+    fn the_allowed_distance_grows_off_axis() {
+        let source_city = SyntheticCity::generate(1, 1, 1, DVec2::ZERO);
+        let meshes = crate::city::extrude::extrude_city(&source_city.city);
+        let source = Source::new(&source_city.city, &source_city.layout, &meshes).unwrap();
+        let tree = MapTree::default();
+        let geom = BoundGeometry::new(&source, &tree);
+        let sel = Selection {
+            maps: Vec::new(),
+            meshes: Vec::new(),
+            stats: Default::default(),
+        };
+        let cam = Camera::new(DVec3::ZERO, 0.0, 0.0);
+        let fb = FrameBound::new(&geom, &sel, &cam, 2.0);
+        // At the centre of an even image, half a pixel off the axis: nearly 1 + τ.
+        let c = fb.allowed_px(80, 45, 160, 90);
+        assert!((c - 3.0).abs() < 1e-3, "{c}");
+        // At the corner: 1/cos²θ = 1 + tan²(fx) + tan²(fy) at the pixel centre.
+        let fy = (0.5 * cam.fov_y).tan();
+        let fx = fy * cam.aspect;
+        let (nx, ny) = (
+            (0.5 / 160.0 * 2.0 - 1.0) * fx,
+            (1.0 - 0.5 / 90.0 * 2.0) * fy,
+        );
+        let corner = fb.allowed_px(0, 0, 160, 90);
+        assert!(
+            (corner - (1.0 + 2.0 * (1.0 + nx * nx + ny * ny))).abs() < 1e-12,
+            "{corner}"
+        );
+        assert!(corner > c + 2.0);
     }
 }
