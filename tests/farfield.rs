@@ -283,8 +283,13 @@ mod helsinki {
             oracle: false,
             size,
         };
+        // With the buildings as exact prisms, so that the bound is checked per pixel.
+        let building_meshes = blockwalk::city::extrude::extrude_city(&scene.city);
+        let source =
+            blockwalk::blockmap::Source::new(&scene.city, &scene.layout, &building_meshes).unwrap();
         let far = FarField {
             reference: true,
+            source: Some(&source),
             ..FarField::new(&maps)
         };
         let rec = run_walk_with_far(
@@ -309,6 +314,19 @@ mod helsinki {
         ] {
             assert!(j.get(key).is_some(), "JSON lacks {key}");
         }
+        // The bound, judged with the geometry on every referenced frame.
+        assert!(j["silhouette_ratio_max"].is_number(), "{}", j["far"]);
+        for key in [
+            "silhouette_bound_violations",
+            "silhouette_subpixel",
+            "silhouette_thin",
+        ] {
+            assert!(j[key].is_u64(), "{key}: {}", j["far"]);
+        }
+        assert!(rec
+            .far
+            .iter()
+            .all(|r| r.image.is_some_and(|i| i.silhouette_ratio_max.is_some())));
         assert_eq!(j["far_used"], true);
         assert!(j["far_nodes"].as_f64().unwrap() > 0.0, "no far node drawn");
         assert!(j["frame_time_ratio_vs_mesh"].as_f64().unwrap() > 0.0);

@@ -133,7 +133,19 @@ pub fn pixel_ray(cam: &Camera, x: u32, y: u32, w: u32, h: u32) -> (DVec3, DVec3)
 /// World ray through the image point `(px, py)` in pixel units (the centre of pixel `(x, y)`
 /// is `(x + ½, y + ½)`, row 0 at the top).
 pub fn image_ray(cam: &Camera, px: f64, py: f64, w: u32, h: u32) -> (DVec3, DVec3) {
-    let inv = cam.clip_from_world().inverse();
+    image_ray_with(cam, &cam.clip_from_world().inverse(), px, py, w, h)
+}
+
+/// [`image_ray`] with the inverse of `cam.clip_from_world()` computed once by the caller
+/// (`inv`), for many rays of one camera.
+pub(crate) fn image_ray_with(
+    cam: &Camera,
+    inv: &glam::DMat4,
+    px: f64,
+    py: f64,
+    w: u32,
+    h: u32,
+) -> (DVec3, DVec3) {
     let nx = px / w as f64 * 2.0 - 1.0;
     let ny = 1.0 - py / h as f64 * 2.0;
     let p = |z: f64| {
@@ -423,11 +435,11 @@ pub fn nearest_in_mask(mask: &[bool], w: usize, h: usize, x: i64, y: i64) -> Opt
 }
 
 /// Sub-samples per pixel side of the second look at pixels beyond the bound.
-const SUB: u32 = 4;
+pub(crate) const SUB: u32 = 4;
 
 /// Offsets (in pixels) of the quarter-pixel lattice within `r` of a pixel centre, with their
 /// distance.
-fn lattice_within(r: f64) -> impl Iterator<Item = (f64, f64, f64)> {
+pub(crate) fn lattice_within(r: f64) -> impl Iterator<Item = (f64, f64, f64)> {
     let n = (r * SUB as f64).ceil() as i64;
     (-n..=n).flat_map(move |j| {
         (-n..=n).filter_map(move |i| {

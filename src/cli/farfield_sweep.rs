@@ -78,6 +78,15 @@ pub struct Row {
     pub coverage_error_mean: Option<f64>,
     pub psnr_min: Option<f64>,
     pub silhouette_px_max: Option<f64>,
+    /// Largest distance over allowed distance after the second look (≤ 1: the bound holds).
+    pub silhouette_ratio_max: Option<f64>,
+    /// Pixels beyond the bound after the second look, summed over the frames.
+    pub silhouette_bound_violations: Option<u64>,
+    /// Pixels beyond the bound at pixel spacing settled as sub-pixel features.
+    pub silhouette_subpixel: Option<u64>,
+    /// Pixels of buildings the maps declare thin or dropped, within the bound of their own
+    /// mesh silhouette.
+    pub silhouette_thin: Option<u64>,
     pub popping_px_max: Option<f64>,
     pub hybrid_ms: Option<f64>,
     pub mesh_ms: Option<f64>,
@@ -177,20 +186,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             ))
         })
         .collect::<anyhow::Result<_>>()?;
-    let building_meshes = if args.diagnose {
-        blockwalk::city::extrude::extrude_city(&scene.city)
-    } else {
-        Vec::new()
-    };
-    let source = if args.diagnose {
-        Some(blockwalk::blockmap::Source::new(
-            &scene.city,
-            &scene.layout,
-            &building_meshes,
-        )?)
-    } else {
-        None
-    };
+    // The exact prisms: the walk checks the silhouette bound with them, and `--diagnose`
+    // classifies pixels with them.
+    let building_meshes = blockwalk::city::extrude::extrude_city(&scene.city);
+    let source = blockwalk::blockmap::Source::new(&scene.city, &scene.layout, &building_meshes)
+        .with_context(|| format!("preparing the buildings of {}", scene.name))?;
     let mut rows = Vec::new();
     let mut notes = Vec::new();
     let mut files = Vec::new();
@@ -243,6 +243,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                     },
                     reference: true,
                     leave_out: false,
+                    source: Some(&source),
                     ..FarField::new(&maps)
                 };
                 let rec = run_walk_with_far(&scene, &params, drawing, Some(far), &mut |_, _| {})?;
@@ -255,9 +256,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                         left_out_after: None,
                     });
                 let j = far_json(&rec.far, &d, &far.select);
-                if let Some(src) = &source {
+                if args.diagnose {
                     let p = args.out.join(format!("diagnose_{rname}_k{k}_tau{tau}"));
-                    diagnose(&scene, src, &maps, route, &args, &rec.far, far.select, &p)?;
+                    diagnose(
+                        &scene, &source, &maps, route, &args, &rec.far, far.select, &p,
+                    )?;
                     files.push(p.with_extension("md"));
                 }
                 let g = |key: &str| j[key].as_f64();
@@ -274,6 +277,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                     coverage_error_mean: g("coverage_error_mean"),
                     psnr_min: g("psnr_min"),
                     silhouette_px_max: g("silhouette_px_max"),
+                    silhouette_ratio_max: g("silhouette_ratio_max"),
+                    silhouette_bound_violations: j["silhouette_bound_violations"].as_u64(),
+                    silhouette_subpixel: j["silhouette_subpixel"].as_u64(),
+                    silhouette_thin: j["silhouette_thin"].as_u64(),
                     popping_px_max: g("popping_px_max"),
                     hybrid_ms: g("frame_s").map(|s| s * 1e3),
                     mesh_ms: g("mesh_frame_s").map(|s| s * 1e3),
@@ -363,10 +370,14 @@ fn diagnose(
             })
             .map(|x| x.0)
     };
-    let mut frames: Vec<usize> = [key(&|i| i.coverage_error), key(&|i| i.silhouette_px)]
-        .into_iter()
-        .flatten()
-        .collect();
+    let mut frames: Vec<usize> = [
+        key(&|i| i.coverage_error),
+        // The frame farthest beyond the bound after the second look, else the raw distance.
+        key(&|i| i.silhouette_ratio_max.unwrap_or(i.silhouette_px)),
+    ]
+    .into_iter()
+    .flatten()
+    .collect();
     frames.dedup();
     let cameras = route.sample(args.frames);
     let mut sel = blockwalk::blockmap::Selector::new(maps, &scene.bounds, opts)?;
@@ -402,15 +413,22 @@ fn diagnose(
     Ok(())
 }
 
-const HEADER: &str = "| city | route | K | τ px | maps | far nodes | mesh tris | coverage err max | PSNR min dB | silhouette px max | popping px max | hybrid ms | mesh ms | ratio |";
+const HEADER: &str = "| city | route | K | τ px | maps | far nodes | mesh tris | coverage err max | PSNR min dB | silhouette px max | ratio max | bound violations | sub-pixel | thin | popping px max | hybrid ms | mesh ms | ratio |";
+
+/// Columns of [`HEADER`].
+const COLUMNS: usize = 18;
 
 fn opt(v: Option<f64>, digits: usize) -> String {
     v.map(|v| format!("{v:.digits$}")).unwrap_or("–".into())
 }
 
+fn count(v: Option<u64>) -> String {
+    v.map(|v| v.to_string()).unwrap_or("–".into())
+}
+
 fn table_line(r: &Row) -> String {
     format!(
-        "| {} | {} | {} | {} | {} | {:.1} | {:.0} | {} | {} | {} | {} | {} | {} | {} |",
+        "| {} | {} | {} | {} | {} | {:.1} | {:.0} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} |",
         r.city,
         r.route,
         r.k,
@@ -421,6 +439,10 @@ fn table_line(r: &Row) -> String {
         opt(r.coverage_error_max, 4),
         opt(r.psnr_min, 1),
         opt(r.silhouette_px_max, 1),
+        opt(r.silhouette_ratio_max, 2),
+        count(r.silhouette_bound_violations),
+        count(r.silhouette_subpixel),
+        count(r.silhouette_thin),
         opt(r.popping_px_max, 0),
         opt(r.hybrid_ms, 2),
         opt(r.mesh_ms, 2),
@@ -443,7 +465,7 @@ fn pareto(mut pts: Vec<(f64, f64)>) -> Vec<(f64, f64)> {
 
 fn write_outputs(dir: &std::path::Path, city: &str, rows: &[Row]) -> anyhow::Result<Vec<PathBuf>> {
     let mut files = Vec::new();
-    let mut md = format!("{HEADER}\n|{}\n", "---|".repeat(14));
+    let mut md = format!("{HEADER}\n|{}\n", "---|".repeat(COLUMNS));
     for r in rows {
         md.push_str(&table_line(r));
         md.push('\n');

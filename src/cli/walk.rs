@@ -248,12 +248,27 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         FarMode::None => None,
         FarMode::Blockmaps => Some(build_far_maps(&scene, args.far.k, args.json)?),
     };
+    // The exact prisms the silhouette bound is checked with (only with the reference).
+    let building_meshes = if args.reference && maps.is_some() {
+        blockwalk::city::extrude::extrude_city(&scene.city)
+    } else {
+        Vec::new()
+    };
+    let source = if args.reference && maps.is_some() {
+        Some(
+            blockwalk::blockmap::Source::new(&scene.city, &scene.layout, &building_meshes)
+                .with_context(|| format!("preparing the buildings of {}", scene.name))?,
+        )
+    } else {
+        None
+    };
     let far = maps.as_ref().map(|m| FarField {
         maps: m,
         select,
         reference: args.reference,
         leave_out: !args.keep_far,
         probe_frames: 8,
+        source: source.as_ref(),
     });
     let gpu = args
         .render
@@ -319,8 +334,9 @@ fn print_summary(record: &WalkRecord, out: &std::path::Path) -> anyhow::Result<(
                 .map(|v| format!("{v:.4}"))
                 .unwrap_or("–".into())
         };
+        let n = |k: &str| f[k].as_u64().map(|v| v.to_string()).unwrap_or("–".into());
         outln!(
-            "far field (τ = {} px): {}; far nodes {} per frame, mesh triangles {}, frame time hybrid/mesh {}, coverage error max {}, PSNR min {} dB, silhouette max {} px, popping max {} px",
+            "far field (τ = {} px): {}; far nodes {} per frame, mesh triangles {}, frame time hybrid/mesh {}, coverage error max {}, PSNR min {} dB, silhouette max {} px (raw), bound ratio max {}, bound violations {} (sub-pixel {}, thin {}), popping max {} px",
             o.tau_px,
             if d.used { "drawn" } else { "left out" },
             g("far_nodes"),
@@ -329,6 +345,10 @@ fn print_summary(record: &WalkRecord, out: &std::path::Path) -> anyhow::Result<(
             g("coverage_error_max"),
             g("psnr_min"),
             g("silhouette_px_max"),
+            g("silhouette_ratio_max"),
+            n("silhouette_bound_violations"),
+            n("silhouette_subpixel"),
+            n("silhouette_thin"),
             g("popping_px_max"),
         );
     }

@@ -11,13 +11,18 @@
 //! - **silhouette distance**: the largest distance, in pixels, of a coverage-mismatched pixel
 //!   from a silhouette pixel of the frame that does not cover it (a pixel only the hybrid covers:
 //!   the mesh frame's; only the mesh covers: the hybrid frame's), the form of BLOCKMAPS.md D.3-2
-//!   that `blockmap::compare` derives (≤ 1 px + τ/cos²θ where the bound holds);
+//!   that `blockmap::compare` derives (≤ 1 px + τ/cos²θ where the bound holds). This raw figure
+//!   knows neither τ nor θ nor the geometry; with the city's buildings ([`FarField::source`])
+//!   each mismatched pixel is also checked against its own allowed distance, with a second look
+//!   at quarter-pixel spacing for sub-pixel features and the maps' declared thin features
+//!   counted apart ([`super::bound`]): the ratio, violations, sub-pixel and thin counts;
 //! - **popping**: between the hybrid frame and the same camera drawn with the previous frame's
 //!   decisions kept ([`crate::blockmap::Selector::select_frozen`]), so that only what the
 //!   selection changed differs: pixels whose coverage changes (`popping_px`, the geometric pop)
 //!   and pixels whose colour changes at all (`popping_colour_px`; a map's colours differ a little
 //!   from the meshes' nearly everywhere, so this counts every pixel of a switched node).
 
+use super::bound::FrameBound;
 use super::CullMode;
 pub use crate::blockmap::compare::nearest_in_mask;
 use crate::blockmap::compare::{psnr_db, silhouette_pixels};
@@ -63,10 +68,14 @@ pub struct FarField<'a> {
     pub leave_out: bool,
     /// Frames measured before the timing decision.
     pub probe_frames: usize,
+    /// The city's buildings as exact prisms (`blockmap::Source::new` over the scene's city and
+    /// layout), to check the silhouette bound of each referenced frame with the exact geometry
+    /// ([`super::bound`]); without it the bound's figures are none and the walk says so.
+    pub source: Option<&'a crate::blockmap::Source<'a>>,
 }
 
 impl<'a> FarField<'a> {
-    /// τ = 1 px, default hysteresis, no reference, leave-out on, 8 probe frames.
+    /// τ = 1 px, default hysteresis, no reference, leave-out on, 8 probe frames, no geometry.
     pub fn new(maps: &'a MapTree) -> Self {
         Self {
             maps,
@@ -74,6 +83,7 @@ impl<'a> FarField<'a> {
             reference: false,
             leave_out: true,
             probe_frames: 8,
+            source: None,
         }
     }
 }
@@ -121,8 +131,23 @@ pub struct ImageError {
     /// Colour PSNR, dB (infinite when identical).
     pub psnr_db: f64,
     /// Largest distance of a coverage-mismatched pixel from a mesh silhouette, pixels (0 when
-    /// nothing mismatches).
+    /// nothing mismatches): the raw, image-only figure.
     pub silhouette_px: f64,
+    /// Largest distance over allowed distance `1 + τ/cos²θ` of a mismatched pixel after the
+    /// second look with the exact geometry ([`super::bound`]; ≤ 1 where the bound holds); none
+    /// when the frame was measured without the geometry.
+    pub silhouette_ratio_max: Option<f64>,
+    /// Mismatched pixels beyond the bound after the second look (violations); none without the
+    /// geometry.
+    pub beyond_bound: Option<u64>,
+    /// Pixels beyond the bound at pixel spacing that the second look settled (sub-pixel
+    /// features); none without the geometry.
+    pub beyond_bound_subpixel: Option<u64>,
+    /// Pixels beyond the bound that show a building a drawn map declares thin or dropped, within
+    /// the bound of the mesh frame's silhouette; none without the geometry.
+    pub beyond_bound_thin: Option<u64>,
+    /// The pixel `(x, y)` of [`ImageError::silhouette_ratio_max`].
+    pub worst_bound_px: Option<[u32; 2]>,
     /// Pixels whose coverage changed only because the selection changed.
     pub popping_px: u64,
     /// Pixels whose colour changed only because the selection changed.
@@ -172,11 +197,23 @@ pub fn changed_pixels(a: &image::RgbaImage, b: &image::RgbaImage) -> u64 {
 }
 
 /// Coverage error, PSNR and silhouette distance of `hybrid` against `mesh`, both of the same
-/// camera, `background` the frame with no block (popping is filled in by the walk).
+/// camera, `background` the frame with no block (popping is filled in by the walk). Without the
+/// geometry: the bound's fields are none ([`image_error_with_bound`] fills them).
 pub fn image_error(
     mesh: &image::RgbaImage,
     hybrid: &image::RgbaImage,
     background: &image::RgbaImage,
+) -> ImageError {
+    image_error_with_bound(mesh, hybrid, background, None)
+}
+
+/// [`image_error`], and with `bound` (the frame's exact geometry, selection, camera and τ) the
+/// bound `1 + τ/cos²θ` checked per mismatched pixel with the second look of [`super::bound`].
+pub fn image_error_with_bound(
+    mesh: &image::RgbaImage,
+    hybrid: &image::RgbaImage,
+    background: &image::RgbaImage,
+    bound: Option<&FrameBound>,
 ) -> ImageError {
     let (w, h) = (mesh.width() as usize, mesh.height() as usize);
     let mc = coverage(mesh, background);
@@ -191,6 +228,7 @@ pub fn image_error(
     let (mesh_sil, hybrid_sil) = (mask(&mc), mask(&hc));
     let mut mismatched = 0usize;
     let mut worst: f64 = 0.0;
+    let mut listed: Vec<(u32, u32, bool, f64)> = Vec::new();
     for k in 0..w * h {
         if mc[k] != hc[k] {
             mismatched += 1;
@@ -202,8 +240,12 @@ pub fn image_error(
             let d =
                 nearest_in_mask(sil, w, h, x, y).unwrap_or_else(|| ((w * w + h * h) as f64).sqrt());
             worst = worst.max(d);
+            if bound.is_some() {
+                listed.push((x as u32, y as u32, hc[k], d));
+            }
         }
     }
+    let figures = bound.map(|b| b.check(w as u32, h as u32, &listed, &mesh_sil));
     let se: f64 = mesh
         .pixels()
         .zip(hybrid.pixels())
@@ -220,6 +262,11 @@ pub fn image_error(
         coverage_error: mismatched as f64 / (w * h).max(1) as f64,
         psnr_db: psnr_db(se, 3 * w * h),
         silhouette_px: worst,
+        silhouette_ratio_max: figures.map(|f| f.ratio_max),
+        beyond_bound: figures.map(|f| f.beyond_bound),
+        beyond_bound_subpixel: figures.map(|f| f.beyond_bound_subpixel),
+        beyond_bound_thin: figures.map(|f| f.beyond_bound_thin),
+        worst_bound_px: figures.map(|f| f.worst_px),
         popping_px: 0,
         popping_colour_px: 0,
     }
@@ -239,7 +286,9 @@ pub fn same_selection(a: &Selection, b: &Selection) -> bool {
 }
 
 /// The figures of the hybrid frames in one JSON object: `coverage_error_max`, `psnr_min`,
-/// `silhouette_px_max`, `popping_px_max`, `far_nodes` (mean per frame), `mesh_triangles` (mean),
+/// `silhouette_px_max` (raw), the bound after the second look (`silhouette_ratio_max`,
+/// `silhouette_bound_violations`, `silhouette_subpixel`, `silhouette_thin`: sums over the
+/// frames; null unless every measured frame was checked with the geometry), `popping_px_max`, `far_nodes` (mean per frame), `mesh_triangles` (mean),
 /// `frame_time_ratio_vs_mesh` (mean hybrid frame time over mean mesh-only frame time, same
 /// frames, in the last culling mode; null when the frames were not drawn), and the decision.
 pub fn far_json(
@@ -273,6 +322,8 @@ pub fn far_json(
     let fold_max = |g: &dyn Fn(&ImageError) -> f64| {
         (!imgs.is_empty()).then(|| imgs.iter().map(|i| g(i)).fold(0.0, f64::max))
     };
+    // The bound's figures need every measured frame checked with the geometry.
+    let bounded = !imgs.is_empty() && imgs.iter().all(|i| i.silhouette_ratio_max.is_some());
     let psnr_min = (!imgs.is_empty())
         .then(|| imgs.iter().map(|i| i.psnr_db).fold(f64::INFINITY, f64::min))
         .and_then(fin);
@@ -300,6 +351,10 @@ pub fn far_json(
         "coverage_error_mean": mean(&mut imgs.iter().map(|i| i.coverage_error)),
         "psnr_min": psnr_min,
         "silhouette_px_max": fold_max(&|i| i.silhouette_px),
+        "silhouette_ratio_max": bounded.then(|| imgs.iter().filter_map(|i| i.silhouette_ratio_max).fold(0.0, f64::max)),
+        "silhouette_bound_violations": bounded.then(|| imgs.iter().filter_map(|i| i.beyond_bound).sum::<u64>()),
+        "silhouette_subpixel": bounded.then(|| imgs.iter().filter_map(|i| i.beyond_bound_subpixel).sum::<u64>()),
+        "silhouette_thin": bounded.then(|| imgs.iter().filter_map(|i| i.beyond_bound_thin).sum::<u64>()),
         "popping_px_max": fold_max(&|i| i.popping_px as f64),
         "popping_px_mean": mean(&mut imgs.iter().map(|i| i.popping_px as f64)),
         "popping_colour_px_max": fold_max(&|i| i.popping_colour_px as f64),
@@ -381,5 +436,71 @@ mod tests {
             changed_pixels(&frame(5, [200, 0, 0]), &frame(5, [190, 0, 0])),
             16
         );
+        // Without the geometry the bound is not judged.
+        assert_eq!(e.silhouette_ratio_max, None);
+        assert_eq!(e.beyond_bound, None);
+    }
+
+    fn record(frame: usize, image: Option<ImageError>) -> FarRecord {
+        FarRecord {
+            frame,
+            mode: CullMode::Frustum,
+            select_s: 0.001,
+            render_s: Some(0.01),
+            frame_s: 0.011,
+            mesh_frame_s: 0.02,
+            passes: Vec::new(),
+            mesh_blocks: 1,
+            mesh_triangles: 12,
+            far_nodes: 1,
+            far_blocks: 1,
+            far_pixels: None,
+            stats: SelectStats::default(),
+            image,
+            gpu_time: false,
+        }
+    }
+
+    #[test]
+    fn far_json_sums_the_bound_and_is_null_without_the_geometry() {
+        let checked = |ratio: f64, v: u64, s: u64, t: u64| ImageError {
+            silhouette_px: 3.0 * ratio,
+            silhouette_ratio_max: Some(ratio),
+            beyond_bound: Some(v),
+            beyond_bound_subpixel: Some(s),
+            beyond_bound_thin: Some(t),
+            worst_bound_px: Some([0, 0]),
+            ..ImageError::default()
+        };
+        let d = FarDecision {
+            used: true,
+            reason: None,
+            left_out_after: None,
+        };
+        let o = SelectOptions::default();
+        let recs = vec![
+            record(0, Some(checked(0.5, 0, 3, 1))),
+            record(1, Some(checked(1.7, 2, 5, 0))),
+        ];
+        let j = far_json(&recs, &d, &o);
+        assert_eq!(j["silhouette_ratio_max"], serde_json::json!(1.7));
+        assert_eq!(j["silhouette_bound_violations"], serde_json::json!(2));
+        assert_eq!(j["silhouette_subpixel"], serde_json::json!(8));
+        assert_eq!(j["silhouette_thin"], serde_json::json!(1));
+        assert_eq!(j["silhouette_px_max"], serde_json::json!(3.0 * 1.7));
+        // One frame measured without the geometry: the bound's figures are null, the raw one is
+        // kept.
+        let mut recs = recs;
+        recs.push(record(2, Some(ImageError::default())));
+        let j = far_json(&recs, &d, &o);
+        for k in [
+            "silhouette_ratio_max",
+            "silhouette_bound_violations",
+            "silhouette_subpixel",
+            "silhouette_thin",
+        ] {
+            assert!(j[k].is_null(), "{k}: {}", j[k]);
+        }
+        assert!(j["silhouette_px_max"].is_number());
     }
 }

@@ -6,12 +6,14 @@
 //! culling time plus, when drawing, the time of drawing the blocks the structure kept (GPU time
 //! from timestamp queries when the renderer has them, else wall time).
 
+pub mod bound;
 mod far;
 mod summary;
 
+pub use bound::{BoundFigures, BoundGeometry, FrameBound};
 pub use far::{
-    changed_pixels, coverage, far_json, image_error, FarDecision, FarField, FarMode, FarRecord,
-    ImageError, OcclusionDecision,
+    changed_pixels, coverage, far_json, image_error, image_error_with_bound, FarDecision, FarField,
+    FarMode, FarRecord, ImageError, OcclusionDecision,
 };
 pub use summary::{summarise, SummaryRow};
 
@@ -457,7 +459,24 @@ pub fn run_walk_with_far(
         }
         far_decision = Some(decision);
     }
+    // The exact geometry of the silhouette bound's second look, when given.
+    let bound_geometry = far
+        .as_ref()
+        .and_then(|f| f.source.map(|s| bound::BoundGeometry::new(s, f.maps)));
+    if far
+        .as_ref()
+        .is_some_and(|f| f.reference && f.source.is_none())
+    {
+        notes.push(
+            "silhouette bound not checked: no building geometry was given to the far field \
+             (silhouette_ratio_max and the bound's counts are null; silhouette_px_max is the raw \
+             image distance)"
+                .into(),
+        );
+    }
     let mut far_records: Vec<FarRecord> = Vec::new();
+    // Seconds spent on the referenced frames' image measures with the bound's second look.
+    let mut bound_s = 0.0;
     let mut cull_map = scene.occlusion.as_ref().map(|c| c.new_map());
     // The per-building modes draw their own cull map (the block culling's is the culler's).
     let mut building_map = scene.occlusion.as_ref().map(|c| c.new_map());
@@ -603,6 +622,7 @@ pub fn run_walk_with_far(
                                 None
                             },
                             cull_map: cull_map.as_mut(),
+                            bound_s: &mut bound_s,
                             hybrid,
                             mesh_image: if want_reference {
                                 mesh_image.as_ref()
@@ -611,6 +631,8 @@ pub fn run_walk_with_far(
                             },
                             mesh_frame_s,
                             triangles: &triangles,
+                            bound: bound_geometry.as_ref(),
+                            tau_px: far.as_ref().map_or(1.0, |x| x.select.tau_px),
                         },
                         &mut notes,
                     );
@@ -686,6 +708,19 @@ pub fn run_walk_with_far(
                     selectors.clear();
                 }
             }
+        }
+    }
+    if bound_geometry.is_some() {
+        let checked = far_records
+            .iter()
+            .filter(|r| r.image.is_some_and(|i| i.silhouette_ratio_max.is_some()))
+            .count();
+        if checked > 0 {
+            notes.push(format!(
+                "silhouette bound checked with the exact geometry on {checked} hybrid frames \
+                 ({:.3} s for their image measures in all)",
+                bound_s
+            ));
         }
     }
     let summary = summarise(&frames, reference);
@@ -810,6 +845,12 @@ struct FarFrame<'a, 'm> {
     mesh_image: Option<&'a image::RgbaImage>,
     mesh_frame_s: f64,
     triangles: &'a [u64],
+    /// The exact geometry of the bound's second look, when given.
+    bound: Option<&'a bound::BoundGeometry<'a>>,
+    /// τ of the bound `1 + τ/cos²θ`.
+    tau_px: f64,
+    /// Accumulates the seconds of the image measures with the bound.
+    bound_s: &'m mut f64,
 }
 
 /// Selects, draws and (with a mesh image) measures one hybrid frame.
@@ -882,7 +923,14 @@ fn far_frame(
             ));
             return rec;
         };
-        let mut err = image_error(mesh, hyb, &bg);
+        let fb = x
+            .bound
+            .map(|g| bound::FrameBound::new(g, &sel, x.camera, x.tau_px));
+        let t_err = Instant::now();
+        let mut err = far::image_error_with_bound(mesh, hyb, &bg, fb.as_ref());
+        if fb.is_some() {
+            *x.bound_s += t_err.elapsed().as_secs_f64();
+        }
         if let Some(fr) = frozen.filter(|fr| !far::same_selection(fr, &sel)) {
             match r.draw_with_far(x.camera, &fr.meshes, &fr.maps, true) {
                 Ok(d) => {

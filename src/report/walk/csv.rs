@@ -38,18 +38,19 @@ pub fn frames_csv(record: &WalkRecord) -> String {
 }
 
 /// The header of [`far_csv`].
-pub const FAR_HEADER: &str = "frame,mode,select_s,render_s,frame_s,mesh_frame_s,mesh_blocks,mesh_triangles,far_nodes,far_blocks,far_pixels,nodes_visited,coverage_error,psnr_db,silhouette_px,popping_px,popping_colour_px";
+pub const FAR_HEADER: &str = "frame,mode,select_s,render_s,frame_s,mesh_frame_s,mesh_blocks,mesh_triangles,far_nodes,far_blocks,far_pixels,nodes_visited,coverage_error,psnr_db,silhouette_px,silhouette_ratio,beyond_bound,beyond_bound_subpixel,beyond_bound_thin,popping_px,popping_colour_px";
 
 /// The hybrid frames as CSV (empty cells for values not measured).
 pub fn far_csv(record: &WalkRecord) -> String {
     let mut s = String::from(FAR_HEADER);
     s.push('\n');
     let opt = |v: Option<f64>| v.map(|v| format!("{v:.9}")).unwrap_or_default();
+    let count = |v: Option<u64>| v.map(|v| v.to_string()).unwrap_or_default();
     for r in &record.far {
         let i = r.image.as_ref();
         let _ = writeln!(
             s,
-            "{},{},{:.9},{},{:.9},{:.9},{},{},{},{},{},{},{},{},{},{},{}",
+            "{},{},{:.9},{},{:.9},{:.9},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}",
             r.frame,
             r.mode,
             r.select_s,
@@ -65,6 +66,10 @@ pub fn far_csv(record: &WalkRecord) -> String {
             opt(i.map(|i| i.coverage_error)),
             opt(i.map(|i| i.psnr_db)),
             opt(i.map(|i| i.silhouette_px)),
+            opt(i.and_then(|i| i.silhouette_ratio_max)),
+            count(i.and_then(|i| i.beyond_bound)),
+            count(i.and_then(|i| i.beyond_bound_subpixel)),
+            count(i.and_then(|i| i.beyond_bound_thin)),
             i.map(|i| i.popping_px.to_string()).unwrap_or_default(),
             i.map(|i| i.popping_colour_px.to_string())
                 .unwrap_or_default(),

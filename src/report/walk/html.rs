@@ -256,7 +256,7 @@ fn far_section(h: &mut String, record: &WalkRecord, e: &Embedded) {
     let num = |k: &str, scale: f64, digits: usize| opt(f[k].as_f64().map(|v| v * scale), digits);
     let _ = write!(
         h,
-        "<h2>Far field (BlockMaps, τ = {tau} px)</h2><p>{used}</p><table><tr><th>far nodes</th><th>mesh triangles</th><th>hybrid ms</th><th>mesh-only ms</th><th>ratio</th><th>coverage error max</th><th>PSNR min dB</th><th>silhouette px max</th><th>popping px max</th></tr><tr><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td></tr></table>",
+        "<h2>Far field (BlockMaps, τ = {tau} px)</h2><p>{used}</p><table><tr><th>far nodes</th><th>mesh triangles</th><th>hybrid ms</th><th>mesh-only ms</th><th>ratio</th><th>coverage error max</th><th>PSNR min dB</th><th>silhouette px max (raw)</th><th>ratio max</th><th>bound violations</th><th>sub-pixel</th><th>thin</th><th>popping px max</th></tr><tr><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td></tr></table><p>{bound}</p>",
         num("far_nodes", 1.0, 1),
         num("mesh_triangles", 1.0, 0),
         num("frame_s", 1e3, 3),
@@ -265,7 +265,21 @@ fn far_section(h: &mut String, record: &WalkRecord, e: &Embedded) {
         num("coverage_error_max", 1.0, 4),
         num("psnr_min", 1.0, 1),
         num("silhouette_px_max", 1.0, 1),
+        num("silhouette_ratio_max", 1.0, 2),
+        num("silhouette_bound_violations", 1.0, 0),
+        num("silhouette_subpixel", 1.0, 0),
+        num("silhouette_thin", 1.0, 0),
         num("popping_px_max", 1.0, 0),
+        bound = if f["silhouette_ratio_max"].is_null() {
+            "The silhouette bound 1 px + τ/cos²θ was not checked with the exact geometry (no \
+             buildings were given): only the raw image distance is shown."
+        } else {
+            "Bound 1 px + τ/cos²θ per mismatched pixel: ratio max is the largest distance over \
+             allowed distance after a second look at quarter-pixel spacing with the exact \
+             geometry (≤ 1 where the bound holds); sub-pixel: pixels beyond the bound at pixel \
+             spacing that the second look settled; thin: pixels of buildings the maps declare \
+             thin or dropped; bound violations: the rest."
+        },
         tau = o.tau_px,
         used = escape(&match (&d.used, &d.reason) {
             (true, _) => "Drawn on every frame.".to_string(),
