@@ -7,6 +7,7 @@
 use super::common::{CityArgs, Size};
 use blockwalk::index::Structure;
 use blockwalk::route::RouteChoice;
+#[cfg(feature = "window")]
 use blockwalk::walk::FarMode;
 use std::path::PathBuf;
 
