@@ -577,6 +577,10 @@ pub const GROUND_PLANE_HALF_M: f32 = 20_000.0;
 /// Sides of the polygon that fills a street's joints (a regular polygon of the street's width).
 const JOINT_SIDES: usize = 8;
 
+/// A street as the ground lays it: style, half width, local points, and which vertices need an
+/// octagon.
+type LaidStreet = (u32, f64, Vec<(f64, f64)>, Vec<bool>);
+
 /// True when a street goes straight on at `b` (from `a` to `c`, exactly collinear and forward)
 /// with both segments at least `half` long: the octagon of radius `half` at `b` then lies inside
 /// the two segments' quads.
@@ -653,8 +657,7 @@ fn ground_mesh_with(
         }
     }
     let mut class_style = [None::<u32>; 5];
-    // (street, style, half width, local points, which vertices need an octagon)
-    let mut laid: Vec<(u32, f64, Vec<(f64, f64)>, Vec<bool>)> = Vec::new();
+    let mut laid: Vec<LaidStreet> = Vec::new();
     for s in streets {
         if street_below_ground(s) {
             continue;
