@@ -11,6 +11,7 @@
 //! `BLOCKWALK_ADVERSARIAL_VIEWS=10000` for the full count. Eyes inside a building (a touching
 //! neighbour) are counted apart as vacuous: they are checked too, but not counted as passes.
 
+mod data_path;
 use blockwalk::blocks::{BlockId, BlockOptions};
 use blockwalk::city::Mesh;
 use blockwalk::index::Structure;
@@ -18,6 +19,7 @@ use blockwalk::scene::{CitySource, Scene, SceneOptions};
 use blockwalk::visibility::adversarial::{adversarial_views, AdversarialOptions, BuildingSolids};
 use blockwalk::visibility::oracle::visible_blocks_supersampled;
 use blockwalk::visibility::{CullMap, CullerOptions, OcclusionCuller, Resolution};
+use data_path::data;
 use rayon::prelude::*;
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::PathBuf;
@@ -28,12 +30,6 @@ const CI_VIEWS: usize = 600;
 const ORACLE: (u32, u32, u32) = (96, 54, 4);
 const RESOLUTIONS: [u32; 3] = [64, 256, 1024];
 const NEARS: [f64; 4] = [0.1, 0.5, 2.0, 10.0];
-
-fn data(rel: &str) -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .join("data")
-        .join(rel)
-}
 
 fn views_wanted() -> usize {
     std::env::var("BLOCKWALK_ADVERSARIAL_VIEWS")

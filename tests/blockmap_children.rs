@@ -4,6 +4,7 @@
 //! within ε, its error measured against the polygons within its derived ε, and the coverage
 //! error of a random view per map for both options.
 
+mod data_path;
 use blockwalk::blockmap::children::{
     build_from_children, column_height, directed_distance, Parents,
 };
@@ -15,9 +16,9 @@ use blockwalk::city::extrude::extrude_city;
 use blockwalk::city::generate::{generate_city, write_city, GenerateParams};
 use blockwalk::importers::{read_layer, Theme};
 use blockwalk::index::{block_bounds, BqrParams, BqrTree};
+use data_path::data;
 use glam::{DVec2, DVec3};
 use proptest::prelude::*;
-use std::path::PathBuf;
 
 /// A child map with one texel of height `h` and roof colour `rgb`.
 fn one_texel(min: DVec2, side: f64, zmax: f64, at: (u32, u32), h: f64, rgb: [u8; 3]) -> BlockMap {
@@ -177,12 +178,6 @@ proptest! {
             }
         }
     }
-}
-
-fn data(rel: &str) -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .join("data")
-        .join(rel)
 }
 
 /// Both trees of a city (competitive stop, K = 64), checked against each other; returns the

@@ -10,6 +10,7 @@
 
 mod common;
 
+mod data_path;
 use blockwalk::blockmap::cast::{cast_f64, CastOptions};
 use blockwalk::blockmap::image::twin_ray;
 use blockwalk::blockmap::{
@@ -26,18 +27,12 @@ use blockwalk::render::{GpuFrameRenderer, NO_MAP};
 use blockwalk::visibility::oracle;
 use blockwalk::visibility::FrameRenderer;
 use common::gpu_or_skip;
+use data_path::data;
 use glam::DVec3;
 use rand::{Rng, SeedableRng};
-use std::path::PathBuf;
 
 const W: u32 = 160;
 const H: u32 = 120;
-
-fn data(rel: &str) -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .join("data")
-        .join(rel)
-}
 
 /// Helsinki's maps down to level 2 at K = 64, and the root again at K = 32 (a second page).
 fn helsinki_maps() -> (Vec<BlockMap>, Vec<u32>) {

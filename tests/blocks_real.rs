@@ -1,17 +1,12 @@
 //! Block detection on the bundled real data, against the reference faces in `data/*/reference/`
 //! (computed with shapely/GEOS `polygonize(union_all(lines))`, see `data/README.md`).
 
+mod data_path;
 use blockwalk::blocks::{detect_geometry, BlockKind, BlockLayout, BlockOptions, BlockSource};
 use blockwalk::geom::predicates::polygon_area;
+use data_path::data;
 use geo::BooleanOps;
 use geo_types::{LineString, MultiLineString, MultiPolygon, Polygon};
-use std::path::PathBuf;
-
-fn data(rel: &str) -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .join("data")
-        .join(rel)
-}
 
 fn read_polygons(rel: &str) -> Vec<Polygon<f64>> {
     let shapes: Vec<shapefile::Polygon> = shapefile::read_shapes_as(data(rel)).unwrap();

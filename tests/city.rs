@@ -1,8 +1,9 @@
 //! End-to-end tests of the city stage on the bundled real data (`data/`) and on generated
 //! cities: import, repair, heights, extrusion, glTF and GeoJSON export.
 
+mod data_path;
+use data_path::data;
 use std::collections::BTreeSet;
-use std::path::{Path, PathBuf};
 
 use blockwalk::city::build::{build_city, BuildOptions};
 use blockwalk::city::export::{geojson_value, glb_bytes, write_geojson};
@@ -14,10 +15,6 @@ use blockwalk::geom::repair::check_polygon;
 use blockwalk::importers::{read_layer, AttrValue, Crs, Layer, Theme};
 use geo_types::{Coord, Geometry, LineString, Polygon};
 use glam::DVec3;
-
-fn data(p: &str) -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("data").join(p)
-}
 
 fn load(p: &str) -> (Layer, City) {
     let layer = read_layer(&data(p), &Theme::Buildings).expect("read");

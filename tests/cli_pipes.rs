@@ -2,13 +2,10 @@
 //! exit with status 0 (issue 10, item 15); and numeric arguments that must be refused with a
 //! usage error, not a panic.
 
+mod data_path;
+use data_path::data;
 use std::io::Read;
-use std::path::{Path, PathBuf};
 use std::process::{Command, Output, Stdio};
-
-fn data(p: &str) -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("data").join(p)
-}
 
 fn blockwalk() -> Command {
     Command::new(env!("CARGO_BIN_EXE_blockwalk"))

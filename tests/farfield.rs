@@ -2,6 +2,7 @@
 //! drawn exactly once, monotone in τ, hysteresis against flicker, conservative against the
 //! oracle), and hybrid walks on Helsinki with the CPU fallback.
 
+mod data_path;
 use blockwalk::blockmap::{skeleton_tree, MapTree, SelectOptions, Selection, Selector, Stop};
 use blockwalk::blocks::BlockId;
 use blockwalk::geom::{Camera, Containment};
@@ -179,6 +180,7 @@ fn hysteresis_stops_flicker_on_an_oscillating_camera() {
 }
 
 mod helsinki {
+    use crate::data_path::data;
     use blockwalk::blockmap::{CityMapsOptions, MapTree, SelectOptions, Selector};
     use blockwalk::index::Structure;
     use blockwalk::route::{RouteChoice, RouteContext};
@@ -186,13 +188,6 @@ mod helsinki {
     use blockwalk::visibility::{CullerOptions, MeshOracle, VisibilityOracle};
     use blockwalk::walk::{run_walk_with_far, Drawing, FarField, OcclusionMode, WalkParams};
     use std::collections::HashSet;
-    use std::path::PathBuf;
-
-    fn data(rel: &str) -> PathBuf {
-        PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-            .join("data")
-            .join(rel)
-    }
 
     fn scene() -> Scene {
         let source = CitySource::parse(

@@ -2,6 +2,8 @@
 //! `blockwalk import` does without `--cityjson`) gives the same buildings and the same meshes
 //! as reading every column, on the bundled data and on a generated city.
 
+mod data_path;
+use data_path::data;
 use std::path::{Path, PathBuf};
 
 use blockwalk::city::build::{footprint_columns, BuildOptions};
@@ -9,10 +11,6 @@ use blockwalk::city::extrude::extrude_city;
 use blockwalk::city::generate::{generate_city, write_city, GenerateParams};
 use blockwalk::importers::Columns;
 use blockwalk::scene::CitySource;
-
-fn data(rel: &str) -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("data").join(rel)
-}
 
 fn same_city(input: &Path, streets: Option<PathBuf>) {
     let source = CitySource::parse(input, streets, None, &[], 0).unwrap();

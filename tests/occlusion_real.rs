@@ -1,19 +1,14 @@
 //! Occlusion culling on the bundled Helsinki data (footprints extruded, blocks from the street
 //! layer): no block the oracle sees may be culled.
 
+mod data_path;
 use blockwalk::blocks::{BlockId, BlockOptions};
 use blockwalk::city::Mesh;
 use blockwalk::index::Structure;
 use blockwalk::scene::{CitySource, Scene, SceneOptions};
 use blockwalk::visibility::bench::{run_occlusion_bench, BenchOptions, BenchScene};
 use blockwalk::visibility::views::ViewOptions;
-use std::path::PathBuf;
-
-fn data(rel: &str) -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .join("data")
-        .join(rel)
-}
+use data_path::data;
 
 #[test]
 fn helsinki_no_false_culls() {

@@ -16,6 +16,7 @@
 
 mod common;
 
+mod data_path;
 use blockwalk::blocks::BlockId;
 use blockwalk::city::{BuildingId, Mesh};
 use blockwalk::geom::Camera;
@@ -24,16 +25,10 @@ use blockwalk::render::{Batching, MeshRenderer, RenderOptions, Shading};
 use blockwalk::route::{paper_route, Lens, Obstacles, PaperRouteParams, StreetGraph};
 use blockwalk::scene::{BuildingsMode, CitySource, DrawOrder, DrawUnits, Scene, SceneOptions};
 use blockwalk::visibility::CullerOptions;
+use data_path::data;
 use std::collections::HashSet;
-use std::path::PathBuf;
 
 use common::gpu_or_skip;
-
-fn data(rel: &str) -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .join("data")
-        .join(rel)
-}
 
 /// Helsinki (bundled) with the BqR-tree, the occlusion culler and building units.
 fn helsinki() -> Scene {
