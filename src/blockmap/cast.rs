@@ -205,6 +205,19 @@ impl BlockMap {
             d: [dir.x / s, dir.y / s, dir.z / hz],
         }
     }
+
+    /// The point at parameter `t` of a texture-space ray, in the local frame (metres): the
+    /// inverse of [`Self::tex_ray`]'s mapping.
+    pub fn local_point(&self, ray: &TexRay<f64>, t: f64) -> DVec3 {
+        let s = self.texel_m();
+        let hz = self.meta.zmax - self.meta.zmin;
+        let q = [0, 1, 2].map(|a| ray.o[a] + ray.d[a] * t);
+        DVec3::new(
+            self.meta.min[0] + q[0] * s,
+            self.meta.min[1] + q[1] * s,
+            self.meta.zmin + q[2] * hz,
+        )
+    }
 }
 
 impl TexRay<f64> {
@@ -688,6 +701,23 @@ mod tests {
             }
         }
         m
+    }
+
+    /// `local_point` undoes `tex_ray`: a world ray's point at `t` is found again from the
+    /// texture-space ray.
+    #[test]
+    fn local_point_inverts_tex_ray() {
+        let m = tower_map();
+        let (o, d) = (DVec3::new(-3.25, 7.5, 40.0), DVec3::new(0.6, -0.3, -0.74));
+        let r = m.tex_ray(o, d);
+        for t in [0.0, 1.5, 17.25] {
+            let p = m.local_point(&r, t);
+            assert!(
+                (p - (o + d * t)).length() < 1e-9,
+                "t {t}: {p} vs {}",
+                o + d * t
+            );
+        }
     }
 
     #[test]

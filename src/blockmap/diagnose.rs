@@ -470,13 +470,7 @@ pub fn diagnose_frame(input: &FrameInput) -> FrameDiagnosis {
                         Hit::Roof { i, j, t } | Hit::Wall { i, j, t, .. } => {
                             texel = Some([i, j]);
                             let s = map.texel_m();
-                            let hz = map.meta.zmax - map.meta.zmin;
-                            let pt = [0, 1, 2].map(|a| ray.o[a] + ray.d[a] * t);
-                            let p = DVec3::new(
-                                map.meta.min[0] + pt[0] * s,
-                                map.meta.min[1] + pt[1] * s,
-                                map.meta.zmin + pt[2] * hz,
-                            );
+                            let p = map.local_point(&ray, t);
                             point = Some(p);
                             let ids = buckets[&m].around(i as i64, j as i64);
                             let bs: Vec<&SourceBuilding> = ids

@@ -78,6 +78,23 @@ pub struct NodeMap {
     pub error: ErrorReport,
 }
 
+impl NodeMap {
+    /// The buildings this map declares it does not draw faithfully: its thin features and the
+    /// buildings no texel holds (indices into `City::buildings`, sorted, without repeats).
+    pub fn declared_buildings(&self) -> Vec<u32> {
+        let mut v: Vec<u32> = self
+            .error
+            .thin
+            .iter()
+            .map(|t| t.building)
+            .chain(self.stats.dropped_buildings.iter().map(|b| b.0))
+            .collect();
+        v.sort_unstable();
+        v.dedup();
+        v
+    }
+}
+
 /// All maps of a city.
 #[derive(Clone, Debug, Default)]
 pub struct MapTree {
@@ -514,16 +531,7 @@ pub fn build_city_maps(
             .par_iter()
             .map(|m| {
                 let cam = super::compare::random_views(&m.map, 1, m.key, h)[0];
-                // Buildings the map reports: thin features and buildings no texel holds.
-                let mut thin: Vec<u32> = m
-                    .error
-                    .thin
-                    .iter()
-                    .map(|t| t.building)
-                    .chain(m.stats.dropped_buildings.iter().map(|b| b.0))
-                    .collect();
-                thin.sort_unstable();
-                thin.dedup();
+                let thin = m.declared_buildings();
                 (
                     m.key,
                     super::compare::compare_view_with_thin(

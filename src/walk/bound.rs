@@ -78,22 +78,7 @@ impl<'a> BoundGeometry<'a> {
                 by_block[k].push(i as u32);
             }
         }
-        let declared = tree
-            .maps
-            .iter()
-            .map(|m| {
-                let mut v: Vec<u32> = m
-                    .error
-                    .thin
-                    .iter()
-                    .map(|t| t.building)
-                    .chain(m.stats.dropped_buildings.iter().map(|b| b.0))
-                    .collect();
-                v.sort_unstable();
-                v.dedup();
-                v
-            })
-            .collect();
+        let declared = tree.maps.iter().map(|m| m.declared_buildings()).collect();
         Self {
             source,
             tree,
@@ -595,15 +580,7 @@ impl<'f, 'g, 'a> Look<'f, 'g, 'a> {
                 let map = &self.frame.geometry.tree.maps[m].map;
                 let ray = twin_ray(map, self.frame.camera, self.w, self.h, p.x, p.y);
                 if let Some(t) = cast_f64(map, &ray, &CastOptions::default()).hit.t() {
-                    let s = map.texel_m();
-                    let hz = map.meta.zmax - map.meta.zmin;
-                    let q = [0, 1, 2].map(|a| ray.o[a] + ray.d[a] * t);
-                    let point = DVec3::new(
-                        map.meta.min[0] + q[0] * s,
-                        map.meta.min[1] + q[1] * s,
-                        map.meta.zmin + q[2] * hz,
-                    );
-                    return Verdict::Twin(m, point);
+                    return Verdict::Twin(m, map.local_point(&ray, t));
                 }
             }
             Verdict::Violation
