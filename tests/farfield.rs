@@ -180,30 +180,15 @@ fn hysteresis_stops_flicker_on_an_oscillating_camera() {
 }
 
 mod helsinki {
-    use crate::data_path::data;
     use blockwalk::blockmap::{CityMapsOptions, MapTree, SelectOptions, Selector};
-    use blockwalk::index::Structure;
     use blockwalk::route::{RouteChoice, RouteContext};
-    use blockwalk::scene::{CitySource, Scene, SceneOptions};
-    use blockwalk::visibility::{CullerOptions, MeshOracle, VisibilityOracle};
+    use blockwalk::scene::Scene;
+    use blockwalk::visibility::{MeshOracle, VisibilityOracle};
     use blockwalk::walk::{run_walk_with_far, Drawing, FarField, OcclusionMode, WalkParams};
     use std::collections::HashSet;
 
     fn scene() -> Scene {
-        let source = CitySource::parse(
-            &data("helsinki/buildings.shp"),
-            Some(data("helsinki/streets_blockclass.shp")),
-            None,
-            &[],
-            0,
-        )
-        .unwrap();
-        let opts = SceneOptions {
-            structures: vec![Structure::Bqr],
-            occlusion: Some(CullerOptions::default()),
-            ..SceneOptions::default()
-        };
-        Scene::load(&source, &opts, &mut |_| {}).unwrap()
+        crate::data_path::helsinki_bqr_occlusion()
     }
 
     fn maps(scene: &Scene) -> MapTree {

@@ -23,29 +23,14 @@ use blockwalk::geom::Camera;
 use blockwalk::index::{CullQuery, Structure};
 use blockwalk::render::{Batching, MeshRenderer, RenderOptions, Shading};
 use blockwalk::route::{paper_route, Lens, Obstacles, PaperRouteParams, StreetGraph};
-use blockwalk::scene::{BuildingsMode, CitySource, DrawOrder, DrawUnits, Scene, SceneOptions};
-use blockwalk::visibility::CullerOptions;
-use data_path::data;
+use blockwalk::scene::{BuildingsMode, DrawOrder, DrawUnits, Scene};
 use std::collections::HashSet;
 
 use common::gpu_or_skip;
 
 /// Helsinki (bundled) with the BqR-tree, the occlusion culler and building units.
 fn helsinki() -> Scene {
-    let source = CitySource::parse(
-        &data("helsinki/buildings.shp"),
-        Some(data("helsinki/streets_blockclass.shp")),
-        None,
-        &[],
-        0,
-    )
-    .unwrap();
-    let opts = SceneOptions {
-        structures: vec![Structure::Bqr],
-        occlusion: Some(CullerOptions::default()),
-        ..SceneOptions::default()
-    };
-    let mut scene = Scene::load(&source, &opts, &mut |_| {}).unwrap();
+    let mut scene = data_path::helsinki_bqr_occlusion();
     scene
         .build_units(&Default::default(), BuildingsMode::On)
         .unwrap();

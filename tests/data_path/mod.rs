@@ -1,5 +1,8 @@
 //! The repository's bundled data for the integration tests (`mod data_path;` in a test file).
 
+use blockwalk::index::Structure;
+use blockwalk::scene::{CitySource, Scene, SceneOptions};
+use blockwalk::visibility::CullerOptions;
 use std::path::PathBuf;
 
 /// `data/REL` in the repository (Bubeneč and Helsinki are copied there; see `data/README.md`).
@@ -7,4 +10,23 @@ pub fn data(rel: &str) -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR"))
         .join("data")
         .join(rel)
+}
+
+/// Helsinki (bundled) with the BqR-tree and the occlusion culler.
+#[allow(dead_code)] // not every test file that includes this module builds the scene
+pub fn helsinki_bqr_occlusion() -> Scene {
+    let source = CitySource::parse(
+        &data("helsinki/buildings.shp"),
+        Some(data("helsinki/streets_blockclass.shp")),
+        None,
+        &[],
+        0,
+    )
+    .unwrap();
+    let opts = SceneOptions {
+        structures: vec![Structure::Bqr],
+        occlusion: Some(CullerOptions::default()),
+        ..SceneOptions::default()
+    };
+    Scene::load(&source, &opts, &mut |_| {}).unwrap()
 }
