@@ -115,6 +115,17 @@ impl GpuFrameRenderer {
         })
     }
 
+    /// The same renderer with the far field `far` uploaded (its GPU pass: [`BlockMapRenderer`]
+    /// for BlockMaps), which [`FrameRenderer::draw_with_far`]'s `far` indexes.
+    ///
+    /// # Errors
+    /// The far field's upload errors (e.g. [`RenderError::BadBlockMap`]).
+    pub fn with_far(self, far: &dyn crate::walk::FarField) -> Result<Self, RenderError> {
+        match far.gpu() {
+            crate::walk::FarGpu::BlockMaps(maps) => self.with_far_field(&maps),
+        }
+    }
+
     /// The device.
     pub fn gpu(&self) -> &Gpu {
         &self.gpu

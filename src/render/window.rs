@@ -1,14 +1,15 @@
 //! An interactive window over the city (feature `window`): winit 0.30 + a wgpu surface.
 //!
-//! Every frame the viewer culls the blocks with one spatial structure (frustum culling, seed 004
-//! §2 / seed 003 §4), optionally through the occlusion culler (occluder shadows and a cull map,
-//! seed 004 §3), draws the survivors with [`MeshRenderer`] and shows the image in the window.
+//! Every frame the viewer culls the blocks as the walk does ([`CullStep`]: one spatial structure,
+//! frustum culling as Willmott et al., §2 and Pina, Serón and Cerezo, §4 describe it, optionally
+//! through the occlusion culler's occluder shadows and cull map, Willmott et al., §3), draws the
+//! survivors with [`MeshRenderer`] and shows the image in the window.
 //!
-//! With a far field ([`ViewerScene::far`]) the frame is the walk's hybrid frame instead: a
-//! [`Selector`] picks, coarse to fine and front to back, the BlockMaps whose projected error is
-//! at most τ (seed 000 §4, seed 002 §4.4) and the blocks left to draw as meshes; the meshes are
-//! drawn first and the maps are ray-cast into the same colour and depth targets
-//! ([`BlockMapRenderer`]), as `blockwalk walk --far blockmaps` draws them.
+//! With a far field ([`ViewerScene::far`]) the frame is the walk's hybrid frame instead: the
+//! walk's [`FarStep`] picks, coarse to fine and front to back, the nodes whose projected error
+//! is at most τ (Cignoni et al., §4; Di Benedetto, §4.4) and the blocks left to draw as meshes;
+//! the meshes are drawn first and the far field is ray-cast into the same colour and depth
+//! targets ([`BlockMapRenderer`] for BlockMaps), as `blockwalk walk --far blockmaps` draws it.
 //!
 //! The frame is drawn by the same [`MeshRenderer`] as the headless tools (so what the window shows
 //! is exactly what `blockwalk walk --render` writes), read back and written into the surface
@@ -33,14 +34,14 @@
 
 use super::blockmap::{BlockMapRenderer, FarReadback};
 use super::{Gpu, MeshRenderer, RenderError, RenderOptions};
-use crate::blockmap::{MapTree, SelectOptions, Selector};
+use crate::blockmap::SelectOptions;
 use crate::blocks::BlockId;
 use crate::city::Mesh;
 use crate::geom::Camera;
-use crate::index::{CullQuery, Structure};
+use crate::index::Structure;
 use crate::route::CameraRoute;
 use crate::scene::Scene;
-use crate::visibility::{CullMap, OcclusionCulling};
+use crate::walk::{CullMode, CullStep, FarField, FarGpu, FarStep};
 use glam::DVec3;
 use std::collections::HashSet;
 use std::path::PathBuf;
@@ -140,13 +141,22 @@ pub struct ViewerScene {
     pub far: Option<ViewerFar>,
 }
 
-/// The far field of the viewer: the city's map tree and the selection settings.
-#[derive(Clone, Debug)]
+/// The far field of the viewer and the selection settings.
 pub struct ViewerFar {
-    /// The maps (built for the scene's blocks).
-    pub maps: MapTree,
+    /// The far field (built for the scene's blocks), e.g. a BlockMap tree.
+    pub field: Box<dyn FarField + Send>,
     /// τ and hysteresis.
     pub select: SelectOptions,
+}
+
+impl std::fmt::Debug for ViewerFar {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("ViewerFar")
+            .field("field", &self.field.name())
+            .field("nodes", &self.field.len())
+            .field("select", &self.select)
+            .finish()
+    }
 }
 
 impl std::fmt::Debug for ViewerScene {
@@ -156,7 +166,7 @@ impl std::fmt::Debug for ViewerScene {
             .field("structure", &self.structure)
             .field("occlusion", &self.occlusion)
             .field("route", &self.route.name)
-            .field("far_maps", &self.far.as_ref().map(|f| f.maps.maps.len()))
+            .field("far", &self.far)
             .finish()
     }
 }
@@ -223,19 +233,17 @@ pub fn run_viewer(
             height: options.height,
         });
     }
-    let selector = match &scene.far {
-        Some(f) => Some(
-            Selector::new(&f.maps, &scene.scene.bounds, f.select)
+    let culler = scene.scene.occlusion.as_ref().filter(|_| scene.occlusion);
+    let far_step = match &scene.far {
+        Some(f) => Some(FarStep::new(
+            f.field
+                .selector(&scene.scene.bounds, f.select)
                 .map_err(|e| WindowError::Scene(format!("far field: {e}")))?,
-        ),
+            culler,
+        )),
         None => None,
     };
-    let cull_map = scene
-        .scene
-        .occlusion
-        .as_ref()
-        .filter(|_| scene.occlusion)
-        .map(|c| c.new_map());
+    let cull = CullStep::new(&scene.scene);
     let event_loop = EventLoop::new().map_err(|source| WindowError::EventLoop { source })?;
     event_loop.set_control_flow(ControlFlow::Poll);
     let mut camera = scene.route.camera_at(scene.route.start());
@@ -257,8 +265,8 @@ pub fn run_viewer(
         title_frames: 0,
         visible: Vec::new(),
         far: Vec::new(),
-        selector,
-        cull_map,
+        far_step,
+        cull,
         far_total: 0,
         summary: ViewerSummary::default(),
     };
@@ -312,9 +320,10 @@ struct App {
     visible: Vec<BlockId>,
     /// Maps to draw this frame (indices into the far field's maps).
     far: Vec<usize>,
-    selector: Option<Selector>,
-    /// The occlusion culler's map, rebuilt every frame, that prunes the far field's nodes.
-    cull_map: Option<CullMap>,
+    /// The far field's selection (with the cull map that prunes its nodes in occlusion mode).
+    far_step: Option<FarStep>,
+    /// The walk's per-frame cull of the blocks.
+    cull: CullStep,
     /// Maps drawn, summed over frames.
     far_total: u64,
     summary: ViewerSummary,
@@ -405,7 +414,7 @@ impl App {
         let refs: Vec<(BlockId, &Mesh)> = self
             .scene
             .scene
-            .meshes
+            .draw_meshes()
             .iter()
             .map(|(b, m)| (*b, m))
             .collect();
@@ -427,8 +436,9 @@ impl App {
         let Some(f) = &self.scene.far else {
             return Ok(None);
         };
-        let maps: Vec<&crate::blockmap::BlockMap> = f.maps.maps.iter().map(|n| &n.map).collect();
-        BlockMapRenderer::new(gpu, &maps, (width, height)).map(Some)
+        match f.field.gpu() {
+            FarGpu::BlockMaps(maps) => BlockMapRenderer::new(gpu, &maps, (width, height)).map(Some),
+        }
     }
 
     fn resize(&mut self, size: PhysicalSize<u32>) -> Result<(), WindowError> {
@@ -520,17 +530,16 @@ impl App {
         };
         self.visible.clear();
         self.far.clear();
-        if let Some(selector) = self.selector.as_mut() {
-            // The far field replaces the structure's culling: the selector prunes map nodes and
+        if let Some(step) = self.far_step.as_mut() {
+            // The far field replaces the structure's culling: the selection prunes nodes and
             // the blocks left as meshes by the frustum and, with occlusion, the cull map.
-            let map = match (&self.scene.scene.occlusion, self.cull_map.as_mut()) {
-                (Some(c), Some(m)) => {
-                    let st = c.build(&self.camera, m);
-                    (st.skipped.is_none() && st.cells_covered > 0).then_some(&*m)
-                }
-                _ => None,
-            };
-            let sel = selector.select(&self.camera, height, map);
+            let culler = self
+                .scene
+                .scene
+                .occlusion
+                .as_ref()
+                .filter(|_| self.scene.occlusion);
+            let sel = step.select(culler, &self.camera, height, false).selection;
             self.visible = sel.meshes;
             self.far = sel.maps;
         } else {
@@ -570,33 +579,24 @@ impl App {
         self.present(event_loop, &frame, far_pixels)
     }
 
-    /// Frustum (and occlusion) culling of the blocks through the viewer's structure.
+    /// Frustum (and occlusion) culling of the blocks through the viewer's structure, as the
+    /// walk culls them.
     fn cull_structure(&mut self) -> Result<(), WindowError> {
-        let Some(index) = self.scene.scene.index(self.scene.structure) else {
+        let scene = &self.scene.scene;
+        let Some(index) = scene.index(self.scene.structure) else {
             return Err(WindowError::Scene(format!(
                 "the scene has no {} structure",
                 self.scene.structure
             )));
         };
-        let culler = self
-            .scene
-            .scene
-            .occlusion
-            .as_ref()
-            .filter(|_| self.scene.occlusion);
-        match culler {
-            Some(occ) => {
-                occ.cull_frame(index, &self.camera, &mut self.visible);
-            }
-            None => {
-                let frustum = self.camera.frustum();
-                index.cull(
-                    &CullQuery::with_eye(&frustum, self.camera.position),
-                    None,
-                    &mut self.visible,
-                );
-            }
-        }
+        let mode = if self.scene.occlusion && scene.occlusion.is_some() {
+            CullMode::FrustumOcclusion
+        } else {
+            CullMode::Frustum
+        };
+        self.cull.cull(scene, index, mode, &self.camera);
+        self.visible.clear();
+        self.visible.extend_from_slice(self.cull.draw_ids());
         Ok(())
     }
 
@@ -667,12 +667,12 @@ impl App {
                 fps,
                 frame.timings.blocks,
                 frame.timings.triangles,
-                if self.selector.is_some() {
+                if self.far_step.is_some() {
                     format!(", {} far maps", self.far.len())
                 } else {
                     String::new()
                 },
-                if self.selector.is_some() {
+                if self.far_step.is_some() {
                     "BlockMaps".to_string()
                 } else {
                     self.scene.structure.to_string()

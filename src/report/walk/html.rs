@@ -249,28 +249,28 @@ fn extra_section(h: &mut String, e: &Embedded) {
 }
 
 fn far_section(h: &mut String, record: &WalkRecord, e: &Embedded) {
-    let (Some(d), Some(o)) = (&record.far_decision, &record.far_options) else {
+    let Some(f) = record.far_summary() else {
         return;
     };
-    let f = crate::walk::far_json(&record.far, d, o);
-    let num = |k: &str, scale: f64, digits: usize| opt(f[k].as_f64().map(|v| v * scale), digits);
+    let num = |v: Option<f64>, scale: f64, digits: usize| opt(v.map(|v| v * scale), digits);
+    let count = |v: Option<u64>| opt(v.map(|v| v as f64), 0);
     let _ = write!(
         h,
         "<h2>Far field (BlockMaps, τ = {tau} px)</h2><p>{used}</p><table><tr><th>far nodes</th><th>mesh triangles</th><th>hybrid ms</th><th>mesh-only ms</th><th>ratio</th><th>coverage error max</th><th>PSNR min dB</th><th>silhouette px max (raw)</th><th>ratio max</th><th>bound violations</th><th>sub-pixel</th><th>thin</th><th>popping px max</th></tr><tr><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td></tr></table><p>{bound}</p>",
-        num("far_nodes", 1.0, 1),
-        num("mesh_triangles", 1.0, 0),
-        num("frame_s", 1e3, 3),
-        num("mesh_frame_s", 1e3, 3),
-        num("frame_time_ratio_vs_mesh", 1.0, 3),
-        num("coverage_error_max", 1.0, 4),
-        num("psnr_min", 1.0, 1),
-        num("silhouette_px_max", 1.0, 1),
-        num("silhouette_ratio_max", 1.0, 2),
-        num("silhouette_bound_violations", 1.0, 0),
-        num("silhouette_subpixel", 1.0, 0),
-        num("silhouette_thin", 1.0, 0),
-        num("popping_px_max", 1.0, 0),
-        bound = if f["silhouette_ratio_max"].is_null() {
+        num(f.far_nodes, 1.0, 1),
+        num(f.mesh_triangles, 1.0, 0),
+        num(f.frame_s, 1e3, 3),
+        num(f.mesh_frame_s, 1e3, 3),
+        num(f.frame_time_ratio_vs_mesh, 1.0, 3),
+        num(f.coverage_error_max, 1.0, 4),
+        num(f.psnr_min, 1.0, 1),
+        num(f.silhouette_px_max, 1.0, 1),
+        num(f.silhouette_ratio_max, 1.0, 2),
+        count(f.silhouette_bound_violations),
+        count(f.silhouette_subpixel),
+        count(f.silhouette_thin),
+        num(f.popping_px_max, 1.0, 0),
+        bound = if f.silhouette_ratio_max.is_none() {
             "The silhouette bound 1 px + τ/cos²θ was not checked with the exact geometry (no \
              buildings were given): only the raw image distance is shown."
         } else {
@@ -280,8 +280,8 @@ fn far_section(h: &mut String, record: &WalkRecord, e: &Embedded) {
              spacing that the second look settled; thin: pixels of buildings the maps declare \
              thin or dropped; bound violations: the rest."
         },
-        tau = o.tau_px,
-        used = escape(&match (&d.used, &d.reason) {
+        tau = f.tau_px,
+        used = escape(&match (&f.used, &f.reason) {
             (true, _) => "Drawn on every frame.".to_string(),
             (false, Some(r)) => format!("Left out: {r}"),
             (false, None) => "Left out.".to_string(),

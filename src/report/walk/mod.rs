@@ -129,14 +129,14 @@ pub fn json_with(record: &WalkRecord, ctx: &ReportContext) -> serde_json::Value 
     });
     // The far field: its object, and its headline figures at the top level (`coverage_error_max`,
     // `psnr_min`, `silhouette_px_max`, `far_nodes`, `frame_time_ratio_vs_mesh`, …).
-    if let (Some(d), Some(o)) = (&record.far_decision, &record.far_options) {
-        let f = crate::walk::far_json(&record.far, d, o);
+    if let Some(summary) = record.far_summary() {
+        let f = serde_json::to_value(&summary).unwrap_or_default();
         if let Some(m) = f.as_object() {
             for (k, v) in m {
                 j[k.as_str()] = v.clone();
             }
         }
-        j["far_used"] = serde_json::json!(d.used);
+        j["far_used"] = serde_json::json!(summary.used);
         j["far"] = f;
     }
     j["total_ms"] = serde_json::json!(record.total_s * 1e3);

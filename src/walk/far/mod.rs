@@ -1,18 +1,19 @@
-//! The far field in a walk (issue 12, items 4 and 5): per frame, the reference structure's
-//! blocks are drawn a second time as a hybrid frame, near meshes plus far BlockMaps chosen by
-//! [`Selector`] (seed 000 §4–5), and, with a reference, compared with the mesh-only frame of the
-//! same camera and culling mode.
+//! The far field in a walk: per frame, the reference structure's blocks are drawn a second time
+//! as a hybrid frame, near meshes plus far nodes chosen by [`crate::blockmap::Selector`]
+//! (Cignoni et al., §4–5) through the far-field interface ([`FarField`], [`field`]), and, with a
+//! reference, compared with the mesh-only frame of the same camera and culling mode.
 //!
 //! The image measures work on the frames' own pictures, whatever drew them:
 //! - **coverage**: a pixel shows a building when it differs from the same camera's frame drawn
 //!   with no block (ground and sky only); the coverage error is the share of pixels whose
-//!   coverage differs between the mesh-only and the hybrid frame (seed 001's measure);
+//!   coverage differs between the mesh-only and the hybrid frame (the measure of Andujar et
+//!   al.);
 //! - **colour PSNR** (RGB, dB) of the hybrid frame against the mesh-only frame;
 //! - **silhouette distance**: the largest distance, in pixels, of a coverage-mismatched pixel
 //!   from a silhouette pixel of the frame that does not cover it (a pixel only the hybrid covers:
 //!   the mesh frame's; only the mesh covers: the hybrid frame's), the form of BLOCKMAPS.md D.3-2
 //!   that `blockmap::compare` derives (≤ 1 px + τ/cos²θ where the bound holds). This raw figure
-//!   knows neither τ nor θ nor the geometry; with the city's buildings ([`FarField::source`])
+//!   knows neither τ nor θ nor the geometry; with the city's buildings ([`FarSetup::source`])
 //!   each mismatched pixel is also checked against its own allowed distance, with a second look
 //!   at quarter-pixel spacing for sub-pixel features and the maps' declared thin features
 //!   counted apart ([`super::bound`]): the ratio, violations, sub-pixel and thin counts;
@@ -22,11 +23,18 @@
 //!   and pixels whose colour changes at all (`popping_colour_px`; a map's colours differ a little
 //!   from the meshes' nearly everywhere, so this counts every pixel of a switched node).
 
-use super::bound::FrameBound;
+pub mod field;
+mod summary;
+
+pub use field::{
+    BlockMapsOptions, BuildFar, FarBuildSummary, FarField, FarGpu, PixelBound, SilhouetteBound,
+};
+pub use summary::FarSummary;
+
 use super::CullMode;
 pub use crate::blockmap::compare::nearest_in_mask;
 use crate::blockmap::compare::{psnr_db, silhouette_pixels};
-use crate::blockmap::{MapTree, SelectOptions, SelectStats, Selection};
+use crate::blockmap::{SelectOptions, SelectStats, Selection};
 
 /// Pixels whose coverage differs between two frames of one camera (`background`: no block).
 pub fn coverage_changed(
@@ -53,32 +61,47 @@ pub enum FarMode {
     Blockmaps,
 }
 
-/// The far field of a walk.
-#[derive(Clone, Copy, Debug)]
-pub struct FarField<'a> {
-    /// The maps (their indices are what the renderer was built with).
-    pub maps: &'a MapTree,
+/// The far field of a walk and how the walk uses it.
+#[derive(Clone, Copy)]
+pub struct FarSetup<'a> {
+    /// The representation (its node indices are what the renderer was built with).
+    pub field: &'a dyn FarField,
     /// τ and hysteresis.
     pub select: SelectOptions,
     /// Compare every hybrid frame with the mesh-only frame (draws 3–4 frames per camera).
     pub reference: bool,
     /// Leave the far field out when the scene does not need it: when no node qualifies on any
-    /// frame of the route, or when, over the first [`FarField::probe_frames`] frames timed on
+    /// frame of the route, or when, over the first [`FarSetup::probe_frames`] frames timed on
     /// the GPU, hybrid frames draw no faster than mesh-only ones.
     pub leave_out: bool,
     /// Frames measured before the timing decision.
     pub probe_frames: usize,
-    /// The city's buildings as exact prisms (`blockmap::Source::new` over the scene's city and
-    /// layout), to check the silhouette bound of each referenced frame with the exact geometry
-    /// ([`super::bound`]); without it the bound's figures are none and the walk says so.
+    /// The city's buildings as exact prisms (`blockmap::Source::new` over the scene's city,
+    /// layout and building meshes), to check the silhouette bound of each referenced frame with
+    /// the exact geometry ([`super::bound`]); without it the bound's figures are none and the
+    /// walk says so.
     pub source: Option<&'a crate::blockmap::Source<'a>>,
 }
 
-impl<'a> FarField<'a> {
+impl std::fmt::Debug for FarSetup<'_> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("FarSetup")
+            .field("field", &self.field.name())
+            .field("nodes", &self.field.len())
+            .field("select", &self.select)
+            .field("reference", &self.reference)
+            .field("leave_out", &self.leave_out)
+            .field("probe_frames", &self.probe_frames)
+            .field("source", &self.source.is_some())
+            .finish()
+    }
+}
+
+impl<'a> FarSetup<'a> {
     /// τ = 1 px, default hysteresis, no reference, leave-out on, 8 probe frames, no geometry.
-    pub fn new(maps: &'a MapTree) -> Self {
+    pub fn new(field: &'a dyn FarField) -> Self {
         Self {
-            maps,
+            field,
             select: SelectOptions::default(),
             reference: false,
             leave_out: true,
@@ -213,7 +236,7 @@ pub fn image_error_with_bound(
     mesh: &image::RgbaImage,
     hybrid: &image::RgbaImage,
     background: &image::RgbaImage,
-    bound: Option<&FrameBound>,
+    bound: Option<&dyn PixelBound>,
 ) -> ImageError {
     let (w, h) = (mesh.width() as usize, mesh.height() as usize);
     let mc = coverage(mesh, background);
@@ -283,91 +306,6 @@ pub fn same_selection(a: &Selection, b: &Selection) -> bool {
     ab.sort_unstable();
     bb.sort_unstable();
     am == bm && ab == bb
-}
-
-/// The figures of the hybrid frames in one JSON object: `coverage_error_max`, `psnr_min`,
-/// `silhouette_px_max` (raw), the bound after the second look (`silhouette_ratio_max`,
-/// `silhouette_bound_violations`, `silhouette_subpixel`, `silhouette_thin`: sums over the
-/// frames; null unless every measured frame was checked with the geometry), `popping_px_max`, `far_nodes` (mean per frame), `mesh_triangles` (mean),
-/// `frame_time_ratio_vs_mesh` (mean hybrid frame time over mean mesh-only frame time, same
-/// frames, in the last culling mode; null when the frames were not drawn), and the decision.
-pub fn far_json(
-    records: &[FarRecord],
-    decision: &FarDecision,
-    opts: &SelectOptions,
-) -> serde_json::Value {
-    let mean = |v: &mut dyn Iterator<Item = f64>| {
-        let (s, n) = v.fold((0.0, 0usize), |(s, n), x| (s + x, n + 1));
-        if n == 0 {
-            None
-        } else {
-            Some(s / n as f64)
-        }
-    };
-    let last_mode = records.last().map(|r| r.mode);
-    let sel: Vec<&FarRecord> = records
-        .iter()
-        .filter(|r| Some(r.mode) == last_mode)
-        .collect();
-    let hyb = mean(&mut sel.iter().map(|r| r.frame_s));
-    let mesh = mean(&mut sel.iter().map(|r| r.mesh_frame_s));
-    // Only drawn frames compare times (without drawing, both are selection or culling alone).
-    let drawn = !sel.is_empty() && sel.iter().all(|r| r.render_s.is_some());
-    let ratio = match (hyb, mesh) {
-        (Some(a), Some(b)) if b > 0.0 && drawn => Some(a / b),
-        _ => None,
-    };
-    let imgs: Vec<&ImageError> = sel.iter().filter_map(|r| r.image.as_ref()).collect();
-    let fin = |x: f64| x.is_finite().then_some(x);
-    let fold_max = |g: &dyn Fn(&ImageError) -> f64| {
-        (!imgs.is_empty()).then(|| imgs.iter().map(|i| g(i)).fold(0.0, f64::max))
-    };
-    // The bound's figures need every measured frame checked with the geometry.
-    let bounded = !imgs.is_empty() && imgs.iter().all(|i| i.silhouette_ratio_max.is_some());
-    let psnr_min = (!imgs.is_empty())
-        .then(|| imgs.iter().map(|i| i.psnr_db).fold(f64::INFINITY, f64::min))
-        .and_then(fin);
-    let mut passes: Vec<(String, f64, usize)> = Vec::new();
-    for r in &sel {
-        for (name, s) in &r.passes {
-            match passes.iter_mut().find(|(n, _, _)| n == name) {
-                Some(p) => {
-                    p.1 += s;
-                    p.2 += 1;
-                }
-                None => passes.push((name.clone(), *s, 1)),
-            }
-        }
-    }
-    serde_json::json!({
-        "used": decision.used,
-        "reason": decision.reason,
-        "left_out_after": decision.left_out_after,
-        "tau_px": opts.tau_px,
-        "hysteresis": opts.hysteresis,
-        "mode": last_mode,
-        "frames": sel.len(),
-        "coverage_error_max": fold_max(&|i| i.coverage_error),
-        "coverage_error_mean": mean(&mut imgs.iter().map(|i| i.coverage_error)),
-        "psnr_min": psnr_min,
-        "silhouette_px_max": fold_max(&|i| i.silhouette_px),
-        "silhouette_ratio_max": bounded.then(|| imgs.iter().filter_map(|i| i.silhouette_ratio_max).fold(0.0, f64::max)),
-        "silhouette_bound_violations": bounded.then(|| imgs.iter().filter_map(|i| i.beyond_bound).sum::<u64>()),
-        "silhouette_subpixel": bounded.then(|| imgs.iter().filter_map(|i| i.beyond_bound_subpixel).sum::<u64>()),
-        "silhouette_thin": bounded.then(|| imgs.iter().filter_map(|i| i.beyond_bound_thin).sum::<u64>()),
-        "popping_px_max": fold_max(&|i| i.popping_px as f64),
-        "popping_px_mean": mean(&mut imgs.iter().map(|i| i.popping_px as f64)),
-        "popping_colour_px_max": fold_max(&|i| i.popping_colour_px as f64),
-        "far_nodes": mean(&mut sel.iter().map(|r| r.far_nodes as f64)),
-        "far_pixels": mean(&mut sel.iter().filter_map(|r| r.far_pixels.map(|p| p as f64))),
-        "mesh_triangles": mean(&mut sel.iter().map(|r| r.mesh_triangles as f64)),
-        "mesh_blocks": mean(&mut sel.iter().map(|r| r.mesh_blocks as f64)),
-        "select_s": mean(&mut sel.iter().map(|r| r.select_s)),
-        "frame_s": hyb,
-        "mesh_frame_s": mesh,
-        "frame_time_ratio_vs_mesh": ratio,
-        "passes_s": passes.iter().map(|(n, s, c)| (n.clone(), serde_json::json!(s / *c as f64))).collect::<serde_json::Map<_, _>>(),
-    })
 }
 
 #[cfg(test)]
@@ -462,7 +400,7 @@ mod tests {
     }
 
     #[test]
-    fn far_json_sums_the_bound_and_is_null_without_the_geometry() {
+    fn far_summary_sums_the_bound_and_is_none_without_the_geometry() {
         let checked = |ratio: f64, v: u64, s: u64, t: u64| ImageError {
             silhouette_px: 3.0 * ratio,
             silhouette_ratio_max: Some(ratio),
@@ -482,25 +420,24 @@ mod tests {
             record(0, Some(checked(0.5, 0, 3, 1))),
             record(1, Some(checked(1.7, 2, 5, 0))),
         ];
-        let j = far_json(&recs, &d, &o);
-        assert_eq!(j["silhouette_ratio_max"], serde_json::json!(1.7));
-        assert_eq!(j["silhouette_bound_violations"], serde_json::json!(2));
-        assert_eq!(j["silhouette_subpixel"], serde_json::json!(8));
-        assert_eq!(j["silhouette_thin"], serde_json::json!(1));
-        assert_eq!(j["silhouette_px_max"], serde_json::json!(3.0 * 1.7));
+        let j = FarSummary::new(&recs, &d, &o);
+        assert_eq!(j.silhouette_ratio_max, Some(1.7));
+        assert_eq!(j.silhouette_bound_violations, Some(2));
+        assert_eq!(j.silhouette_subpixel, Some(8));
+        assert_eq!(j.silhouette_thin, Some(1));
+        assert_eq!(j.silhouette_px_max, Some(3.0 * 1.7));
+        // Serialised, the fields keep the report's keys.
+        let v = serde_json::to_value(&j).unwrap();
+        assert_eq!(v["silhouette_bound_violations"], serde_json::json!(2));
         // One frame measured without the geometry: the bound's figures are null, the raw one is
         // kept.
         let mut recs = recs;
         recs.push(record(2, Some(ImageError::default())));
-        let j = far_json(&recs, &d, &o);
-        for k in [
-            "silhouette_ratio_max",
-            "silhouette_bound_violations",
-            "silhouette_subpixel",
-            "silhouette_thin",
-        ] {
-            assert!(j[k].is_null(), "{k}: {}", j[k]);
-        }
-        assert!(j["silhouette_px_max"].is_number());
+        let j = FarSummary::new(&recs, &d, &o);
+        assert_eq!(j.silhouette_ratio_max, None);
+        assert_eq!(j.silhouette_bound_violations, None);
+        assert_eq!(j.silhouette_subpixel, None);
+        assert_eq!(j.silhouette_thin, None);
+        assert!(j.silhouette_px_max.is_some());
     }
 }
