@@ -49,7 +49,7 @@ pub use select::{
     projected_error_px, SelectError, SelectOptions, SelectStats, Selection, Selector,
 };
 pub use tree::{
-    build_city_maps, build_tree, skeleton_tree, CityMaps, CityMapsOptions, MapTree, NodeMap, Stop,
+    build_city_maps, build_city_maps_from, build_tree, skeleton_tree, CityMaps, CityMapsOptions, MapTree, NodeMap, Stop,
     TreeOptions, TreeViolation,
 };
 

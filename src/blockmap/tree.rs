@@ -507,10 +507,26 @@ pub fn build_city_maps(
     progress: &(dyn Fn(usize, usize) + Sync),
 ) -> Result<CityMaps, BlockMapError> {
     let meshes = crate::city::extrude::extrude_city(city);
+    build_city_maps_from(city, layout, bounds, &meshes, opts, progress)
+}
+
+/// [`build_city_maps`] from the buildings' meshes already extruded (`meshes[i]`: building `i`'s
+/// mesh, as `city::extrude::extrude_city` returns them).
+///
+/// # Errors
+/// As [`build_city_maps`].
+pub fn build_city_maps_from(
+    city: &crate::city::City,
+    layout: &BlockLayout,
+    bounds: &[crate::index::BlockBounds],
+    meshes: &[crate::city::Mesh],
+    opts: &CityMapsOptions,
+    progress: &(dyn Fn(usize, usize) + Sync),
+) -> Result<CityMaps, BlockMapError> {
     let tree = BqrTree::build(bounds, &crate::index::BqrParams::default()).map_err(|e| {
         BlockMapError::BadParameter(format!("the block quadtree of {}: {e}", city.name))
     })?;
-    let source = Source::new(city, layout, &meshes)?;
+    let source = Source::new(city, layout, meshes)?;
     let t0 = std::time::Instant::now();
     let maps = build_tree(&source, layout, &tree, &opts.tree, progress)?;
     let build_s = t0.elapsed().as_secs_f64();

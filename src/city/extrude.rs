@@ -97,11 +97,23 @@ thread_local! {
 /// [`ExtrudeError`] for a footprint that is not valid or impossible heights; buildings of a
 /// [`City`] are valid by construction.
 pub fn try_extrude_building(b: &Building, frame: &LocalFrame) -> Result<Mesh, ExtrudeError> {
+    EXTRUSIONS.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
     SCRATCH.with(|s| match s.try_borrow_mut() {
         Ok(mut s) => extrude_with(b, frame, &mut s),
         // Only reachable if extrusion re-entered itself on this thread: fresh buffers.
         Err(_) => extrude_with(b, frame, &mut Scratch::default()),
     })
+}
+
+/// Buildings extruded by this process so far ([`try_extrude_building`] calls, whatever their
+/// outcome).
+static EXTRUSIONS: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
+
+/// How many buildings this process has extruded so far (every [`try_extrude_building`] call,
+/// which every other extrusion function goes through). A diagnostic: a scene extrudes each of
+/// its buildings once, and a test checks it.
+pub fn extrusions() -> u64 {
+    EXTRUSIONS.load(std::sync::atomic::Ordering::Relaxed)
 }
 
 /// [`try_extrude_building`] with the given buffers.

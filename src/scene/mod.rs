@@ -104,8 +104,14 @@ pub struct Scene {
     pub city: City,
     /// Its blocks; every building is in exactly one.
     pub layout: BlockLayout,
-    /// One mesh per block (local frame): the block's buildings merged once.
+    /// One mesh per block (local frame): the block's buildings' meshes merged once (or the exact
+    /// block meshes a synthetic grid brings).
     pub meshes: Vec<(BlockId, Mesh)>,
+    /// One mesh per building (local frame, indexed by building id), extruded once for the whole
+    /// scene: the draw units, the far field's construction, the silhouette bound's exact prisms
+    /// and the tile export take these instead of extruding again. Empty for a building whose
+    /// extrusion failed (drawn as nothing).
+    pub building_meshes: Vec<Mesh>,
     /// The ground layers (local frame, z = 0): the blocks' ground and the street strips
     /// ([`crate::city::appearance::ground_mesh`]), which the lit renderers draw under the
     /// buildings. Never part of culling or visibility.
@@ -179,16 +185,16 @@ impl Scene {
                 })?
             }
         };
-        // Which buildings have a mesh, when the scene extrudes them itself (the occlusion
-        // culler must know: an undrawn building casts no shadow).
-        let (meshes, drawn) = match meshes {
-            Some(m) => (m, None),
-            None => {
-                progress("extruding buildings");
-                let (m, drawn) = block_meshes_drawn(&city, &layout);
-                (m, Some(drawn))
-            }
-        };
+        // Every building extruded once, for everything the scene draws or measures.
+        progress("extruding buildings");
+        let building_meshes = extrude_city(&city);
+        // Which buildings have a mesh (the occlusion culler must know: an undrawn building casts
+        // no shadow), and the blocks' meshes merged from them unless the source brought its own.
+        let drawn: Vec<bool> = building_meshes
+            .iter()
+            .map(|m| !m.indices.is_empty())
+            .collect();
+        let meshes = meshes.unwrap_or_else(|| merge_blocks(&building_meshes, &layout));
         progress("laying out the ground");
         let ground = ground_layers(&city, &layout);
         progress("building the structures");
@@ -208,10 +214,7 @@ impl Scene {
         let occlusion = match opts.occlusion {
             Some(o) => {
                 progress("extracting occluders");
-                let culler = match &drawn {
-                    Some(d) => OcclusionCuller::with_drawn(&city, &layout, d, o),
-                    None => OcclusionCuller::new(&city, &layout, o),
-                };
+                let culler = OcclusionCuller::with_drawn(&city, &layout, &drawn, o);
                 Some(culler.map_err(|source| SceneError::Occlusion {
                     city: city.name.clone(),
                     source,
@@ -224,6 +227,7 @@ impl Scene {
             city,
             layout,
             meshes,
+            building_meshes,
             ground,
             bounds,
             indexes,
@@ -260,7 +264,13 @@ impl Scene {
         params: &SceneGraphParams,
         mode: BuildingsMode,
     ) -> Result<(), SceneError> {
-        let units = DrawUnits::build(&self.city, &self.layout, &self.meshes, params, mode)
+        let units = DrawUnits::build(
+            &self.building_meshes,
+            &self.layout,
+            &self.meshes,
+            params,
+            mode,
+        )
             .map_err(|source| SceneError::Index {
                 city: self.name.clone(),
                 structure: Structure::SceneGraph,
@@ -302,7 +312,14 @@ impl Scene {
         opts: &crate::blockmap::CityMapsOptions,
         progress: &(dyn Fn(usize, usize) + Sync),
     ) -> Result<crate::blockmap::CityMaps, crate::blockmap::BlockMapError> {
-        crate::blockmap::build_city_maps(&self.city, &self.layout, &self.bounds, opts, progress)
+        crate::blockmap::build_city_maps_from(
+            &self.city,
+            &self.layout,
+            &self.bounds,
+            &self.building_meshes,
+            opts,
+            progress,
+        )
     }
 
     /// Triangles of each block, indexed by block id.
@@ -330,25 +347,33 @@ pub fn block_meshes(city: &City, layout: &BlockLayout) -> Vec<(BlockId, Mesh)> {
 /// As [`block_meshes`], with whether each building (by id) has a mesh: a building whose
 /// extrusion failed is drawn as nothing.
 pub fn block_meshes_drawn(city: &City, layout: &BlockLayout) -> (Vec<(BlockId, Mesh)>, Vec<bool>) {
-    let mut per_building: Vec<Option<Mesh>> = extrude_city(city).into_iter().map(Some).collect();
-    let drawn = per_building
-        .iter()
-        .map(|m| m.as_ref().is_some_and(|m| !m.indices.is_empty()))
-        .collect();
-    let meshes = layout
+    let per_building = extrude_city(city);
+    let drawn = per_building.iter().map(|m| !m.indices.is_empty()).collect();
+    (merge_blocks(&per_building, layout), drawn)
+}
+
+/// One mesh per block of `layout`: its buildings' meshes (`per_building[i]`: building `i`'s)
+/// appended in the block's order. A building listed twice or out of range is drawn once or not
+/// at all.
+pub fn merge_blocks(per_building: &[Mesh], layout: &BlockLayout) -> Vec<(BlockId, Mesh)> {
+    let mut used = vec![false; per_building.len()];
+    layout
         .blocks
         .iter()
         .map(|block| {
             let mut m = Mesh::default();
             for b in &block.buildings {
-                if let Some(part) = per_building.get_mut(b.0 as usize).and_then(Option::take) {
-                    m.append(&part);
+                let i = b.0 as usize;
+                if let (Some(part), Some(u)) = (per_building.get(i), used.get_mut(i)) {
+                    if !*u {
+                        *u = true;
+                        m.append(part);
+                    }
                 }
             }
             (block.id, m)
         })
-        .collect();
-    (meshes, drawn)
+        .collect()
 }
 
 /// The ground layers of a city: the ground of its street blocks (outskirts groups have no

@@ -14,8 +14,7 @@
 //! buildings are all kept is one call, as its block mesh is.
 
 use crate::blocks::{BlockId, BlockLayout};
-use crate::city::extrude::extrude_city;
-use crate::city::{BuildingId, City, Mesh};
+use crate::city::{BuildingId, Mesh};
 use crate::index::{BlockBounds, IndexError, SceneGraphParams, SceneGraphTree};
 use crate::visibility::buildings::{BlockBuildings, BuildingBox};
 use glam::DVec2;
@@ -57,20 +56,21 @@ pub struct DrawUnits {
 }
 
 impl DrawUnits {
-    /// The units of `city` split into `layout`'s blocks whose meshes are `block_meshes`
-    /// (cloned: the block units draw exactly the scene's meshes), the scene graph built with
-    /// `params`.
+    /// The units of a city split into `layout`'s blocks whose meshes are `block_meshes`
+    /// (cloned: the block units draw exactly the scene's meshes), its buildings' meshes
+    /// `building_meshes` (indexed by building id, as the scene extruded them), the scene graph
+    /// built with `params`.
     ///
     /// # Errors
     /// [`IndexError`] from the scene graph's build (bad parameters).
     pub fn build(
-        city: &City,
+        building_meshes: &[Mesh],
         layout: &BlockLayout,
         block_meshes: &[(BlockId, Mesh)],
         params: &SceneGraphParams,
         mode: BuildingsMode,
     ) -> Result<Self, IndexError> {
-        let per_building = extrude_city(city);
+        let per_building = building_meshes;
         let mut boxes: Vec<Option<BuildingBox>> = per_building
             .iter()
             .enumerate()
@@ -123,13 +123,12 @@ impl DrawUnits {
         // Buildings block by block (the layout's order, each block's buildings in its order), so
         // that a block's kept buildings that are neighbours merge into one draw (module docs).
         let building_start = meshes.len();
-        let mut per_building: Vec<Option<Mesh>> = per_building.into_iter().map(Some).collect();
         for b in &layout.blocks {
             for bb in buildings.of(b.id) {
                 let i = bb.id.0 as usize;
                 if boxes.get(i).is_some_and(Option::is_some) {
-                    if let Some(m) = per_building.get_mut(i).and_then(Option::take) {
-                        meshes.push((BlockId(building_offset + i as u32), m));
+                    if let Some(m) = per_building.get(i) {
+                        meshes.push((BlockId(building_offset + i as u32), m.clone()));
                     }
                 }
             }
