@@ -184,7 +184,7 @@ mod helsinki {
     use blockwalk::route::{RouteChoice, RouteContext};
     use blockwalk::scene::Scene;
     use blockwalk::visibility::{MeshOracle, VisibilityOracle};
-    use blockwalk::walk::{run_walk_with_far, Drawing, FarField, OcclusionMode, WalkParams};
+    use blockwalk::walk::{run_walk_with_far, Drawing, FarSetup, OcclusionMode, WalkParams};
     use std::collections::HashSet;
 
     fn scene() -> Scene {
@@ -263,14 +263,15 @@ mod helsinki {
             oracle: false,
             size,
         };
-        // With the buildings as exact prisms, so that the bound is checked per pixel.
-        let building_meshes = blockwalk::city::extrude::extrude_city(&scene.city);
+        // With the buildings as exact prisms (the scene's own meshes), so that the bound is
+        // checked per pixel.
         let source =
-            blockwalk::blockmap::Source::new(&scene.city, &scene.layout, &building_meshes).unwrap();
-        let far = FarField {
+            blockwalk::blockmap::Source::new(&scene.city, &scene.layout, &scene.building_meshes)
+                .unwrap();
+        let far = FarSetup {
             reference: true,
             source: Some(&source),
-            ..FarField::new(&maps)
+            ..FarSetup::new(&maps)
         };
         let rec = run_walk_with_far(
             &scene,
@@ -303,6 +304,13 @@ mod helsinki {
         ] {
             assert!(j[key].is_u64(), "{key}: {}", j["far"]);
         }
+        // And it holds: no mismatched pixel beyond its allowed distance.
+        assert_eq!(
+            rec.far_summary().unwrap().silhouette_bound_violations,
+            Some(0),
+            "{}",
+            j["far"]
+        );
         assert!(rec
             .far
             .iter()
@@ -324,12 +332,12 @@ mod helsinki {
             oracle: false,
             size: (1920, 1080),
         };
-        let far = FarField {
+        let far = FarSetup {
             select: SelectOptions {
                 tau_px: 0.25,
                 ..SelectOptions::default()
             },
-            ..FarField::new(&maps)
+            ..FarSetup::new(&maps)
         };
         let rec =
             run_walk_with_far(&scene, &params, Drawing::Off, Some(far), &mut |_, _| {}).unwrap();

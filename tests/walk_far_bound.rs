@@ -11,7 +11,9 @@ use blockwalk::blocks::{Block, BlockId, BlockKind, BlockLayout, BlockSource};
 use blockwalk::city::{Building, BuildingId, City, CityReport, HeightSource, LocalFrame, Mesh};
 use blockwalk::geom::Camera;
 use blockwalk::visibility::{CpuFrameRenderer, FrameRenderer};
-use blockwalk::walk::{image_error, image_error_with_bound, BoundGeometry, FrameBound, ImageError};
+use blockwalk::walk::{
+    image_error, image_error_with_bound, BoundGeometry, FrameBound, ImageError, PixelBound,
+};
 use geo_types::{LineString, Polygon};
 use glam::{DVec2, DVec3};
 
@@ -142,7 +144,7 @@ fn frames(
     let fb = FrameBound::new(&geom, &sel, cam, tau);
     Frames {
         raw: image_error(&mesh, &hyb, &bg),
-        checked: image_error_with_bound(&mesh, &hyb, &bg, Some(&fb)),
+        checked: image_error_with_bound(&mesh, &hyb, &bg, Some(&fb as &dyn PixelBound)),
         r_centre: fb.allowed_px(SIZE.0 / 2, SIZE.1 / 2, SIZE.0, SIZE.1),
     }
 }

@@ -49,8 +49,8 @@ pub use select::{
     projected_error_px, SelectError, SelectOptions, SelectStats, Selection, Selector,
 };
 pub use tree::{
-    build_city_maps, build_city_maps_from, build_tree, skeleton_tree, CityMaps, CityMapsOptions, MapTree, NodeMap, Stop,
-    TreeOptions, TreeViolation,
+    build_city_maps, build_city_maps_from, build_tree, skeleton_tree, CityMaps, CityMapsOptions,
+    MapTree, NodeMap, Stop, TreeOptions, TreeViolation,
 };
 
 use std::path::PathBuf;

@@ -11,7 +11,9 @@ use blockwalk::geom::{Aabb3, Camera};
 use blockwalk::report::plot::{write_plot, PlotKind, Series};
 use blockwalk::route::{CameraRoute, KeyFrame, Lens, RouteChoice};
 use blockwalk::scene::{Scene, SceneOptions};
-use blockwalk::walk::{far_json, run_walk_with_far, Drawing, FarField, OcclusionMode, WalkParams};
+use blockwalk::walk::{
+    run_walk_with_far, Drawing, FarSetup, FarSummary, OcclusionMode, WalkParams,
+};
 use glam::DVec3;
 use serde::Serialize;
 use std::path::PathBuf;
@@ -188,9 +190,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         .collect::<anyhow::Result<_>>()?;
     // The exact prisms: the walk checks the silhouette bound with them, and `--diagnose`
     // classifies pixels with them.
-    let building_meshes = blockwalk::city::extrude::extrude_city(&scene.city);
-    let source = blockwalk::blockmap::Source::new(&scene.city, &scene.layout, &building_meshes)
-        .with_context(|| format!("preparing the buildings of {}", scene.name))?;
+    let source =
+        blockwalk::blockmap::Source::new(&scene.city, &scene.layout, &scene.building_meshes)
+            .with_context(|| format!("preparing the buildings of {}", scene.name))?;
     let mut rows = Vec::new();
     let mut notes = Vec::new();
     let mut files = Vec::new();
@@ -236,7 +238,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                         reason: "farfield-sweep".into(),
                     },
                 };
-                let far = FarField {
+                let far = FarSetup {
                     select: SelectOptions {
                         tau_px: tau,
                         ..SelectOptions::default()
@@ -244,7 +246,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                     reference: true,
                     leave_out: false,
                     source: Some(&source),
-                    ..FarField::new(&maps)
+                    ..FarSetup::new(&maps)
                 };
                 let rec = run_walk_with_far(&scene, &params, drawing, Some(far), &mut |_, _| {})?;
                 let d = rec
@@ -255,7 +257,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                         reason: None,
                         left_out_after: None,
                     });
-                let j = far_json(&rec.far, &d, &far.select);
+                let j = FarSummary::new(&rec.far, &d, &far.select);
                 if args.diagnose {
                     let p = args.out.join(format!("diagnose_{rname}_k{k}_tau{tau}"));
                     diagnose(
@@ -263,7 +265,6 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                     )?;
                     files.push(p.with_extension("md"));
                 }
-                let g = |key: &str| j[key].as_f64();
                 let row = Row {
                     city: scene.name.clone(),
                     route: rname.clone(),
@@ -271,20 +272,20 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                     tau_px: tau,
                     maps: maps.maps.len(),
                     frames: args.frames,
-                    far_nodes: g("far_nodes").unwrap_or(0.0),
-                    mesh_triangles: g("mesh_triangles").unwrap_or(0.0),
-                    coverage_error_max: g("coverage_error_max"),
-                    coverage_error_mean: g("coverage_error_mean"),
-                    psnr_min: g("psnr_min"),
-                    silhouette_px_max: g("silhouette_px_max"),
-                    silhouette_ratio_max: g("silhouette_ratio_max"),
-                    silhouette_bound_violations: j["silhouette_bound_violations"].as_u64(),
-                    silhouette_subpixel: j["silhouette_subpixel"].as_u64(),
-                    silhouette_thin: j["silhouette_thin"].as_u64(),
-                    popping_px_max: g("popping_px_max"),
-                    hybrid_ms: g("frame_s").map(|s| s * 1e3),
-                    mesh_ms: g("mesh_frame_s").map(|s| s * 1e3),
-                    frame_time_ratio_vs_mesh: g("frame_time_ratio_vs_mesh"),
+                    far_nodes: j.far_nodes.unwrap_or(0.0),
+                    mesh_triangles: j.mesh_triangles.unwrap_or(0.0),
+                    coverage_error_max: j.coverage_error_max,
+                    coverage_error_mean: j.coverage_error_mean,
+                    psnr_min: j.psnr_min,
+                    silhouette_px_max: j.silhouette_px_max,
+                    silhouette_ratio_max: j.silhouette_ratio_max,
+                    silhouette_bound_violations: j.silhouette_bound_violations,
+                    silhouette_subpixel: j.silhouette_subpixel,
+                    silhouette_thin: j.silhouette_thin,
+                    popping_px_max: j.popping_px_max,
+                    hybrid_ms: j.frame_s.map(|s| s * 1e3),
+                    mesh_ms: j.mesh_frame_s.map(|s| s * 1e3),
+                    frame_time_ratio_vs_mesh: j.frame_time_ratio_vs_mesh,
                 };
                 if !args.json {
                     outln!("{}", table_line(&row));

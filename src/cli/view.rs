@@ -103,7 +103,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let far = match args.far.mode {
         FarMode::None => None,
         FarMode::Blockmaps => Some(ViewerFar {
-            maps: super::walk::build_far_maps(&scene, args.far.k, args.json)?,
+            field: Box::new(super::walk::build_far_maps(&scene, args.far.k, args.json)?),
             select,
         }),
     };

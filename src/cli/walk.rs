@@ -9,7 +9,7 @@ use blockwalk::route::{RouteChoice, RouteContext};
 use blockwalk::scene::{BuildingsMode, Scene, SceneOptions};
 use blockwalk::visibility::{CullerOptions, FrameRenderer};
 use blockwalk::walk::{
-    run_walk_with_far, Drawing, FarField, FarMode, OcclusionMode, WalkParams, WalkRecord,
+    run_walk_with_far, Drawing, FarMode, FarSetup, OcclusionMode, WalkParams, WalkRecord,
 };
 use indicatif::{ProgressBar, ProgressStyle};
 use std::path::PathBuf;
@@ -157,12 +157,7 @@ pub fn gpu_renderer(
             .map_err(|e| e.to_string())?;
     match far {
         None => Ok(Box::new(r)),
-        Some(m) => {
-            let maps: Vec<&blockwalk::blockmap::BlockMap> = m.maps.iter().map(|n| &n.map).collect();
-            Ok(Box::new(
-                r.with_far_field(&maps).map_err(|e| e.to_string())?,
-            ))
-        }
+        Some(m) => Ok(Box::new(r.with_far(m).map_err(|e| e.to_string())?)),
     }
 }
 
@@ -249,21 +244,16 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         FarMode::Blockmaps => Some(build_far_maps(&scene, args.far.k, args.json)?),
     };
     // The exact prisms the silhouette bound is checked with (only with the reference).
-    let building_meshes = if args.reference && maps.is_some() {
-        blockwalk::city::extrude::extrude_city(&scene.city)
-    } else {
-        Vec::new()
-    };
     let source = if args.reference && maps.is_some() {
         Some(
-            blockwalk::blockmap::Source::new(&scene.city, &scene.layout, &building_meshes)
+            blockwalk::blockmap::Source::new(&scene.city, &scene.layout, &scene.building_meshes)
                 .with_context(|| format!("preparing the buildings of {}", scene.name))?,
         )
     } else {
         None
     };
-    let far = maps.as_ref().map(|m| FarField {
-        maps: m,
+    let far = maps.as_ref().map(|m| FarSetup {
+        field: m,
         select,
         reference: args.reference,
         leave_out: !args.keep_far,
@@ -327,29 +317,24 @@ fn print_summary(record: &WalkRecord, out: &std::path::Path) -> anyhow::Result<(
         "{}",
         report::walk::markdown::summary_markdown(&record.summary)
     );
-    if let (Some(d), Some(o)) = (&record.far_decision, &record.far_options) {
-        let f = blockwalk::walk::far_json(&record.far, d, o);
-        let g = |k: &str| {
-            f[k].as_f64()
-                .map(|v| format!("{v:.4}"))
-                .unwrap_or("–".into())
-        };
-        let n = |k: &str| f[k].as_u64().map(|v| v.to_string()).unwrap_or("–".into());
+    if let Some(f) = record.far_summary() {
+        let g = |v: Option<f64>| v.map(|v| format!("{v:.4}")).unwrap_or("–".into());
+        let n = |v: Option<u64>| v.map(|v| v.to_string()).unwrap_or("–".into());
         outln!(
             "far field (τ = {} px): {}; far nodes {} per frame, mesh triangles {}, frame time hybrid/mesh {}, coverage error max {}, PSNR min {} dB, silhouette max {} px (raw), bound ratio max {}, bound violations {} (sub-pixel {}, thin {}), popping max {} px",
-            o.tau_px,
-            if d.used { "drawn" } else { "left out" },
-            g("far_nodes"),
-            g("mesh_triangles"),
-            g("frame_time_ratio_vs_mesh"),
-            g("coverage_error_max"),
-            g("psnr_min"),
-            g("silhouette_px_max"),
-            g("silhouette_ratio_max"),
-            n("silhouette_bound_violations"),
-            n("silhouette_subpixel"),
-            n("silhouette_thin"),
-            g("popping_px_max"),
+            f.tau_px,
+            if f.used { "drawn" } else { "left out" },
+            g(f.far_nodes),
+            g(f.mesh_triangles),
+            g(f.frame_time_ratio_vs_mesh),
+            g(f.coverage_error_max),
+            g(f.psnr_min),
+            g(f.silhouette_px_max),
+            g(f.silhouette_ratio_max),
+            n(f.silhouette_bound_violations),
+            n(f.silhouette_subpixel),
+            n(f.silhouette_thin),
+            g(f.popping_px_max),
         );
     }
     for n in &record.notes {

@@ -271,11 +271,11 @@ impl Scene {
             params,
             mode,
         )
-            .map_err(|source| SceneError::Index {
-                city: self.name.clone(),
-                structure: Structure::SceneGraph,
-                source,
-            })?;
+        .map_err(|source| SceneError::Index {
+            city: self.name.clone(),
+            structure: Structure::SceneGraph,
+            source,
+        })?;
         self.units = Some(units);
         Ok(())
     }

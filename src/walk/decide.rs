@@ -6,7 +6,10 @@ use crate::index::Structure;
 
 /// Per block culling mode walked with and without the per-building test: whether the test paid
 /// for the reference structure (drawn frames: mean frame time; nothing drawn: triangles).
-pub(super) fn buildings_decisions(frames: &[FrameRecord], reference: Structure) -> Vec<BuildingsDecision> {
+pub(super) fn buildings_decisions(
+    frames: &[FrameRecord],
+    reference: Structure,
+) -> Vec<BuildingsDecision> {
     let per = |m: CullMode| -> Option<(f64, f64, f64, bool, f64)> {
         let v: Vec<&FrameRecord> = frames
             .iter()
@@ -74,7 +77,10 @@ pub(super) fn buildings_decisions(frames: &[FrameRecord], reference: Structure) 
 
 /// Whether occlusion culling saved time on the route: the reference structure's mean frame time
 /// with and without it, and the blocks it dropped (none when only one mode was walked).
-pub(super) fn occlusion_decision(frames: &[FrameRecord], reference: Structure) -> Option<OcclusionDecision> {
+pub(super) fn occlusion_decision(
+    frames: &[FrameRecord],
+    reference: Structure,
+) -> Option<OcclusionDecision> {
     let per = |m: CullMode| -> Option<(f64, f64)> {
         let v: Vec<&FrameRecord> = frames
             .iter()

@@ -67,7 +67,11 @@ impl<'a> Hybrid<'a> {
             let mut probe = base.clone();
             cameras.iter().any(|c| {
                 probe.reset();
-                !probe.select(None, c, height, false).selection.maps.is_empty()
+                !probe
+                    .select(None, c, height, false)
+                    .selection
+                    .maps
+                    .is_empty()
             })
         };
         let reason = if field.is_empty() {
@@ -127,12 +131,7 @@ impl<'a> Hybrid<'a> {
     }
 
     /// Selects, draws and (with the mesh frame's image) measures one hybrid frame.
-    pub(super) fn frame(
-        &mut self,
-        scene: &Scene,
-        mesh: MeshFrame<'_>,
-        notes: &mut Vec<String>,
-    ) {
+    pub(super) fn frame(&mut self, scene: &Scene, mesh: MeshFrame<'_>, notes: &mut Vec<String>) {
         let Some(slot) = self.steps.iter().position(|(m, _)| *m == mesh.mode) else {
             return;
         };

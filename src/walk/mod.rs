@@ -364,9 +364,11 @@ pub fn run_walk_with_far(
     // The far field's hybrid renderer: the walk's own, or the far field's CPU reference for the
     // CPU fallback.
     let cpu_far = match (&far, &drawing) {
-        (Some(f), Drawing::CpuFallback { .. }) => {
-            Some(f.field.cpu_renderer(&scene.meshes, &scene.ground, params.size))
-        }
+        (Some(f), Drawing::CpuFallback { .. }) => Some(f.field.cpu_renderer(
+            &scene.meshes,
+            &scene.ground,
+            params.size,
+        )),
         _ => None,
     };
     let hybrid_renderer: Option<&dyn FrameRenderer> = match (&drawing, &cpu_far) {
@@ -497,7 +499,10 @@ impl<'s> Oracles<'s> {
     fn new(scene: &'s Scene, size: Option<(u32, u32)>, notes: &mut Vec<String>) -> Self {
         let blocks = MeshOracle::new(&scene.meshes);
         if let Some((w, h)) = size {
-            notes.push(format!("false culls counted against the {}", blocks.describe(w, h)));
+            notes.push(format!(
+                "false culls counted against the {}",
+                blocks.describe(w, h)
+            ));
         }
         Self {
             scene,
@@ -658,7 +663,6 @@ impl Walker<'_> {
     }
 }
 
-
 /// The culling modes one index is walked in: the block modes, and with the scene's units the
 /// per-building modes ([`BuildingsMode`]); pages (the scene graph) are drawn whole, never refined.
 fn index_modes(modes: &[CullMode], units: Option<&DrawUnits>, pages: bool) -> Vec<CullMode> {
@@ -675,4 +679,3 @@ fn index_modes(modes: &[CullMode], units: Option<&DrawUnits>, pages: bool) -> Ve
             .collect(),
     }
 }
-

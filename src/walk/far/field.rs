@@ -47,8 +47,11 @@ pub trait FarField: Sync {
     ///
     /// # Errors
     /// [`SelectError`] when the nodes do not fit the blocks.
-    fn selector(&self, blocks: &[BlockBounds], opts: SelectOptions)
-        -> Result<Selector, SelectError>;
+    fn selector(
+        &self,
+        blocks: &[BlockBounds],
+        opts: SelectOptions,
+    ) -> Result<Selector, SelectError>;
 
     /// The CPU reference renderer of hybrid frames: `meshes` (the scene's draw meshes) and
     /// `ground` by a z-buffer, the nodes by the representation's reference caster, composited by
