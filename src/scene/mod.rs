@@ -28,7 +28,7 @@ pub mod source;
 pub mod units;
 
 pub use source::{CitySource, LoadedCity, SourceError};
-pub use units::{BuildingsMode, DrawOrder, DrawUnits};
+pub use units::{BuildingsMode, DrawOrder, DrawUnits, Unit};
 
 use crate::blocks::{detect, BlockError, BlockId, BlockLayout, BlockOptions};
 use crate::city::extrude::extrude_city;
@@ -392,6 +392,7 @@ pub fn ground_layers(city: &City, layout: &BlockLayout) -> Mesh {
 mod tests {
     use super::*;
     use crate::city::extrude::try_extrude_building;
+    use crate::city::BuildingId;
 
     /// The scene's own extrusion tells the culler which buildings are drawn: the mask must be
     /// exactly "the extrusion succeeded" (as `occluders::extract` finds it by extruding again),
@@ -415,5 +416,38 @@ mod tests {
         assert_eq!(drawn, truth);
         assert!(!drawn[3], "the broken footprint must count as not drawn");
         assert!(drawn.iter().filter(|d| **d).count() > 100);
+    }
+
+    /// Draw ids and units are one-to-one over every block, page and building, the three ranges
+    /// disjoint; a page's buildings are the scene graph's items.
+    #[test]
+    fn draw_ids_and_units_round_trip() {
+        let source =
+            CitySource::parse(std::path::Path::new("synthetic:3x2"), None, None, &[], 5).unwrap();
+        let mut scene = Scene::load(&source, &SceneOptions::default(), &mut |_| {}).unwrap();
+        scene
+            .build_units(&SceneGraphParams::default(), BuildingsMode::On)
+            .unwrap();
+        let u = scene.units.as_ref().unwrap();
+        let mut seen = std::collections::HashSet::new();
+        let blocks = scene.layout.blocks.iter().map(|b| Unit::Block(b.id));
+        let pages = (0..u.scene_graph.page_count() as u32).map(Unit::Page);
+        let buildings =
+            (0..scene.city.buildings.len() as u32).map(|b| Unit::Building(BuildingId(b)));
+        for unit in blocks.chain(pages).chain(buildings) {
+            let id = u.id(unit);
+            assert_eq!(u.unit(id), unit);
+            assert!(seen.insert(id), "{unit:?} shares draw id {id:?}");
+        }
+        let page = u.id(Unit::Page(0));
+        let of_page: Vec<BuildingId> = u.buildings_of(page, &scene.layout).collect();
+        let items: Vec<BuildingId> = u
+            .scene_graph
+            .page_items(0)
+            .iter()
+            .map(|b| BuildingId(b.0))
+            .collect();
+        assert_eq!(of_page, items);
+        assert!(!items.is_empty());
     }
 }

@@ -32,6 +32,18 @@ pub enum BuildingsMode {
     Auto,
 }
 
+/// What one draw id stands for: a block, a page of the scene-graph tree, or one building. The
+/// renderer takes draw ids ([`DrawUnits::id`]); everything else speaks of units.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub enum Unit {
+    /// A block, drawn whole.
+    Block(BlockId),
+    /// A page (leaf) of the scene-graph tree, by page index.
+    Page(u32),
+    /// One building.
+    Building(BuildingId),
+}
+
 /// Pages and buildings as draw units (see the module docs).
 #[derive(Debug)]
 pub struct DrawUnits {
@@ -39,10 +51,10 @@ pub struct DrawUnits {
     pub meshes: Vec<(BlockId, Mesh)>,
     /// Triangles of every unit, indexed by unit id.
     pub triangles: Vec<u64>,
-    /// The first page's unit id.
-    pub page_offset: u32,
-    /// The first building's unit id.
-    pub building_offset: u32,
+    /// The first page's draw id.
+    page_offset: u32,
+    /// The first building's draw id.
+    building_offset: u32,
     /// Per block, its buildings' boxes (per-building culling).
     pub buildings: BlockBuildings,
     /// The scene-graph tree over the buildings (the items' ids are building ids).
@@ -156,19 +168,66 @@ impl DrawUnits {
         })
     }
 
-    /// The unit id of page `p`.
+    /// The draw id the renderer of [`DrawUnits::meshes`] knows `unit` by.
+    pub fn id(&self, unit: Unit) -> BlockId {
+        match unit {
+            Unit::Block(b) => b,
+            Unit::Page(p) => BlockId(self.page_offset + p),
+            Unit::Building(b) => BlockId(self.building_offset + b.0),
+        }
+    }
+
+    /// The unit a draw id stands for.
+    pub fn unit(&self, id: BlockId) -> Unit {
+        if id.0 >= self.building_offset {
+            Unit::Building(BuildingId(id.0 - self.building_offset))
+        } else if id.0 >= self.page_offset {
+            Unit::Page(id.0 - self.page_offset)
+        } else {
+            Unit::Block(id)
+        }
+    }
+
+    /// The draw id of page `p` (`self.id(Unit::Page(p))`).
     pub fn page_id(&self, p: BlockId) -> BlockId {
-        BlockId(self.page_offset + p.0)
+        self.id(Unit::Page(p.0))
     }
 
-    /// The unit id of building `b`.
+    /// The draw id of building `b` (`self.id(Unit::Building(b))`).
     pub fn building_id(&self, b: BuildingId) -> BlockId {
-        BlockId(self.building_offset + b.0)
+        self.id(Unit::Building(b))
     }
 
-    /// The building of a unit id in the building range.
-    pub fn building_of(&self, unit: BlockId) -> Option<BuildingId> {
-        unit.0.checked_sub(self.building_offset).map(BuildingId)
+    /// The building of a draw id in the building range.
+    pub fn building_of(&self, id: BlockId) -> Option<BuildingId> {
+        match self.unit(id) {
+            Unit::Building(b) => Some(b),
+            _ => None,
+        }
+    }
+
+    /// The buildings a draw id draws: a block's, a page's, or the one building.
+    pub fn buildings_of<'a>(
+        &'a self,
+        id: BlockId,
+        layout: &'a BlockLayout,
+    ) -> Box<dyn Iterator<Item = BuildingId> + 'a> {
+        match self.unit(id) {
+            Unit::Block(b) => Box::new(
+                layout
+                    .blocks
+                    .iter()
+                    .filter(move |x| x.id == b)
+                    .flat_map(|x| x.buildings.iter().copied()),
+            ),
+            Unit::Page(p) => Box::new(
+                self.scene_graph
+                    .page_items(p as usize)
+                    .iter()
+                    .map(|b| BuildingId(b.0)),
+            ),
+            Unit::Building(b) => Box::new(std::iter::once(b)),
+        }
     }
 
     /// The buildings' meshes alone, by unit id (for a building-level oracle), block by block

@@ -28,7 +28,7 @@ use crate::blocks::BlockId;
 use crate::geom::Camera;
 use crate::index::{CityIndex, CullStats, Structure};
 use crate::route::CameraRoute;
-use crate::scene::{BuildingsMode, DrawUnits, Scene};
+use crate::scene::{BuildingsMode, DrawUnits, Scene, Unit};
 use crate::visibility::{CpuFrameRenderer, FrameRenderer, MeshOracle, VisibilityOracle};
 use serde::Serialize;
 use std::collections::HashSet;
@@ -540,12 +540,8 @@ impl<'s> Oracles<'s> {
                 let kept: HashSet<BlockId> = if pages {
                     draw_ids
                         .iter()
-                        .flat_map(|&d| {
-                            u.scene_graph
-                                .page_items((d.0 - u.page_offset) as usize)
-                                .iter()
-                                .map(|&b| u.building_id(crate::city::BuildingId(b.0)))
-                        })
+                        .flat_map(|&d| u.buildings_of(d, &self.scene.layout))
+                        .map(|b| u.id(Unit::Building(b)))
                         .collect()
                 } else {
                     draw_ids.iter().copied().collect()

@@ -9,7 +9,7 @@ use crate::blocks::BlockId;
 use crate::city::BuildingId;
 use crate::geom::Camera;
 use crate::index::{CityIndex, CullQuery, CullStats, Structure};
-use crate::scene::{DrawOrder, Scene};
+use crate::scene::{DrawOrder, Scene, Unit};
 use crate::visibility::{CullMap, OcclusionCuller, OcclusionCulling};
 use std::time::Instant;
 
@@ -118,10 +118,10 @@ impl CullStep {
         match (units, buildings.is_some(), pages) {
             (Some(u), true, _) => self
                 .draw_ids
-                .extend(self.kept_buildings.iter().map(|&b| u.building_id(b))),
+                .extend(self.kept_buildings.iter().map(|&b| u.id(Unit::Building(b)))),
             (Some(u), false, true) => self
                 .draw_ids
-                .extend(self.visible.iter().map(|&p| u.page_id(p))),
+                .extend(self.visible.iter().map(|&p| u.id(Unit::Page(p.0)))),
             _ => self.draw_ids.extend_from_slice(&self.visible),
         }
         let triangles = match units {
