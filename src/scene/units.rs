@@ -21,7 +21,7 @@ use crate::visibility::buildings::{BlockBuildings, BuildingBox};
 use glam::DVec2;
 
 /// Whether the walk tests the buildings of the surviving blocks.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, clap::ValueEnum)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize)]
 #[serde(rename_all = "snake_case")]
 pub enum BuildingsMode {
     /// Blocks are drawn whole.
@@ -32,6 +32,12 @@ pub enum BuildingsMode {
     #[default]
     Auto,
 }
+
+crate::choice::choices!(BuildingsMode, "buildings mode",
+    Off => "off", "Blocks are drawn whole";
+    On => "on", "The buildings of every surviving block are tested (frustum, and cull map with occlusion)";
+    Auto => "auto", "Both, side by side, with a decision which pays";
+);
 
 /// Pages and buildings as draw units (see the module docs).
 #[derive(Debug)]
