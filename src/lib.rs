@@ -23,9 +23,11 @@
 #![warn(missing_docs)]
 
 pub use blockwalk_importers as importers;
+pub use choice::{Choice, ChoiceError};
 
 pub mod blockmap;
 pub mod blocks;
+pub mod choice;
 pub mod city;
 pub mod geom;
 pub mod index;

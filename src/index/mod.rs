@@ -32,6 +32,7 @@ pub use sphere::enclosing_sphere;
 pub use vamsplit::{VamSplitParams, VamSplitTree};
 
 use crate::blocks::BlockId;
+use crate::choice::Choice;
 use crate::geom::{Aabb3, BoundingSphere, Frustum};
 use glam::DVec3;
 use serde::Serialize;
@@ -200,20 +201,9 @@ impl std::ops::AddAssign for CullStats {
 /// The spatial structures blockwalk can build, named once: the command line's `--structure`
 /// values, the reports' column names and the serialized names all come from this enum.
 #[derive(
-    Clone,
-    Copy,
-    Debug,
-    PartialEq,
-    Eq,
-    Hash,
-    PartialOrd,
-    Ord,
-    clap::ValueEnum,
-    Serialize,
-    serde::Deserialize,
+    Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize, serde::Deserialize,
 )]
 #[serde(rename_all = "lowercase")]
-#[value(rename_all = "lowercase")]
 pub enum Structure {
     /// No structure: every block is drawn (the baseline).
     None,
@@ -229,7 +219,6 @@ pub enum Structure {
     /// scene-graph semantics of seed 003 §5.1 ([`SceneGraphTree`]). Its output ids are *page*
     /// ids, not block ids, so it is not in [`Structure::ALL`]; [`crate::scene::Scene`] builds it
     /// over the buildings.
-    #[value(name = "scenegraph")]
     #[serde(rename = "scenegraph")]
     SceneGraph,
 }
@@ -251,12 +240,9 @@ impl Structure {
         self != Structure::SceneGraph
     }
 
-    /// The structure's name (its command-line value).
+    /// The structure's name (its command-line value, [`Choice::name`]).
     pub fn name(self) -> String {
-        use clap::ValueEnum as _;
-        self.to_possible_value()
-            .map(|v| v.get_name().to_string())
-            .unwrap_or_default()
+        Choice::name(self).to_string()
     }
 
     /// Builds this structure over `bounds` with default parameters.
@@ -296,11 +282,14 @@ impl Structure {
     }
 }
 
-impl std::fmt::Display for Structure {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.pad(&self.name())
-    }
-}
+crate::choice::choices!(Structure, "structure",
+    None => "none", "No structure: every block is drawn (the baseline)";
+    Flat => "flat", "Every block tested on its own against the frustum";
+    Vamsplit => "vamsplit", "The VAMSplit R-tree (White & Jain 1996), the paper's comparison";
+    Bqr => "bqr", "The BqR-tree (Pina, Serón and Cerezo, §4)";
+    Rstar => "rstar", "An R*-tree from the `rstar` crate, as an external anchor";
+    SceneGraph => "scenegraph", "The VAMSplit R-tree over buildings with leaves (pages of buildings) drawn whole, the scene-graph semantics of Pina, Serón and Cerezo, §5.1";
+);
 
 /// A spatial structure that returns the blocks to draw for a view.
 ///

@@ -20,7 +20,7 @@ use crate::visibility::buildings::{BlockBuildings, BuildingBox};
 use glam::DVec2;
 
 /// Whether the walk tests the buildings of the surviving blocks.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, clap::ValueEnum)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize)]
 #[serde(rename_all = "snake_case")]
 pub enum BuildingsMode {
     /// Blocks are drawn whole.
@@ -31,6 +31,12 @@ pub enum BuildingsMode {
     #[default]
     Auto,
 }
+
+crate::choice::choices!(BuildingsMode, "buildings mode",
+    Off => "off", "Blocks are drawn whole";
+    On => "on", "The buildings of every surviving block are tested (frustum, and cull map with occlusion)";
+    Auto => "auto", "Both, side by side, with a decision which pays";
+);
 
 /// What one draw id stands for: a block, a page of the scene-graph tree, or one building. The
 /// renderer takes draw ids ([`DrawUnits::id`]); everything else speaks of units.

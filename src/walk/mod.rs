@@ -35,7 +35,7 @@ use std::collections::HashSet;
 use std::time::Instant;
 
 /// Whether occlusion culling runs.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, clap::ValueEnum)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize)]
 #[serde(rename_all = "snake_case")]
 pub enum OcclusionMode {
     /// Frustum culling only.
@@ -46,6 +46,12 @@ pub enum OcclusionMode {
     #[default]
     Auto,
 }
+
+crate::choice::choices!(OcclusionMode, "occlusion mode",
+    Off => "off", "Frustum culling only";
+    On => "on", "Frustum and occlusion culling (fails without an occlusion culler)";
+    Auto => "auto", "Both modes, side by side, when the scene has an occlusion culler; frustum only otherwise";
+);
 
 /// How one frame was culled.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash, Serialize)]

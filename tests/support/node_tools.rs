@@ -11,9 +11,19 @@ use std::process::Command;
 /// Set to `1` to turn a skip into a failure.
 pub const REQUIRE: &str = "BLOCKWALK_REQUIRE_VALIDATORS";
 
+/// The repository's root: the including crate's folder (the library's tests) or the first folder
+/// above it that holds `tests/tools` (the command line's tests, in `cli/`).
+pub fn repo() -> PathBuf {
+    let here = Path::new(env!("CARGO_MANIFEST_DIR"));
+    here.ancestors()
+        .find(|d| d.join("tests/tools").is_dir())
+        .unwrap_or(here)
+        .to_path_buf()
+}
+
 /// `tests/tools`.
 pub fn tools() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/tools")
+    repo().join("tests/tools")
 }
 
 fn runs(cmd: &str) -> bool {
@@ -100,11 +110,7 @@ pub fn run_json(node: &str, script: &str, arg: &Path) -> Value {
 pub fn screenshot_dir(sub: &str) -> PathBuf {
     let d = std::env::var_os("BLOCKWALK_SCREENSHOT_DIR")
         .map(PathBuf::from)
-        .unwrap_or_else(|| {
-            Path::new(env!("CARGO_MANIFEST_DIR"))
-                .join("target")
-                .join(sub)
-        });
+        .unwrap_or_else(|| repo().join("target").join(sub));
     std::fs::create_dir_all(&d).unwrap();
     d
 }

@@ -51,7 +51,7 @@ pub fn coverage_changed(
 use serde::Serialize;
 
 /// Whether a walk draws a far field.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, clap::ValueEnum)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize)]
 #[serde(rename_all = "snake_case")]
 pub enum FarMode {
     /// Meshes only.
@@ -60,6 +60,11 @@ pub enum FarMode {
     /// Near meshes and far BlockMaps.
     Blockmaps,
 }
+
+crate::choice::choices!(FarMode, "far-field mode",
+    None => "none", "Meshes only";
+    Blockmaps => "blockmaps", "Near meshes and far BlockMaps";
+);
 
 /// The far field of a walk and how the walk uses it.
 #[derive(Clone, Copy)]

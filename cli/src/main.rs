@@ -1,4 +1,4 @@
-//! Command-line interface: one module per subcommand. The only place `anyhow` is used.
+//! The `blockwalk` command line: one module per subcommand. The only place `anyhow` is used.
 //!
 //! Everything printed to standard output goes through [`outln!`] / [`out!`], which turn a closed
 //! pipe (`blockwalk import … --json | head -c 10`) into [`StdoutClosed`]: the command stops, and
@@ -26,7 +26,7 @@ macro_rules! outln {
 /// output is a closed pipe.
 macro_rules! out {
     ($($arg:tt)*) => {
-        $crate::cli::stdout_written(::std::io::Write::write_fmt(
+        $crate::stdout_written(::std::io::Write::write_fmt(
             &mut ::std::io::stdout().lock(),
             ::std::format_args!($($arg)*),
         ))?
@@ -99,7 +99,7 @@ pub fn stdout_written(r: std::io::Result<()>) -> anyhow::Result<()> {
     }
 }
 
-pub fn main() -> std::process::ExitCode {
+fn main() -> std::process::ExitCode {
     let cli = Cli::parse();
     match dispatch(cli.command) {
         Ok(()) => std::process::ExitCode::SUCCESS,

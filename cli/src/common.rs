@@ -7,7 +7,20 @@ use std::time::Duration;
 use blockwalk::city::build::BuildOptions;
 use blockwalk::city::City;
 use blockwalk::scene::{CitySource, Scene, SceneOptions};
+use blockwalk::Choice;
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
+
+/// The clap value parser of a library enum chosen by name ([`Choice`]): `--help` lists the
+/// names with their help, and a wrong value is refused with the list.
+pub fn choice<T: Choice + Send + Sync>() -> impl clap::builder::TypedValueParser<Value = T> {
+    use clap::builder::{PossibleValue, PossibleValuesParser, TypedValueParser as _};
+    PossibleValuesParser::new(
+        T::ALL
+            .iter()
+            .map(|c| PossibleValue::new(c.name()).help(c.help())),
+    )
+    .map(|s| T::from_name(&s).expect("clap accepted one of the listed names"))
+}
 
 /// A city on the command line: footprints, optional streets and parcels, or a generated city's
 /// directory.
@@ -156,7 +169,7 @@ pub fn parse_k(s: &str) -> Result<u32, String> {
 pub struct FarArgs {
     /// Far field: `blockmaps` draws far nodes of the block quadtree as ray-cast BlockMaps (seed
     /// 000 §4–5) and near blocks as meshes; `none` draws meshes only.
-    #[arg(long = "far", value_enum, default_value_t = blockwalk::walk::FarMode::None)]
+    #[arg(long = "far", value_parser = choice::<blockwalk::walk::FarMode>(), default_value_t = blockwalk::walk::FarMode::None)]
     pub mode: blockwalk::walk::FarMode,
     /// Largest projected error of a drawn BlockMap, pixels (τ).
     #[arg(long, default_value_t = 1.0)]

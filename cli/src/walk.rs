@@ -33,18 +33,18 @@ pub struct Args {
     /// Structures to compare, comma separated.
     #[arg(
         long,
-        value_enum,
+        value_parser = super::common::choice::<Structure>(),
         value_delimiter = ',',
         default_value = "none,flat,vamsplit,bqr,rstar"
     )]
     pub structures: Vec<Structure>,
     /// Occlusion culling: on, off, or auto (both modes side by side).
-    #[arg(long, value_enum, default_value_t = OcclusionMode::Auto)]
+    #[arg(long, value_parser = super::common::choice::<OcclusionMode>(), default_value_t = OcclusionMode::Auto)]
     pub occlusion: OcclusionMode,
     /// Test each building of the blocks that survive (frustum, and the cull map with
     /// occlusion; seed 004 §3.2.8): on, off, or auto (with and without, side by side, and
     /// which pays).
-    #[arg(long, value_enum, default_value_t = BuildingsMode::Auto)]
+    #[arg(long, value_parser = super::common::choice::<BuildingsMode>(), default_value_t = BuildingsMode::Auto)]
     pub buildings: BuildingsMode,
     /// Buildings per leaf of the `scenegraph` structure (its pages, drawn whole).
     #[arg(long, default_value_t = 8, value_parser = clap::value_parser!(u32).range(1..=4096))]

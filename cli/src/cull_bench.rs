@@ -28,7 +28,7 @@ pub struct Args {
     /// Structures to compare, comma separated.
     #[arg(
         long,
-        value_enum,
+        value_parser = super::common::choice::<Structure>(),
         value_delimiter = ',',
         default_value = "bqr,vamsplit,flat,none,rstar"
     )]

@@ -10,10 +10,10 @@
 //! the test prints why and passes, unless `BLOCKWALK_REQUIRE_VALIDATORS=1`, where it fails.
 
 use serde_json::{json, Value};
-use std::path::Path;
 use std::process::Command;
 
-#[path = "support/node_tools.rs"]
+mod data_path;
+#[path = "../../tests/support/node_tools.rs"]
 mod node_tools;
 
 #[test]
@@ -25,7 +25,7 @@ fn the_helsinki_walk_report_opens_alone_in_chromium() {
     ) else {
         return;
     };
-    let data = Path::new(env!("CARGO_MANIFEST_DIR")).join("data/helsinki");
+    let data = data_path::data("helsinki");
     let out = tempfile::tempdir().unwrap();
     let walk = out.path().join("walk");
     let args: Vec<String> = [

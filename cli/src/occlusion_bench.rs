@@ -71,7 +71,7 @@ pub struct Args {
     #[arg(long, default_value_t = 256)]
     pub max_occluders: usize,
     /// Spatial structure frustum culling runs on.
-    #[arg(long, value_enum, default_value_t = Structure::Bqr)]
+    #[arg(long, value_parser = super::common::choice::<Structure>(), default_value_t = Structure::Bqr)]
     pub index: Structure,
     /// Print one JSON object instead of the summary.
     #[arg(long)]

@@ -20,7 +20,7 @@ pub struct Args {
     #[arg(long, default_value = "paper")]
     pub route: RouteChoice,
     /// The spatial structure that culls each frame.
-    #[arg(long, value_enum, default_value_t = Structure::Bqr)]
+    #[arg(long, value_parser = super::common::choice::<Structure>(), default_value_t = Structure::Bqr)]
     pub structure: Structure,
     /// Occlusion culling (occluder shadows + cull map).
     #[arg(long, value_enum, default_value_t = Switch::Off)]
