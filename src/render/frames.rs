@@ -290,3 +290,24 @@ impl FrameRenderer for GpuFrameRenderer {
         })
     }
 }
+
+/// The walk's GPU renderers on wgpu ([`GpuFrameRenderer`], with the far field uploaded when
+/// given): what `walk::run_job` draws with when the `render` feature is built.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct WgpuRenderers;
+
+impl crate::walk::GpuRenderers for WgpuRenderers {
+    fn renderer<'a>(
+        &self,
+        scene: &'a crate::scene::Scene,
+        size: (u32, u32),
+        far: Option<&'a dyn crate::walk::FarField>,
+    ) -> Result<Box<dyn FrameRenderer + 'a>, String> {
+        let r = GpuFrameRenderer::new(scene.draw_meshes(), &scene.ground, size)
+            .map_err(|e| e.to_string())?;
+        match far {
+            None => Ok(Box::new(r)),
+            Some(f) => Ok(Box::new(r.with_far(f).map_err(|e| e.to_string())?)),
+        }
+    }
+}

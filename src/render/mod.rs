@@ -27,7 +27,7 @@ mod mesh;
 pub mod window;
 
 pub use blockmap::{BlockMapRenderer, FarPass, FarReadback, NO_MAP};
-pub use frames::{GpuFrameRenderer, HybridFrame};
+pub use frames::{GpuFrameRenderer, HybridFrame, WgpuRenderers};
 pub use mesh::{Batching, Frame, FrameTimings, MeshRenderer, RenderOptions, Shading};
 
 use crate::blocks::BlockId;

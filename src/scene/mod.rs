@@ -280,6 +280,39 @@ impl Scene {
         Ok(())
     }
 
+    /// Sets the draw units a walk needs: the per-building test `mode`, and the scene graph's
+    /// pages made with `pages`. Units are built when the mode asks for them or when the scene
+    /// graph's pages change; the [`Structure::SceneGraph`] index is then replaced by the tree of
+    /// the new pages, so that the structure and the units are one tree.
+    ///
+    /// # Errors
+    /// [`SceneError::Index`] for bad scene-graph parameters.
+    pub fn set_pages(
+        &mut self,
+        pages: &SceneGraphParams,
+        mode: BuildingsMode,
+    ) -> Result<(), SceneError> {
+        let same_pages = self
+            .units
+            .as_ref()
+            .is_some_and(|u| u.scene_graph.params() == pages);
+        match self.units.as_mut() {
+            Some(u) if same_pages => u.mode = mode,
+            Some(_) => {
+                self.build_units(pages, mode)?;
+                let tree = self.units.as_ref().map(|u| u.scene_graph.clone());
+                for index in self.indexes.iter_mut() {
+                    if let (Structure::SceneGraph, Some(t)) = (index.structure(), tree.clone()) {
+                        *index = Box::new(t);
+                    }
+                }
+            }
+            None if mode != BuildingsMode::Off => self.build_units(pages, mode)?,
+            None => {}
+        }
+        Ok(())
+    }
+
     /// The meshes a renderer of this scene must hold: [`DrawUnits::meshes`] when the scene has
     /// units, else [`Scene::meshes`].
     pub fn draw_meshes(&self) -> &[(BlockId, Mesh)] {

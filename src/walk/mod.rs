@@ -10,6 +10,7 @@ pub mod bound;
 mod decide;
 pub mod far;
 mod hybrid;
+pub mod job;
 pub mod step;
 mod summary;
 
@@ -19,6 +20,7 @@ pub use far::{
     FarBuildSummary, FarDecision, FarField, FarGpu, FarMode, FarRecord, FarSetup, FarSummary,
     ImageError, OcclusionDecision, PixelBound, SilhouetteBound,
 };
+pub use job::{run_job, FarJob, GpuRenderers, JobError, JobProgress, NoGpu, Quiet, WalkJob};
 pub use step::{CullStep, Culled, FarPick, FarStep};
 pub use summary::{summarise, SummaryRow};
 
