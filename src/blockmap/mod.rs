@@ -6,6 +6,7 @@
 //!   two `K × K` sections of footprint edges (one or two half-planes per boundary texel,
 //!   blockwalk's addition), its box, PNG + JSON storage, and the optional 2007 distance map (seed 000
 //!   §3.1–3.2).
+//! - [`source`]: what maps are built from, the buildings in the local frame ([`Source`]).
 //! - [`build`]: construction from the prisms (seed 000 §3.3, seed 002 §4.3.2): top-down
 //!   orthographic sampling through the oracle's rasteriser, exposed texels, unfolded wall
 //!   columns, slices.
@@ -37,17 +38,19 @@ pub mod error;
 pub mod image;
 pub mod layout;
 pub mod select;
+pub mod source;
 pub mod tree;
 
-pub use build::{build_map, BuildOptions, BuildStats, Source};
+pub use build::{build_map, BuildOptions, BuildStats, Parents, ResampleStats};
 pub use cast::{cast_f32, cast_f64, Cast, CastOptions, Face, Hit, TexRay};
-pub use children::{build_from_children, Parents, ResampleStats};
+pub use children::build_from_children;
 pub use error::{measure, ErrorReport, ThinFeature, ThinKind};
 pub use image::{cast_image, CpuHybridRenderer, FrameRays, MapImage, MapXform};
 pub use layout::{BlockMap, BlockMapMeta, Edge};
 pub use select::{
     projected_error_px, SelectError, SelectOptions, SelectStats, Selection, Selector,
 };
+pub use source::{Source, SourceBuilding};
 pub use tree::{
     build_city_maps, build_tree, skeleton_tree, CityMaps, CityMapsOptions, MapTree, NodeMap, Stop,
     TreeOptions, TreeViolation,
