@@ -44,7 +44,7 @@
 //!    levels) stays empty: filling those tripled the coverage error of the Astana fly-over
 //!    (1.2 → 4.8 %). So every footprint point the whole-texel map covered is still covered,
 //!    and more. Why: whole texels put a band of wrong pixels about a quarter texel wide on
-//!    every footprint edge (issue 12: coverage error 1.2–5.6 % at τ = 1 where buildings are a
+//!    every footprint edge (coverage error 1.2–5.6 % at τ = 1 where buildings are a
 //!    few pixels across). Measured (README, fly-overs at τ = 1): Helsinki K = 32 1.48 → 0.67 %,
 //!    K = 64 0.92 → 0.41 %, Astana 1.23 → 1.15 %, the 80k city 5.75 → 4.21 %.
 //! 2. **Exposed texels** (seed 000 §3.1): a texel with at least one 4-neighbour lower than

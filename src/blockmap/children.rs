@@ -1,4 +1,4 @@
-//! Parents built from their children's maps (issue 12, item 1, the option; seed 002 §4.3.1
+//! Parents built from their children's maps (the option; seed 002 §4.3.1
 //! builds internal nodes "from the 4 children", BLOCKMAPS.md A.3 and A.4-7) instead of from the
 //! source polygons ([`Parents::Children`], `blockwalk blockmaps --parents children`).
 //!

@@ -20,8 +20,7 @@
 //! - [`select`]: which nodes a frame draws as maps and which blocks as meshes (seed 000 §4–5).
 //! - [`compare`]: ray-cast image against the oracle's mesh image: coverage error, the projected
 //!   bound at silhouettes, 3D point error, colour PSNR.
-//! - [`diagnose`]: every coverage-mismatched pixel of a hybrid frame classified by cause
-//!   (issue 12).
+//! - [`diagnose`]: every coverage-mismatched pixel of a hybrid frame classified by cause.
 //! - [`image`]: images of maps as the GPU draws them ([`cast_image`]), and the CPU fallback of
 //!   hybrid frames ([`CpuHybridRenderer`]: meshes near, maps far, composited by depth).
 //! - [`colors`]: the one definition of colours and light used by all of the above.
