@@ -1,6 +1,7 @@
 //! The plan's tiles: the blocks cut along the block quadtree.
 
 use super::*;
+use crate::geom::Rect;
 
 /// Cuts the blocks into tiles along the block quadtree: a node becomes a tile when its blocks
 /// hold at most `max_buildings` buildings, when it holds one block, or at [`MAX_DEPTH`].
@@ -12,17 +13,17 @@ pub fn cut_tiles(blocks: &[PlanBlock], max_buildings: usize) -> Vec<PlanTile> {
     }
     let centre = |b: &PlanBlock| {
         let r = b.rings.first();
-        let mut bb: Option<[f64; 4]> = None;
+        let mut bb: Option<Rect> = None;
         for c in r.into_iter().flatten() {
-            bb = Some(union(bb, [c[0].0, c[1].0, c[0].0, c[1].0]));
+            bb = Some(Rect::grow(bb, Rect::point([c[0].0, c[1].0])));
         }
-        centre_of(&bb.unwrap_or(b.bounds))
+        bb.unwrap_or(Rect::from(b.bounds)).centre()
     };
     let centres: Vec<[f64; 2]> = blocks.iter().map(centre).collect();
-    let mut region: Option<[f64; 4]> = None;
+    let mut region: Option<Rect> = None;
     for (b, c) in blocks.iter().zip(&centres) {
-        region = Some(union(region, b.bounds));
-        region = Some(union(region, [c[0], c[1], c[0], c[1]]));
+        region = Some(Rect::grow(region, b.bounds.into()));
+        region = Some(Rect::grow(region, Rect::point(*c)));
     }
     let mut items: Vec<u32> = (0..blocks.len() as u32).collect();
     let mut tiles = Vec::new();
@@ -31,7 +32,13 @@ pub fn cut_tiles(blocks: &[PlanBlock], max_buildings: usize) -> Vec<PlanTile> {
         centres: &centres,
         max_buildings,
     };
-    ctx.node(&mut items, region.unwrap_or([0.0; 4]), 1, 0, &mut tiles);
+    ctx.node(
+        &mut items,
+        region.map_or([0.0; 4], Rect::to_array),
+        1,
+        0,
+        &mut tiles,
+    );
     tiles
 }
 
@@ -50,13 +57,13 @@ impl Cut<'_> {
         if buildings <= self.max_buildings || items.len() <= 1 || depth >= MAX_DEPTH {
             let mut ids: Vec<u32> = items.to_vec();
             ids.sort_unstable();
-            let mut bounds: Option<[f64; 4]> = None;
-            let mut read: Option<[f64; 4]> = None;
+            let mut bounds: Option<Rect> = None;
+            let mut read: Option<Rect> = None;
             for &i in &ids {
                 let b = &self.blocks[i as usize];
-                bounds = Some(union(bounds, b.bounds));
+                bounds = Some(Rect::grow(bounds, b.bounds.into()));
                 if let Some(bb) = b.building_bounds {
-                    read = Some(union(read, bb));
+                    read = Some(Rect::grow(read, bb.into()));
                 }
             }
             out.push(PlanTile {
@@ -64,12 +71,12 @@ impl Cut<'_> {
                 key,
                 blocks: ids,
                 buildings,
-                bounds: bounds.unwrap_or([0.0; 4]),
-                read_bounds: read,
+                bounds: bounds.map_or([0.0; 4], Rect::to_array),
+                read_bounds: read.map(Rect::to_array),
             });
             return;
         }
-        let mid = centre_of(&q);
+        let mid = Rect::from(q).centre();
         let quadrant = |i: &u32| {
             let c = self.centres[*i as usize];
             usize::from(c[0] >= mid[0]) + 2 * usize::from(c[1] >= mid[1])

@@ -255,23 +255,3 @@ impl FileStamp {
         })
     }
 }
-
-fn union(a: Option<[f64; 4]>, b: [f64; 4]) -> [f64; 4] {
-    match a {
-        None => b,
-        Some(a) => [
-            a[0].min(b[0]),
-            a[1].min(b[1]),
-            a[2].max(b[2]),
-            a[3].max(b[3]),
-        ],
-    }
-}
-
-fn meets(a: &[f64; 4], b: &[f64; 4]) -> bool {
-    a[0] <= b[2] && b[0] <= a[2] && a[1] <= b[3] && b[1] <= a[3]
-}
-
-fn centre_of(b: &[f64; 4]) -> [f64; 2] {
-    [(b[0] + b[2]) * 0.5, (b[1] + b[3]) * 0.5]
-}

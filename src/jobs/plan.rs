@@ -17,6 +17,7 @@ use crate::city::LocalFrame;
 
 use super::input::{empty_like, metric_transform, read_err};
 use super::*;
+use crate::geom::Rect;
 
 /// A block of the plan.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -199,7 +200,7 @@ pub fn plan(
             centres.extend(
                 polys
                     .into_iter()
-                    .filter_map(|p| finite_bbox(p).map(|b| centre_of(&b))),
+                    .filter_map(|p| finite_bbox(p).map(|b| Rect::from(b).centre())),
             );
         }
     })
@@ -284,13 +285,14 @@ pub fn plan(
         for ((b, poly), w) in city.buildings.iter().zip(polys).zip(which) {
             let bb = finite_bbox(&poly);
             if let Some(bb) = bb {
-                origin_centres.push(centre_of(&bb));
+                origin_centres.push(Rect::from(bb).centre());
             }
             match w {
                 Some(k) => {
                     counts[k] += 1;
                     if let Some(bb) = bb {
-                        bboxes[k] = Some(union(bboxes[k], bb));
+                        bboxes[k] =
+                            Some(Rect::grow(bboxes[k].map(Rect::from), bb.into()).to_array());
                     }
                 }
                 None => outskirts.push((b.source_id.clone(), poly)),
@@ -327,7 +329,7 @@ pub fn plan(
             outskirts: false,
             rings: rings_of(p),
             buildings: counts[k],
-            bounds: bboxes[k].map_or(outline, |b| union(Some(outline), b)),
+            bounds: bboxes[k].map_or(outline, |b| Rect::from(outline).union(b.into()).to_array()),
             building_bounds: bboxes[k],
             members: Vec::new(),
         });
@@ -340,7 +342,7 @@ pub fn plan(
         let mut bb: Option<[f64; 4]> = None;
         for &i in &group {
             if let Some(b) = finite_bbox(&opolys[i]) {
-                bb = Some(union(bb, b));
+                bb = Some(Rect::grow(bb.map(Rect::from), b.into()).to_array());
             }
         }
         let outline = finite_bbox(&hull);
@@ -350,7 +352,7 @@ pub fn plan(
             rings: rings_of(&hull),
             buildings: group.len(),
             bounds: match (outline, bb) {
-                (Some(o), b) => b.map_or(o, |b| union(Some(o), b)),
+                (Some(o), b) => b.map_or(o, |b| Rect::from(o).union(b.into()).to_array()),
                 (None, b) => b.unwrap_or([0.0; 4]),
             },
             building_bounds: bb,

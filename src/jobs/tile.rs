@@ -19,6 +19,7 @@ use crate::city::{City, Mesh};
 
 use super::input::{empty_like, metric_transform, read_err};
 use super::*;
+use crate::geom::Rect;
 
 /// A file a tile wrote.
 #[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
@@ -172,24 +173,24 @@ pub fn run_tile(
     // Read the footprints whose box (mapped to metres by its corners) meets the tile's box.
     let mut layer = empty_like(&crs, fp);
     if let Some(rb) = pt.read_bounds {
-        let r = [
+        let r = Rect::from_array([
             rb[0] - READ_MARGIN_M,
             rb[1] - READ_MARGIN_M,
             rb[2] + READ_MARGIN_M,
             rb[3] + READ_MARGIN_M,
-        ];
+        ]);
         let identity = transform.is_identity();
         let mut keep = |_: u64, b: [f64; 4]| {
             if !b.iter().all(|v| v.is_finite()) {
                 return false;
             }
             let m = if identity {
-                b
+                Rect::from(b)
             } else {
-                let mut m: Option<[f64; 4]> = None;
+                let mut m: Option<Rect> = None;
                 for (x, y) in [(b[0], b[1]), (b[2], b[1]), (b[0], b[3]), (b[2], b[3])] {
                     match transform.try_to_metric([x, y]) {
-                        Ok(p) => m = Some(union(m, [p[0], p[1], p[0], p[1]])),
+                        Ok(p) => m = Some(Rect::grow(m, Rect::point(p))),
                         Err(_) => return false,
                     }
                 }
@@ -198,7 +199,7 @@ pub fn run_tile(
                     None => return false,
                 }
             };
-            meets(&m, &r)
+            m.intersects(&r)
         };
         shp::read_streaming(fp, &mut keep, usize::MAX, &mut |l| {
             layer.report.read += l.report.read;
@@ -226,10 +227,10 @@ pub fn run_tile(
     // face containing (or bounding) a point of these buildings is among them, so the answer is
     // the one-job run's.
     let polys: Vec<Polygon<f64>> = city.buildings.iter().map(|b| b.footprint.clone()).collect();
-    let mut seen: Option<[f64; 4]> = None;
+    let mut seen: Option<Rect> = None;
     for p in &polys {
         if let Some(b) = finite_bbox(p) {
-            seen = Some(union(seen, b));
+            seen = Some(Rect::grow(seen, b.into()));
         }
     }
     let mut cand: Vec<u32> = Vec::new();
@@ -238,7 +239,7 @@ pub fn run_tile(
         for b in plan.blocks.iter().filter(|b| !b.outskirts) {
             let p = b.polygon();
             let outline = finite_bbox(&p);
-            if outline.is_some_and(|o| meets(&o, &seen)) {
+            if outline.is_some_and(|o| Rect::from(o).intersects(&seen)) {
                 cand.push(b.id);
                 cand_polys.push(p);
             }
