@@ -1,6 +1,5 @@
 //! Street classes, widths and colours.
 
-
 use blockwalk_importers::{AttrValue, Attributes};
 use serde::Serialize;
 
