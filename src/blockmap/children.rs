@@ -489,7 +489,7 @@ pub fn directed_distance(a: &BlockMap, b: &BlockMap) -> f64 {
     )
 }
 
-/// The square [`build_map`] puts around `buildings` (indices into `source.buildings`): lower
+/// The square [`super::build::build_map`] puts around `buildings` (indices into `source.buildings`): lower
 /// corner, side and top, or `None` without a building.
 pub fn node_square(source: &Source, buildings: &[u32]) -> Option<(DVec2, f64, f64)> {
     let (mut lo, mut hi) = (DVec2::splat(f64::INFINITY), DVec2::splat(f64::NEG_INFINITY));

@@ -22,7 +22,7 @@ use crate::geom::Rect;
 /// A block of the plan.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct PlanBlock {
-    /// Its id in the one-job run's [`BlockLayout`] (faces first, then outskirts groups).
+    /// Its id in the one-job run's [`crate::blocks::BlockLayout`] (faces first, then outskirts groups).
     pub id: u32,
     /// A street face or an outskirts group.
     pub outskirts: bool,

@@ -22,8 +22,8 @@
 //! [`ExportError::TooLarge`] before anything is written (the message says to export a smaller
 //! area; splitting one city into several files is not done).
 //!
-//! The city's file is [`write_glb`] and its siblings ([`city`]); the content `.glb` of one 3D Tiles
-//! tile is [`tile_glb_bytes`] ([`tile`]). Both share this module's glTF pieces: the Y-up axes,
+//! The city's file is [`write_glb`] and its siblings (file `city.rs`); the content `.glb` of one
+//! 3D Tiles tile is [`tile_glb_bytes`] (file `tile.rs`). Both share this module's glTF pieces: the Y-up axes,
 //! chunk padding and the header and chunk writers.
 
 mod city;
