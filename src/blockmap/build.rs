@@ -44,7 +44,7 @@
 //!    levels) stays empty: filling those tripled the coverage error of the Astana fly-over
 //!    (1.2 → 4.8 %). So every footprint point the whole-texel map covered is still covered,
 //!    and more. Why: whole texels put a band of wrong pixels about a quarter texel wide on
-//!    every footprint edge (issue 12: coverage error 1.2–5.6 % at τ = 1 where buildings are a
+//!    every footprint edge (coverage error 1.2–5.6 % at τ = 1 where buildings are a
 //!    few pixels across). Measured (README, fly-overs at τ = 1): Helsinki K = 32 1.48 → 0.67 %,
 //!    K = 64 0.92 → 0.41 %, Astana 1.23 → 1.15 %, the 80k city 5.75 → 4.21 %.
 //! 2. **Exposed texels** (seed 000 §3.1): a texel with at least one 4-neighbour lower than
@@ -65,160 +65,16 @@
 
 use super::colors;
 use super::layout::{encode_unit, BlockMap};
+pub use super::source::{Source, SourceBuilding};
 use super::BlockMapError;
-use crate::blocks::{BlockId, BlockLayout};
-use crate::city::appearance::{building_style, ring_u, BuildingStyle};
-use crate::city::{BuildingId, City, Mesh};
-
-/// The owner of a texel no building covers.
-pub const SKY: u32 = u32::MAX;
+use crate::city::BuildingId;
+use crate::geom::clip::clip_to_box;
+use crate::geom::predicates::shoelace;
 use glam::{DVec2, DVec3};
 use serde::Serialize;
 
-/// A building as the construction and the error measure see it: local frame, f64.
-#[derive(Clone, Debug)]
-pub struct SourceBuilding {
-    /// The building.
-    pub id: BuildingId,
-    /// Its source id (for reports).
-    pub source_id: String,
-    /// Its block.
-    pub block: BlockId,
-    /// Rings in the local frame (exterior CCW first, then holes CW), closing point dropped.
-    pub rings: Vec<Vec<DVec2>>,
-    /// Bottom of the prism, metres.
-    pub z0: f64,
-    /// Top of the prism, metres.
-    pub z1: f64,
-    /// Footprint box (local).
-    pub min: DVec2,
-    /// Footprint box (local).
-    pub max: DVec2,
-    /// True when the source marks it a bridge (`bridge` / `man_made=bridge` attributes).
-    pub bridge: bool,
-    /// Its appearance.
-    pub style: BuildingStyle,
-    /// Per ring, `u` (metres along the unfolded ring) at each vertex and the perimeter
-    /// ([`crate::city::appearance::ring_u`]).
-    pub ring_u: Vec<Vec<f32>>,
-}
-
-/// Everything maps are built from: the buildings (local frame) and their meshes.
-#[derive(Clone, Debug)]
-pub struct Source<'a> {
-    /// Buildings, indexed like `City::buildings`; `None` for a building in no block.
-    pub buildings: Vec<Option<SourceBuilding>>,
-    /// One mesh per building (local frame), as `city::extrude::extrude_city` returns.
-    pub meshes: &'a [Mesh],
-    /// The city (for the appearance).
-    pub city: &'a City,
-}
-
-impl<'a> Source<'a> {
-    /// Prepares the buildings of `city` that `layout` assigns to a block.
-    ///
-    /// # Errors
-    /// [`BlockMapError::BadParameter`] when `meshes` does not hold one mesh per building.
-    pub fn new(
-        city: &'a City,
-        layout: &BlockLayout,
-        meshes: &'a [Mesh],
-    ) -> Result<Self, BlockMapError> {
-        if meshes.len() != city.buildings.len() {
-            return Err(BlockMapError::BadParameter(format!(
-                "{} meshes for {} buildings",
-                meshes.len(),
-                city.buildings.len()
-            )));
-        }
-        let o = city.frame.origin;
-        let mut buildings: Vec<Option<SourceBuilding>> = vec![None; city.buildings.len()];
-        for block in &layout.blocks {
-            for bid in &block.buildings {
-                let Some(b) = city.buildings.get(bid.0 as usize) else {
-                    continue;
-                };
-                let ring = |r: &geo_types::LineString<f64>| -> Vec<DVec2> {
-                    let mut v: Vec<DVec2> =
-                        r.0.iter()
-                            .map(|c| DVec2::new(c.x - o.x, c.y - o.y))
-                            .collect();
-                    if v.len() >= 2 && v[0] == v[v.len() - 1] {
-                        v.pop();
-                    }
-                    v
-                };
-                let mut rings = vec![ring(b.footprint.exterior())];
-                rings.extend(b.footprint.interiors().iter().map(ring));
-                let (mut min, mut max) =
-                    (DVec2::splat(f64::INFINITY), DVec2::splat(f64::NEG_INFINITY));
-                for p in &rings[0] {
-                    min = min.min(*p);
-                    max = max.max(*p);
-                }
-                let bridge = b.attributes.iter().any(|(k, v)| {
-                    use blockwalk_importers::AttrValue;
-                    let v = match v {
-                        AttrValue::Text(s) => s.to_ascii_lowercase(),
-                        AttrValue::Bool(true) => "yes".into(),
-                        AttrValue::Int(i) if *i != 0 => "yes".into(),
-                        _ => String::new(),
-                    };
-                    (k == "bridge" && v != "no" && v != "0" && !v.is_empty())
-                        || (k == "man_made" && v.contains("bridge"))
-                });
-                let us = rings
-                    .iter()
-                    .map(|r| {
-                        let c: Vec<geo_types::Coord<f64>> = r
-                            .iter()
-                            .map(|p| geo_types::Coord { x: p.x, y: p.y })
-                            .collect();
-                        ring_u(&c)
-                    })
-                    .collect();
-                buildings[bid.0 as usize] = Some(SourceBuilding {
-                    style: building_style(b),
-                    ring_u: us,
-                    id: b.id,
-                    source_id: b.source_id.clone(),
-                    block: block.id,
-                    rings,
-                    z0: b.min_height_m.min(b.height_m),
-                    z1: b.height_m.max(b.min_height_m),
-                    min,
-                    max,
-                    bridge,
-                });
-            }
-        }
-        Ok(Self {
-            buildings,
-            meshes,
-            city,
-        })
-    }
-
-    /// The buildings of `blocks` (by id order within each block), skipping empty footprints.
-    pub fn buildings_of(&self, layout: &BlockLayout, blocks: &[BlockId]) -> Vec<u32> {
-        let mut out = Vec::new();
-        for id in blocks {
-            if let Some(b) = layout.blocks.get(id.0 as usize) {
-                for bid in &b.buildings {
-                    if self
-                        .buildings
-                        .get(bid.0 as usize)
-                        .and_then(|b| b.as_ref())
-                        .is_some_and(|b| b.rings[0].len() >= 3)
-                    {
-                        out.push(bid.0);
-                    }
-                }
-            }
-        }
-        out
-    }
-}
+/// The owner of a texel no building covers.
+pub const SKY: u32 = u32::MAX;
 
 /// Construction options.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize)]
@@ -241,7 +97,7 @@ pub struct BuildOptions {
     /// module doc); off builds whole-texel columns only.
     pub edges: bool,
     /// How the maps of inner quadtree nodes are built (a tree option: single maps ignore it).
-    pub parents: super::children::Parents,
+    pub parents: Parents,
     /// With [`BuildOptions::edges`], store a second half-plane where two hold a texel's
     /// footprint part more closely than one (a convex corner, a building narrower than the
     /// texel; `layout` doc).
@@ -258,7 +114,7 @@ impl Default for BuildOptions {
             ao: false,
             ao_radius_m: 30.0,
             edges: true,
-            parents: super::children::Parents::Polygons,
+            parents: Parents::Polygons,
             two_edges: true,
         }
     }
@@ -290,7 +146,50 @@ pub struct BuildStats {
     /// empty).
     pub edge_filled_texels: usize,
     /// For a map built from its children's maps, what the resample counted.
-    pub from_children: Option<super::children::ResampleStats>,
+    pub from_children: Option<ResampleStats>,
+}
+
+/// How the maps of inner quadtree nodes are built.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Parents {
+    /// From the source polygons, as every leaf (the default: each map its own measured bound).
+    #[default]
+    Polygons,
+    /// From the children's maps, max-filtered ([`super::children`]).
+    Children,
+}
+
+impl std::str::FromStr for Parents {
+    type Err = BlockMapError;
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        match s {
+            "polygons" => Ok(Self::Polygons),
+            "children" => Ok(Self::Children),
+            _ => Err(BlockMapError::BadParameter(format!(
+                "parents '{s}': expected 'polygons' or 'children'"
+            ))),
+        }
+    }
+}
+
+/// What building a parent from its children counted ([`super::children`]).
+#[derive(Clone, Debug, Default, PartialEq, Serialize)]
+pub struct ResampleStats {
+    /// Children's maps resampled (kept maps and the ones built for kids without a map).
+    pub children: usize,
+    /// Of those, kids without a map, built from the polygons first.
+    pub from_polygons: usize,
+    /// Largest declared ε of the children, metres.
+    pub child_eps_max_m: f64,
+    /// Sampled directed distance from the parent's surface to the children's union, metres.
+    pub to_children_m: f64,
+    /// Sampled directed distance from the children's union surface to the parent's, metres.
+    pub from_children_m: f64,
+    /// `max(½ voxel diagonal, child_eps_max_m + max(to, from))`, metres.
+    pub derived_eps_m: f64,
+    /// The error measured against the polygons exceeded the derived ε (then declared instead).
+    pub measured_over_derived: bool,
 }
 
 /// Builds the BlockMap of `buildings` (indices into `source.buildings`) over the square that
@@ -592,59 +491,6 @@ struct Edges {
     filled: usize,
 }
 
-/// Clips a ring to the axis-aligned box `[lo, hi]` (Sutherland–Hodgman; a non-convex ring may
-/// give degenerate edges along the box, whose shoelace area is still exact).
-pub(crate) fn clip_ring(ring: &[DVec2], lo: DVec2, hi: DVec2) -> Vec<DVec2> {
-    let mut poly: Vec<DVec2> = ring.to_vec();
-    // (axis, bound, keep below)
-    for (axis, bound, below) in [
-        (0usize, lo.x, false),
-        (0, hi.x, true),
-        (1, lo.y, false),
-        (1, hi.y, true),
-    ] {
-        if poly.is_empty() {
-            break;
-        }
-        let inside = |p: DVec2| {
-            let v = if axis == 0 { p.x } else { p.y };
-            if below {
-                v <= bound
-            } else {
-                v >= bound
-            }
-        };
-        let mut out = Vec::with_capacity(poly.len() + 4);
-        for q in 0..poly.len() {
-            let a = poly[q];
-            let b = poly[(q + 1) % poly.len()];
-            let (ia, ib) = (inside(a), inside(b));
-            if ia {
-                out.push(a);
-            }
-            if ia != ib {
-                let (va, vb) = if axis == 0 { (a.x, b.x) } else { (a.y, b.y) };
-                let t = (bound - va) / (vb - va);
-                let mut p = a + (b - a) * t;
-                if axis == 0 {
-                    p.x = bound;
-                } else {
-                    p.y = bound;
-                }
-                out.push(p);
-            }
-        }
-        poly = out;
-    }
-    poly
-}
-
-/// Signed shoelace area.
-pub(crate) fn shoelace(p: &[DVec2]) -> f64 {
-    let n = p.len();
-    (0..n).map(|q| p[q].perp_dot(p[(q + 1) % n])).sum::<f64>() * 0.5
-}
-
 /// Area of the part of the unit square centred on 0 where `n·q ≤ o`.
 pub fn kept_area(n: DVec2, o: f64) -> f64 {
     kept_area_of(&[(n, o)])
@@ -710,7 +556,7 @@ fn footprint_edges(
                 for j in j0..=j1 {
                     for i in i0..=i1 {
                         let blo = min + DVec2::new(i as f64, j as f64) * s;
-                        if !clip_ring(&[a, c], blo, blo + DVec2::splat(s)).is_empty() {
+                        if !clip_to_box(&[a, c], blo, blo + DVec2::splat(s)).is_empty() {
                             cross[j * k + i].push((p as u32, r as u32, e as u32));
                         }
                     }
@@ -772,10 +618,10 @@ fn footprint_edges(
         let mut total = 0.0;
         for &p in &crossing {
             let b = bs[p as usize];
-            let ext = clip_ring(&b.rings[0], lo, hi);
+            let ext = clip_to_box(&b.rings[0], lo, hi);
             let mut area = shoelace(&ext).abs();
             for hole in &b.rings[1..] {
-                area -= shoelace(&clip_ring(hole, lo, hi)).abs();
+                area -= shoelace(&clip_to_box(hole, lo, hi)).abs();
             }
             let area = area.max(0.0) / (s * s);
             total += area;

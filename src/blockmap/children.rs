@@ -1,4 +1,4 @@
-//! Parents built from their children's maps (issue 12, item 1, the option; seed 002 §4.3.1
+//! Parents built from their children's maps (the option; seed 002 §4.3.1
 //! builds internal nodes "from the 4 children", BLOCKMAPS.md A.3 and A.4-7) instead of from the
 //! source polygons ([`Parents::Children`], `blockwalk blockmaps --parents children`).
 //!
@@ -55,62 +55,17 @@
 //! ε stays non-increasing downward and boxes nest as with [`Parents::Polygons`].
 
 use super::build::{
-    build_map, exposed_sides, kept_area, wall_column, wall_slices, BuildOptions, BuildStats,
-    ColumnSums, Source, SIDES,
+    exposed_sides, kept_area, wall_column, wall_slices, BuildOptions, BuildStats, ColumnSums, SIDES,
 };
-use super::error::{map_surface_distance, measure};
+pub use super::build::{Parents, ResampleStats};
+use super::error::map_surface_distance;
 use super::layout::{decode_offset, decode_unit, encode_offset_up, BlockMap};
-use super::tree::{select_nodes, MapTree, NodeMap, TreeOptions};
+use super::source::Source;
 use super::BlockMapError;
-use crate::blocks::{BlockId, BlockLayout};
-use crate::index::BqrTree;
+use crate::geom::clip::clip_to_box;
+use crate::geom::predicates::shoelace;
 use glam::{DVec2, DVec3};
 use rayon::prelude::*;
-use serde::Serialize;
-use std::sync::atomic::{AtomicUsize, Ordering};
-
-/// How the maps of inner quadtree nodes are built.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize)]
-#[serde(rename_all = "snake_case")]
-pub enum Parents {
-    /// From the source polygons, as every leaf (the default: each map its own measured bound).
-    #[default]
-    Polygons,
-    /// From the children's maps, max-filtered (this module).
-    Children,
-}
-
-impl std::str::FromStr for Parents {
-    type Err = BlockMapError;
-    fn from_str(s: &str) -> Result<Self, Self::Err> {
-        match s {
-            "polygons" => Ok(Self::Polygons),
-            "children" => Ok(Self::Children),
-            _ => Err(BlockMapError::BadParameter(format!(
-                "parents '{s}': expected 'polygons' or 'children'"
-            ))),
-        }
-    }
-}
-
-/// What building a parent from its children counted.
-#[derive(Clone, Debug, Default, PartialEq, Serialize)]
-pub struct ResampleStats {
-    /// Children's maps resampled (kept maps and the ones built for kids without a map).
-    pub children: usize,
-    /// Of those, kids without a map, built from the polygons first.
-    pub from_polygons: usize,
-    /// Largest declared ε of the children, metres.
-    pub child_eps_max_m: f64,
-    /// Sampled directed distance from the parent's surface to the children's union, metres.
-    pub to_children_m: f64,
-    /// Sampled directed distance from the children's union surface to the parent's, metres.
-    pub from_children_m: f64,
-    /// `max(½ voxel diagonal, child_eps_max_m + max(to, from))`, metres.
-    pub derived_eps_m: f64,
-    /// The error measured against the polygons exceeded the derived ε (then declared instead).
-    pub measured_over_derived: bool,
-}
 
 /// The convex part of a texel's square that its column covers (world xy, counter-clockwise):
 /// the whole square, or with a footprint edge the part where `n·q ≤ o` (the rule of
@@ -142,47 +97,6 @@ fn kept_part(m: &BlockMap, i: u32, j: u32) -> Vec<DVec2> {
         }
     }
     out
-}
-
-/// Clips a convex polygon to the box `[lo, hi]` (Sutherland–Hodgman).
-fn clip_convex(poly: &[DVec2], lo: DVec2, hi: DVec2) -> Vec<DVec2> {
-    let mut p: Vec<DVec2> = poly.to_vec();
-    for (axis, bound, below) in [
-        (0usize, lo.x, false),
-        (0, hi.x, true),
-        (1, lo.y, false),
-        (1, hi.y, true),
-    ] {
-        if p.is_empty() {
-            break;
-        }
-        let v = |q: DVec2| if axis == 0 { q.x } else { q.y };
-        let inside = |q: DVec2| if below { v(q) <= bound } else { v(q) >= bound };
-        let mut out = Vec::with_capacity(p.len() + 2);
-        for q in 0..p.len() {
-            let (a, b) = (p[q], p[(q + 1) % p.len()]);
-            if inside(a) {
-                out.push(a);
-            }
-            if inside(a) != inside(b) {
-                let t = (bound - v(a)) / (v(b) - v(a));
-                let mut x = a + (b - a) * t;
-                if axis == 0 {
-                    x.x = bound;
-                } else {
-                    x.y = bound;
-                }
-                out.push(x);
-            }
-        }
-        p = out;
-    }
-    p
-}
-
-fn area(p: &[DVec2]) -> f64 {
-    let n = p.len();
-    ((0..n).map(|q| p[q].perp_dot(p[(q + 1) % n])).sum::<f64>() * 0.5).abs()
 }
 
 /// Height of `m`'s column over `xy` (0 over empty ground and outside the map).
@@ -224,7 +138,7 @@ struct Src {
 /// Builds a map over the square with lower corner `min` (z = 0) and side `side`, heights over
 /// `[0, zmax]`, from `children`'s maps by the conservative max filter of the module doc.
 /// `opts.k` is the parent's K; `opts.edges`, `opts.min_slice_rows`, `opts.ao` and
-/// `opts.ao_radius_m` apply as in [`build_map`] (the sampling options do not: nothing is
+/// `opts.ao_radius_m` apply as in [`super::build::build_map`] (the sampling options do not: nothing is
 /// sampled). The stats count texels, exposed texels, columns and edges; dropped buildings are
 /// the caller's (a building no child holds).
 ///
@@ -270,7 +184,7 @@ pub fn build_from_children(
                     continue;
                 }
                 let h = m.code_height_m(code);
-                let part = clip_convex(&kept_part(m, i, j), min, pmax);
+                let part = clip_to_box(&kept_part(m, i, j), min, pmax);
                 if part.len() < 3 {
                     continue;
                 }
@@ -292,9 +206,9 @@ pub fn build_from_children(
                 for pj in j0..=j1 {
                     for pi in i0..=i1 {
                         let tlo = min + DVec2::new(pi as f64, pj as f64) * s;
-                        let cut = clip_convex(&part, tlo, tlo + DVec2::splat(s));
+                        let cut = clip_to_box(&part, tlo, tlo + DVec2::splat(s));
                         // Touching is not overlapping.
-                        if cut.len() < 3 || area(&cut) <= 1e-9 * s * s {
+                        if cut.len() < 3 || shoelace(&cut).abs() <= 1e-9 * s * s {
                             continue;
                         }
                         let t = pj * k + pi;
@@ -575,7 +489,7 @@ pub fn directed_distance(a: &BlockMap, b: &BlockMap) -> f64 {
     )
 }
 
-/// The square [`build_map`] puts around `buildings` (indices into `source.buildings`): lower
+/// The square [`super::build::build_map`] puts around `buildings` (indices into `source.buildings`): lower
 /// corner, side and top, or `None` without a building.
 pub fn node_square(source: &Source, buildings: &[u32]) -> Option<(DVec2, f64, f64)> {
     let (mut lo, mut hi) = (DVec2::splat(f64::INFINITY), DVec2::splat(f64::NEG_INFINITY));
@@ -597,215 +511,4 @@ pub fn node_square(source: &Source, buildings: &[u32]) -> Option<(DVec2, f64, f6
     let side = ext.x.max(ext.y).max(1e-3) * (1.0 + 1e-9);
     let min = (lo + hi) * 0.5 - DVec2::splat(side * 0.5);
     Some((min, side, if zmax > 0.0 { zmax } else { 1.0 }))
-}
-
-/// A node's map from the polygons, measured (what [`super::tree::build_tree`] does per node).
-fn polygon_map(
-    source: &Source,
-    buildings: &[u32],
-    opts: &BuildOptions,
-    key: u64,
-) -> Result<(BlockMap, Vec<u32>, BuildStats, super::ErrorReport), BlockMapError> {
-    let (mut map, kept, stats) =
-        build_map(source, buildings, opts).map_err(|e| BlockMapError::Node {
-            key,
-            what: e.to_string(),
-        })?;
-    let error = measure(&map, source, &kept);
-    map.meta.eps_measured_m = error.measured_m;
-    map.meta.eps_m = error.declared_m;
-    map.meta.node_key = key;
-    Ok((map, kept, stats, error))
-}
-
-/// [`super::tree::build_tree`] with every map that has mapped children built from them
-/// ([`build_from_children`]); maps without are built from the polygons. Bottom-up, one level
-/// at a time, the maps of a level in parallel (deterministic: each map depends only on its
-/// node and its children's maps).
-///
-/// # Errors
-/// The first construction error, naming the node.
-pub fn build_tree_from_children(
-    source: &Source,
-    layout: &BlockLayout,
-    tree: &BqrTree,
-    opts: &TreeOptions,
-    progress: &(dyn Fn(usize, usize) + Sync),
-) -> Result<MapTree, BlockMapError> {
-    let sel = select_nodes(tree, opts.build.k, opts.stop);
-    let total = sel.len();
-    let done = AtomicUsize::new(0);
-    let mut kids: Vec<Vec<usize>> = vec![Vec::new(); total];
-    for (slot, &(_, _, parent)) in sel.iter().enumerate() {
-        if let Some(p) = parent {
-            kids[p].push(slot);
-        }
-    }
-    let max_level = sel.iter().map(|s| s.1).max().unwrap_or(0);
-    let mut built: Vec<Option<NodeMap>> = (0..total).map(|_| None).collect();
-    for level in (0..=max_level).rev() {
-        let slots: Vec<usize> = (0..total).filter(|&q| sel[q].1 == level).collect();
-        let maps: Result<Vec<(usize, NodeMap)>, BlockMapError> = slots
-            .par_iter()
-            .map(|&slot| {
-                let (n, level, parent) = sel[slot];
-                let v = tree.node(n).expect("selected nodes exist");
-                let blocks: Vec<BlockId> = tree.blocks()[v.blocks.clone()]
-                    .iter()
-                    .map(|b| b.id)
-                    .collect();
-                let buildings = source.buildings_of(layout, &blocks);
-                let node = if kids[slot].is_empty() {
-                    let (map, buildings, stats, error) =
-                        polygon_map(source, &buildings, &opts.build, v.key)?;
-                    NodeMap {
-                        node: n,
-                        key: v.key,
-                        level,
-                        parent,
-                        blocks,
-                        buildings,
-                        map,
-                        stats,
-                        error,
-                    }
-                } else {
-                    let mapped: Vec<&NodeMap> = kids[slot]
-                        .iter()
-                        .map(|&q| built[q].as_ref().expect("children are built first"))
-                        .collect();
-                    parent_from_children(
-                        source, layout, tree, opts, n, level, parent, blocks, buildings, &mapped,
-                    )?
-                };
-                let d = done.fetch_add(1, Ordering::Relaxed) + 1;
-                progress(d, total);
-                Ok((slot, node))
-            })
-            .collect();
-        for (slot, m) in maps? {
-            built[slot] = Some(m);
-        }
-    }
-    let mut maps: Vec<NodeMap> = built
-        .into_iter()
-        .map(|m| m.expect("every selected node is built"))
-        .collect();
-    for i in (0..maps.len()).rev() {
-        if let Some(p) = maps[i].parent {
-            let e = maps[i].map.meta.eps_m;
-            let pe = &mut maps[p].map.meta.eps_m;
-            *pe = pe.max(e);
-        }
-    }
-    Ok(MapTree { maps })
-}
-
-/// One parent from its mapped children and, for the blocks no mapped child holds, maps built
-/// from the polygons per BqR kid (and one for blocks of the node in no kid).
-#[allow(clippy::too_many_arguments)]
-fn parent_from_children(
-    source: &Source,
-    layout: &BlockLayout,
-    tree: &BqrTree,
-    opts: &TreeOptions,
-    n: usize,
-    level: u32,
-    parent: Option<usize>,
-    blocks: Vec<BlockId>,
-    buildings: Vec<u32>,
-    mapped: &[&NodeMap],
-) -> Result<NodeMap, BlockMapError> {
-    let v = tree.node(n).expect("selected nodes exist");
-    let held: std::collections::HashSet<BlockId> = mapped
-        .iter()
-        .flat_map(|m| m.blocks.iter().copied())
-        .collect();
-    // Blocks no mapped child holds, grouped by the BqR kid they are in.
-    let mut groups: Vec<Vec<BlockId>> = Vec::new();
-    let mut grouped: std::collections::HashSet<BlockId> = Default::default();
-    for c in v.children.iter().flatten() {
-        let Some(cv) = tree.node(*c) else { continue };
-        let g: Vec<BlockId> = tree.blocks()[cv.blocks.clone()]
-            .iter()
-            .map(|b| b.id)
-            .filter(|b| !held.contains(b))
-            .collect();
-        grouped.extend(g.iter().copied());
-        if !g.is_empty() {
-            groups.push(g);
-        }
-    }
-    let rest: Vec<BlockId> = blocks
-        .iter()
-        .copied()
-        .filter(|b| !held.contains(b) && !grouped.contains(b))
-        .collect();
-    if !rest.is_empty() {
-        groups.push(rest);
-    }
-    let mut temp: Vec<(BlockMap, BuildStats)> = Vec::new();
-    for g in &groups {
-        let bs = source.buildings_of(layout, g);
-        if bs.is_empty() {
-            continue;
-        }
-        let (map, _, stats, _) = polygon_map(source, &bs, &opts.build, v.key)?;
-        temp.push((map, stats));
-    }
-    let children: Vec<&BlockMap> = mapped
-        .iter()
-        .map(|m| &m.map)
-        .chain(temp.iter().map(|t| &t.0))
-        .collect();
-    let Some((min, side, zmax)) = node_square(source, &buildings) else {
-        return Err(BlockMapError::Node {
-            key: v.key,
-            what: "no building to map".into(),
-        });
-    };
-    let (mut map, mut stats) = build_from_children(&children, min, side, zmax, &opts.build)
-        .map_err(|e| BlockMapError::Node {
-            key: v.key,
-            what: e.to_string(),
-        })?;
-    stats.buildings = buildings.len();
-    let mut dropped: Vec<crate::city::BuildingId> = mapped
-        .iter()
-        .flat_map(|m| m.stats.dropped_buildings.iter().copied())
-        .chain(
-            temp.iter()
-                .flat_map(|t| t.1.dropped_buildings.iter().copied()),
-        )
-        .collect();
-    dropped.sort_unstable_by_key(|b| b.0);
-    dropped.dedup();
-    stats.dropped_buildings = dropped;
-    let child_eps = children.iter().map(|c| c.meta.eps_m).fold(0.0, f64::max);
-    let (to, from) = resample_distances(&map, &children);
-    let derived = map.half_voxel_diagonal().max(child_eps + to.max(from));
-    let error = measure(&map, source, &buildings);
-    map.meta.eps_measured_m = error.measured_m;
-    map.meta.eps_m = derived.max(error.measured_m);
-    map.meta.node_key = v.key;
-    stats.from_children = Some(ResampleStats {
-        children: children.len(),
-        from_polygons: temp.len(),
-        child_eps_max_m: child_eps,
-        to_children_m: to,
-        from_children_m: from,
-        derived_eps_m: derived,
-        measured_over_derived: error.measured_m > derived,
-    });
-    Ok(NodeMap {
-        node: n,
-        key: v.key,
-        level,
-        parent,
-        blocks,
-        buildings,
-        map,
-        stats,
-        error,
-    })
 }

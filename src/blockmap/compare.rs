@@ -27,11 +27,11 @@
 //!   declared ε of the original surface.
 //! - **Colour PSNR** (RGB, dB) of the two lit images, both shaded by [`super::colors`].
 
-use super::build::Source;
 use super::cast::{cast_f32, cast_f64, surface, CastOptions, Hit};
 use super::colors;
 use super::error::BuildingGrid;
 use super::layout::BlockMap;
+use super::source::Source;
 use crate::blocks::BlockId;
 use crate::city::Mesh;
 use crate::geom::Camera;

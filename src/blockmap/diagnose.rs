@@ -24,15 +24,17 @@
 //! - **seam**: the 3×3 neighbourhood shows two sources (two maps, or a map and a near mesh);
 //! - **near**: the hit lies within 1 % of the near plane; **background**: ground or sky.
 
-use super::build::{clip_ring, shoelace, Source, SourceBuilding};
 use super::cast::{cast_f64, CastOptions, Face, Hit};
 use super::error::{horizontal_distance, in_polygon};
 use super::image::{cast_image, twin_ray};
 use super::layout::BlockMap;
 use super::select::Selection;
+use super::source::{Source, SourceBuilding};
 use super::tree::MapTree;
 use crate::blocks::BlockId;
 use crate::city::Mesh;
+use crate::geom::clip::clip_to_box;
+use crate::geom::predicates::shoelace;
 use crate::geom::Camera;
 use crate::visibility::oracle::{render_ids, shade_with_ground_depth, SKY};
 use glam::{DVec2, DVec3, DVec4};
@@ -210,9 +212,9 @@ fn texel_cover(map: &BlockMap, i: u32, j: u32, bs: &[&SourceBuilding]) -> f64 {
     let hi = lo + DVec2::splat(s);
     let mut a = 0.0;
     for b in bs {
-        let mut area = shoelace(&clip_ring(&b.rings[0], lo, hi)).abs();
+        let mut area = shoelace(&clip_to_box(&b.rings[0], lo, hi)).abs();
         for hole in &b.rings[1..] {
-            area -= shoelace(&clip_ring(hole, lo, hi)).abs();
+            area -= shoelace(&clip_to_box(hole, lo, hi)).abs();
         }
         a += area.max(0.0);
     }

@@ -19,8 +19,8 @@
 //! below marks a building (part) the map does not hold at all, whatever its error. These are
 //! reported with building ids, never hidden.
 
-use super::build::{Source, SourceBuilding};
 use super::layout::BlockMap;
+use super::source::{Source, SourceBuilding};
 use glam::{DVec2, DVec3};
 use serde::Serialize;
 

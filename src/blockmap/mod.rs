@@ -6,6 +6,7 @@
 //!   two `K × K` sections of footprint edges (one or two half-planes per boundary texel,
 //!   blockwalk's addition), its box, PNG + JSON storage, and the optional 2007 distance map (seed 000
 //!   §3.1–3.2).
+//! - [`source`]: what maps are built from, the buildings in the local frame ([`Source`]).
 //! - [`build`]: construction from the prisms (seed 000 §3.3, seed 002 §4.3.2): top-down
 //!   orthographic sampling through the oracle's rasteriser, exposed texels, unfolded wall
 //!   columns, slices.
@@ -19,8 +20,7 @@
 //! - [`select`]: which nodes a frame draws as maps and which blocks as meshes (seed 000 §4–5).
 //! - [`compare`]: ray-cast image against the oracle's mesh image: coverage error, the projected
 //!   bound at silhouettes, 3D point error, colour PSNR.
-//! - [`diagnose`]: every coverage-mismatched pixel of a hybrid frame classified by cause
-//!   (issue 12).
+//! - [`diagnose`]: every coverage-mismatched pixel of a hybrid frame classified by cause.
 //! - [`image`]: images of maps as the GPU draws them ([`cast_image`]), and the CPU fallback of
 //!   hybrid frames ([`CpuHybridRenderer`]: meshes near, maps far, composited by depth).
 //! - [`colors`]: the one definition of colours and light used by all of the above.
@@ -37,17 +37,19 @@ pub mod error;
 pub mod image;
 pub mod layout;
 pub mod select;
+pub mod source;
 pub mod tree;
 
-pub use build::{build_map, BuildOptions, BuildStats, Source};
+pub use build::{build_map, BuildOptions, BuildStats, Parents, ResampleStats};
 pub use cast::{cast_f32, cast_f64, Cast, CastOptions, Face, Hit, TexRay};
-pub use children::{build_from_children, Parents, ResampleStats};
+pub use children::build_from_children;
 pub use error::{measure, ErrorReport, ThinFeature, ThinKind};
 pub use image::{cast_image, CpuHybridRenderer, FrameRays, MapImage, MapXform};
 pub use layout::{BlockMap, BlockMapMeta, Edge};
 pub use select::{
     projected_error_px, SelectError, SelectOptions, SelectStats, Selection, Selector,
 };
+pub use source::{Source, SourceBuilding};
 pub use tree::{
     build_city_maps, build_city_maps_from, build_tree, skeleton_tree, CityMaps, CityMapsOptions,
     MapTree, NodeMap, Stop, TreeOptions, TreeViolation,

@@ -7,9 +7,11 @@
 //! nodes from their children's maps is the option [`super::children`]
 //! (`BuildOptions::parents`).
 
-use super::build::{build_map, BuildOptions, BuildStats, Source};
+use super::build::{build_map, BuildOptions, BuildStats, Parents, ResampleStats};
+use super::children::{build_from_children, node_square, resample_distances};
 use super::error::{measure, ErrorReport};
 use super::layout::BlockMap;
+use super::source::Source;
 use super::BlockMapError;
 use crate::blocks::{BlockId, BlockLayout};
 use crate::index::BqrTree;
@@ -166,8 +168,8 @@ pub fn build_tree(
     opts: &TreeOptions,
     progress: &(dyn Fn(usize, usize) + Sync),
 ) -> Result<MapTree, BlockMapError> {
-    if opts.build.parents == super::children::Parents::Children {
-        return super::children::build_tree_from_children(source, layout, tree, opts, progress);
+    if opts.build.parents == Parents::Children {
+        return build_tree_from_children(source, layout, tree, opts, progress);
     }
     let sel = select_nodes(tree, opts.build.k, opts.stop);
     let total = sel.len();
@@ -181,15 +183,8 @@ pub fn build_tree(
                 .map(|b| b.id)
                 .collect();
             let buildings = source.buildings_of(layout, &blocks);
-            let (mut map, buildings, stats) =
-                build_map(source, &buildings, &opts.build).map_err(|e| BlockMapError::Node {
-                    key: v.key,
-                    what: e.to_string(),
-                })?;
-            let error = measure(&map, source, &buildings);
-            map.meta.eps_measured_m = error.measured_m;
-            map.meta.eps_m = error.declared_m;
-            map.meta.node_key = v.key;
+            let (map, buildings, stats, error) =
+                polygon_map(source, &buildings, &opts.build, v.key)?;
             let d = done.fetch_add(1, Ordering::Relaxed) + 1;
             progress(d, total);
             Ok(NodeMap {
@@ -206,7 +201,13 @@ pub fn build_tree(
         })
         .collect();
     let mut maps = built?;
-    // Monotone ε, children after parents: sweep backwards.
+    monotone_eps(&mut maps);
+    Ok(MapTree { maps })
+}
+
+/// Raises every parent's declared ε to at least its children's (children come after parents:
+/// one backward sweep).
+fn monotone_eps(maps: &mut [NodeMap]) {
     for i in (0..maps.len()).rev() {
         if let Some(p) = maps[i].parent {
             let e = maps[i].map.meta.eps_m;
@@ -214,7 +215,211 @@ pub fn build_tree(
             *pe = pe.max(e);
         }
     }
+}
+
+/// A node's map from the polygons, measured, its ε and key in the map's meta.
+fn polygon_map(
+    source: &Source,
+    buildings: &[u32],
+    opts: &BuildOptions,
+    key: u64,
+) -> Result<(BlockMap, Vec<u32>, BuildStats, ErrorReport), BlockMapError> {
+    let (mut map, kept, stats) =
+        build_map(source, buildings, opts).map_err(|e| BlockMapError::Node {
+            key,
+            what: e.to_string(),
+        })?;
+    let error = measure(&map, source, &kept);
+    map.meta.eps_measured_m = error.measured_m;
+    map.meta.eps_m = error.declared_m;
+    map.meta.node_key = key;
+    Ok((map, kept, stats, error))
+}
+
+/// [`build_tree`] with every map that has mapped children built from them
+/// ([`build_from_children`]); maps without are built from the polygons. Bottom-up, one level
+/// at a time, the maps of a level in parallel (deterministic: each map depends only on its
+/// node and its children's maps).
+///
+/// # Errors
+/// The first construction error, naming the node.
+fn build_tree_from_children(
+    source: &Source,
+    layout: &BlockLayout,
+    tree: &BqrTree,
+    opts: &TreeOptions,
+    progress: &(dyn Fn(usize, usize) + Sync),
+) -> Result<MapTree, BlockMapError> {
+    let sel = select_nodes(tree, opts.build.k, opts.stop);
+    let total = sel.len();
+    let done = AtomicUsize::new(0);
+    let mut kids: Vec<Vec<usize>> = vec![Vec::new(); total];
+    for (slot, &(_, _, parent)) in sel.iter().enumerate() {
+        if let Some(p) = parent {
+            kids[p].push(slot);
+        }
+    }
+    let max_level = sel.iter().map(|s| s.1).max().unwrap_or(0);
+    let mut built: Vec<Option<NodeMap>> = (0..total).map(|_| None).collect();
+    for level in (0..=max_level).rev() {
+        let slots: Vec<usize> = (0..total).filter(|&q| sel[q].1 == level).collect();
+        let maps: Result<Vec<(usize, NodeMap)>, BlockMapError> = slots
+            .par_iter()
+            .map(|&slot| {
+                let (n, level, parent) = sel[slot];
+                let v = tree.node(n).expect("selected nodes exist");
+                let blocks: Vec<BlockId> = tree.blocks()[v.blocks.clone()]
+                    .iter()
+                    .map(|b| b.id)
+                    .collect();
+                let buildings = source.buildings_of(layout, &blocks);
+                let node = if kids[slot].is_empty() {
+                    let (map, buildings, stats, error) =
+                        polygon_map(source, &buildings, &opts.build, v.key)?;
+                    NodeMap {
+                        node: n,
+                        key: v.key,
+                        level,
+                        parent,
+                        blocks,
+                        buildings,
+                        map,
+                        stats,
+                        error,
+                    }
+                } else {
+                    let mapped: Vec<&NodeMap> = kids[slot]
+                        .iter()
+                        .map(|&q| built[q].as_ref().expect("children are built first"))
+                        .collect();
+                    parent_from_children(
+                        source, layout, tree, opts, n, level, parent, blocks, buildings, &mapped,
+                    )?
+                };
+                let d = done.fetch_add(1, Ordering::Relaxed) + 1;
+                progress(d, total);
+                Ok((slot, node))
+            })
+            .collect();
+        for (slot, m) in maps? {
+            built[slot] = Some(m);
+        }
+    }
+    let mut maps: Vec<NodeMap> = built
+        .into_iter()
+        .map(|m| m.expect("every selected node is built"))
+        .collect();
+    monotone_eps(&mut maps);
     Ok(MapTree { maps })
+}
+
+/// One parent from its mapped children and, for the blocks no mapped child holds, maps built
+/// from the polygons per BqR kid (and one for blocks of the node in no kid).
+#[allow(clippy::too_many_arguments)]
+fn parent_from_children(
+    source: &Source,
+    layout: &BlockLayout,
+    tree: &BqrTree,
+    opts: &TreeOptions,
+    n: usize,
+    level: u32,
+    parent: Option<usize>,
+    blocks: Vec<BlockId>,
+    buildings: Vec<u32>,
+    mapped: &[&NodeMap],
+) -> Result<NodeMap, BlockMapError> {
+    let v = tree.node(n).expect("selected nodes exist");
+    let held: std::collections::HashSet<BlockId> = mapped
+        .iter()
+        .flat_map(|m| m.blocks.iter().copied())
+        .collect();
+    // Blocks no mapped child holds, grouped by the BqR kid they are in.
+    let mut groups: Vec<Vec<BlockId>> = Vec::new();
+    let mut grouped: std::collections::HashSet<BlockId> = Default::default();
+    for c in v.children.iter().flatten() {
+        let Some(cv) = tree.node(*c) else { continue };
+        let g: Vec<BlockId> = tree.blocks()[cv.blocks.clone()]
+            .iter()
+            .map(|b| b.id)
+            .filter(|b| !held.contains(b))
+            .collect();
+        grouped.extend(g.iter().copied());
+        if !g.is_empty() {
+            groups.push(g);
+        }
+    }
+    let rest: Vec<BlockId> = blocks
+        .iter()
+        .copied()
+        .filter(|b| !held.contains(b) && !grouped.contains(b))
+        .collect();
+    if !rest.is_empty() {
+        groups.push(rest);
+    }
+    let mut temp: Vec<(BlockMap, BuildStats)> = Vec::new();
+    for g in &groups {
+        let bs = source.buildings_of(layout, g);
+        if bs.is_empty() {
+            continue;
+        }
+        let (map, _, stats, _) = polygon_map(source, &bs, &opts.build, v.key)?;
+        temp.push((map, stats));
+    }
+    let children: Vec<&BlockMap> = mapped
+        .iter()
+        .map(|m| &m.map)
+        .chain(temp.iter().map(|t| &t.0))
+        .collect();
+    let Some((min, side, zmax)) = node_square(source, &buildings) else {
+        return Err(BlockMapError::Node {
+            key: v.key,
+            what: "no building to map".into(),
+        });
+    };
+    let (mut map, mut stats) = build_from_children(&children, min, side, zmax, &opts.build)
+        .map_err(|e| BlockMapError::Node {
+            key: v.key,
+            what: e.to_string(),
+        })?;
+    stats.buildings = buildings.len();
+    let mut dropped: Vec<crate::city::BuildingId> = mapped
+        .iter()
+        .flat_map(|m| m.stats.dropped_buildings.iter().copied())
+        .chain(
+            temp.iter()
+                .flat_map(|t| t.1.dropped_buildings.iter().copied()),
+        )
+        .collect();
+    dropped.sort_unstable_by_key(|b| b.0);
+    dropped.dedup();
+    stats.dropped_buildings = dropped;
+    let child_eps = children.iter().map(|c| c.meta.eps_m).fold(0.0, f64::max);
+    let (to, from) = resample_distances(&map, &children);
+    let derived = map.half_voxel_diagonal().max(child_eps + to.max(from));
+    let error = measure(&map, source, &buildings);
+    map.meta.eps_measured_m = error.measured_m;
+    map.meta.eps_m = derived.max(error.measured_m);
+    map.meta.node_key = v.key;
+    stats.from_children = Some(ResampleStats {
+        children: children.len(),
+        from_polygons: temp.len(),
+        child_eps_max_m: child_eps,
+        to_children_m: to,
+        from_children_m: from,
+        derived_eps_m: derived,
+        measured_over_derived: error.measured_m > derived,
+    });
+    Ok(NodeMap {
+        node: n,
+        key: v.key,
+        level,
+        parent,
+        blocks,
+        buildings,
+        map,
+        stats,
+        error,
+    })
 }
 
 /// The hierarchy [`build_tree`] would build over `tree`, with empty maps whose declared ε is half

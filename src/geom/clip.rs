@@ -1,8 +1,10 @@
 //! Clipping a polygon against one half-space (one step of Sutherland–Hodgman).
 //!
 //! One implementation serves the plan-view cull map (`DVec2`, half-planes of an occluder shadow)
-//! and the oracle's homogeneous clip space (`DVec4`, near and far planes).
+//! and the oracle's homogeneous clip space (`DVec4`, near and far planes). Clipping to an
+//! axis-aligned box, where crossings land exactly on the box's sides, is [`clip_to_box`].
 
+use glam::DVec2;
 use std::ops::{Add, Mul, Sub};
 
 /// Keeps the part of the polygon `poly` (vertices in order, implicitly closed) where
@@ -35,6 +37,49 @@ where
     std::mem::swap(poly, tmp);
 }
 
+/// Clips the polygon `poly` (vertices in order, implicitly closed) to the axis-aligned box
+/// `[lo, hi]`: Sutherland–Hodgman against `x ≥ lo.x`, `x ≤ hi.x`, `y ≥ lo.y`, `y ≤ hi.y` in that
+/// order. A crossing is interpolated along the clipped axis, `t = (bound − a) / (b − a)`, and its
+/// clipped coordinate set to the bound exactly, so parts of neighbouring boxes share their sides
+/// bit for bit. A convex polygon stays convex; a non-convex one may come back with degenerate
+/// edges along the box, whose shoelace area is still exact.
+pub fn clip_to_box(poly: &[DVec2], lo: DVec2, hi: DVec2) -> Vec<DVec2> {
+    let mut p: Vec<DVec2> = poly.to_vec();
+    // (axis, bound, keep below)
+    for (axis, bound, below) in [
+        (0usize, lo.x, false),
+        (0, hi.x, true),
+        (1, lo.y, false),
+        (1, hi.y, true),
+    ] {
+        if p.is_empty() {
+            break;
+        }
+        let v = |q: DVec2| if axis == 0 { q.x } else { q.y };
+        let inside = |q: DVec2| if below { v(q) <= bound } else { v(q) >= bound };
+        let mut out = Vec::with_capacity(p.len() + 4);
+        for q in 0..p.len() {
+            let (a, b) = (p[q], p[(q + 1) % p.len()]);
+            let (ia, ib) = (inside(a), inside(b));
+            if ia {
+                out.push(a);
+            }
+            if ia != ib {
+                let t = (bound - v(a)) / (v(b) - v(a));
+                let mut x = a + (b - a) * t;
+                if axis == 0 {
+                    x.x = bound;
+                } else {
+                    x.y = bound;
+                }
+                out.push(x);
+            }
+        }
+        p = out;
+    }
+    p
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -64,6 +109,22 @@ mod tests {
         // Everything on the wrong side: nothing left.
         clip_polygon(&mut poly, &mut tmp, |p| p.x - 10.0);
         assert!(poly.is_empty());
+    }
+
+    #[test]
+    fn box_clip_puts_crossings_on_the_sides() {
+        let tri = [
+            DVec2::new(-1.0, 0.5),
+            DVec2::new(3.0, 0.5),
+            DVec2::new(1.0, 3.0),
+        ];
+        let p = clip_to_box(&tri, DVec2::ZERO, DVec2::splat(2.0));
+        assert!(!p.is_empty());
+        assert!(p
+            .iter()
+            .all(|q| (0.0..=2.0).contains(&q.x) && (0.0..=2.0).contains(&q.y)));
+        assert!(p.iter().filter(|q| q.x == 0.0 || q.x == 2.0).count() >= 2);
+        assert!(clip_to_box(&tri, DVec2::splat(5.0), DVec2::splat(6.0)).is_empty());
     }
 
     #[test]

@@ -159,21 +159,7 @@ impl Frustum {
         mask: &mut PlaneMask,
         tests: &mut u64,
     ) -> Containment {
-        for (i, pl) in self.planes.iter().enumerate() {
-            let bit = 1u8 << i;
-            if *mask & bit == 0 {
-                continue;
-            }
-            *tests += 1;
-            let dist = pl.distance(s.center);
-            if dist < -s.radius {
-                return Containment::Outside;
-            }
-            if dist >= s.radius {
-                *mask &= !bit;
-            }
-        }
-        masked_result(*mask)
+        self.test_planes(mask, None, tests, |pl| sphere_plane(s, pl))
     }
 
     /// Box test against the planes in `mask` (as [`Frustum::test_sphere_masked`]). Per plane,
@@ -187,19 +173,7 @@ impl Frustum {
     ) -> Containment {
         let c = b.center();
         let e = b.extent() * 0.5;
-        for (i, pl) in self.planes.iter().enumerate() {
-            let bit = 1u8 << i;
-            if *mask & bit == 0 {
-                continue;
-            }
-            *tests += 1;
-            match box_plane(c, e, pl) {
-                PlaneSide::Out => return Containment::Outside,
-                PlaneSide::In => *mask &= !bit,
-                PlaneSide::Crossing => {}
-            }
-        }
-        masked_result(*mask)
+        self.test_planes(mask, None, tests, |pl| box_plane(c, e, pl))
     }
 
     /// Box ∩ sphere test against the planes in `mask` (see [`Frustum::test_aabb_sphere`]).
@@ -213,24 +187,16 @@ impl Frustum {
     ) -> Containment {
         let c = b.center();
         let e = b.extent() * 0.5;
-        for (i, pl) in self.planes.iter().enumerate() {
-            let bit = 1u8 << i;
-            if *mask & bit == 0 {
-                continue;
-            }
-            *tests += 1;
+        self.test_planes(mask, None, tests, |pl| {
             let dist = pl.distance(s.center);
             if dist < -s.radius {
-                return Containment::Outside;
+                return PlaneSide::Out;
             }
             match box_plane(c, e, pl) {
-                PlaneSide::Out => return Containment::Outside,
-                PlaneSide::In => *mask &= !bit,
-                PlaneSide::Crossing if dist >= s.radius => *mask &= !bit,
-                PlaneSide::Crossing => {}
+                PlaneSide::Crossing if dist >= s.radius => PlaneSide::In,
+                side => side,
             }
-        }
-        masked_result(*mask)
+        })
     }
 
     /// As [`Frustum::test_aabb_masked`], testing first the plane `*first` (the one that
@@ -245,24 +211,7 @@ impl Frustum {
     ) -> Containment {
         let c = b.center();
         let e = b.extent() * 0.5;
-        let start = (*first as usize) % 6;
-        for k in 0..6 {
-            let i = (start + k) % 6;
-            let bit = 1u8 << i;
-            if *mask & bit == 0 {
-                continue;
-            }
-            *tests += 1;
-            match box_plane(c, e, &self.planes[i]) {
-                PlaneSide::Out => {
-                    *first = i as u8;
-                    return Containment::Outside;
-                }
-                PlaneSide::In => *mask &= !bit,
-                PlaneSide::Crossing => {}
-            }
-        }
-        masked_result(*mask)
+        self.test_planes(mask, Some(first), tests, |pl| box_plane(c, e, pl))
     }
 
     /// As [`Frustum::test_sphere_masked`] with temporal coherence (see
@@ -274,7 +223,22 @@ impl Frustum {
         first: &mut u8,
         tests: &mut u64,
     ) -> Containment {
-        let start = (*first as usize) % 6;
+        self.test_planes(mask, Some(first), tests, |pl| sphere_plane(s, pl))
+    }
+
+    /// The one plane loop of the culling tests: each plane in `mask` in turn (from `*first`,
+    /// cyclically, when given; else from plane 0) is tested with `side`, counted in `tests`;
+    /// a plane the volume is fully inside leaves the mask, and the first plane it is outside
+    /// ends the loop (stored in `*first` when given).
+    #[inline]
+    fn test_planes(
+        &self,
+        mask: &mut PlaneMask,
+        mut first: Option<&mut u8>,
+        tests: &mut u64,
+        side: impl Fn(&Plane) -> PlaneSide,
+    ) -> Containment {
+        let start = first.as_deref().map_or(0, |f| *f as usize % 6);
         for k in 0..6 {
             let i = (start + k) % 6;
             let bit = 1u8 << i;
@@ -282,13 +246,15 @@ impl Frustum {
                 continue;
             }
             *tests += 1;
-            let dist = self.planes[i].distance(s.center);
-            if dist < -s.radius {
-                *first = i as u8;
-                return Containment::Outside;
-            }
-            if dist >= s.radius {
-                *mask &= !bit;
+            match side(&self.planes[i]) {
+                PlaneSide::Out => {
+                    if let Some(f) = first.as_deref_mut() {
+                        *f = i as u8;
+                    }
+                    return Containment::Outside;
+                }
+                PlaneSide::In => *mask &= !bit,
+                PlaneSide::Crossing => {}
             }
         }
         masked_result(*mask)
@@ -398,6 +364,20 @@ enum PlaneSide {
     Out,
     In,
     Crossing,
+}
+
+/// Where a sphere lies against one plane: outside beyond its radius, inside when its whole
+/// radius is on the inner side.
+#[inline]
+fn sphere_plane(s: &BoundingSphere, pl: &Plane) -> PlaneSide {
+    let dist = pl.distance(s.center);
+    if dist < -s.radius {
+        PlaneSide::Out
+    } else if dist >= s.radius {
+        PlaneSide::In
+    } else {
+        PlaneSide::Crossing
+    }
 }
 
 #[inline]

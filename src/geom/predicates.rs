@@ -100,6 +100,21 @@ pub fn ring_signed_area<P: Xy>(ring: &[P]) -> f64 {
     0.5 * (sum + comp)
 }
 
+/// Signed area of a closed vertex list by the plain shoelace sum, `½ Σ pᵢ × pᵢ₊₁`, about the
+/// coordinate origin and uncompensated: for small polygons in a local frame (texel-sized clips),
+/// where every caller must get this exact sum. [`ring_signed_area`] is the precise one for world
+/// coordinates. Positive when counter-clockwise; the list is taken as closed (no repeated point).
+pub fn shoelace<P: Xy>(p: &[P]) -> f64 {
+    let n = p.len();
+    (0..n)
+        .map(|q| {
+            let (a, b) = (p[q], p[(q + 1) % n]);
+            a.x() * b.y() - a.y() * b.x()
+        })
+        .sum::<f64>()
+        * 0.5
+}
+
 /// Area of a polygon: |exterior| − Σ |holes|, whatever the rings' winding.
 pub fn polygon_area(p: &Polygon<f64>) -> f64 {
     ring_signed_area(&p.exterior().0).abs()

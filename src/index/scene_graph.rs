@@ -16,7 +16,7 @@
 //! page, 8 children a node) is the block VAMSplit tree's.
 
 use super::bqr::box_distance_2;
-use super::vamsplit::vam_split;
+use super::vamsplit::{child_capacity, vam_split};
 use super::{validate_bounds, BlockBounds, CityIndex, CullQuery, CullStats, IndexError, Structure};
 use crate::blocks::BlockId;
 use crate::geom::{Aabb3, Containment, PlaneMask, ALL_PLANES};
@@ -86,16 +86,6 @@ struct Builder<'a> {
 }
 
 impl Builder<'_> {
-    /// Capacity of one child subtree of a node over `n` items: a page, or the smallest
-    /// `leaf_cap · node_cap^h` (h ≥ 1) whose `node_cap` copies hold `n`.
-    fn child_capacity(&self, n: usize) -> usize {
-        let mut c = self.leaf_cap;
-        while c.saturating_mul(self.node_cap) < n {
-            c = c.saturating_mul(self.node_cap);
-        }
-        c
-    }
-
     fn build(&mut self, items: &mut [u32]) -> u32 {
         let idx = self.nodes.len() as u32;
         let page_start = self.pages.len() as u32;
@@ -125,7 +115,7 @@ impl Builder<'_> {
             n.page_end = self.pages.len() as u32;
             return idx;
         }
-        let cap = self.child_capacity(items.len());
+        let cap = child_capacity(self.leaf_cap, self.node_cap, items.len());
         let mut groups = Vec::new();
         vam_split(self.input, items, cap, 0, &mut groups);
         let mut children = Vec::with_capacity(groups.len());

@@ -85,11 +85,7 @@ impl Builder<'_> {
             return idx;
         }
         // Capacity of a child subtree: the smallest power cap^h (h ≥ 1) with cap^(h+1) ≥ n.
-        let n_items = items.len();
-        let mut child_cap = self.cap;
-        while child_cap.saturating_mul(self.cap) < n_items {
-            child_cap *= self.cap;
-        }
+        let child_cap = child_capacity(self.cap, self.cap, items.len());
         let mut groups = Vec::new();
         vam_split(self.input, items, child_cap, 0, &mut groups);
         let mut children = Vec::with_capacity(groups.len());
@@ -109,6 +105,18 @@ impl Builder<'_> {
         n.block_end = self.order.len() as u32;
         idx
     }
+}
+
+/// Capacity of one child subtree of a node over `n` items: the smallest
+/// `leaf_cap · node_cap^h` (h ≥ 0) whose `node_cap` copies hold `n` (with `leaf_cap = node_cap`,
+/// the smallest power `cap^h`, h ≥ 1, with `cap^(h+1) ≥ n`). Shared by the block tree and the
+/// scene graph ([`super::SceneGraphTree`]).
+pub(super) fn child_capacity(leaf_cap: usize, node_cap: usize, n: usize) -> usize {
+    let mut c = leaf_cap;
+    while c.saturating_mul(node_cap) < n {
+        c = c.saturating_mul(node_cap);
+    }
+    c
 }
 
 /// White & Jain's VAMSplit: `items` (indices into `input`, at `offset` in the node's slice) cut

@@ -8,9 +8,10 @@
 //! ([`Batching::PerUnit`]) the triangles reach the rasteriser in the same order, so both give the
 //! same image.
 
+use super::pack::{pack_meshes, BlockRange, PackedMeshes, Vertex, GROUND};
 use super::{padded_row_bytes, Gpu, PassTimer, Readback, RenderError};
 use crate::blocks::BlockId;
-use crate::city::appearance::{self, BuildingStyle};
+use crate::city::appearance;
 use crate::city::Mesh;
 use crate::geom::Camera;
 use bytemuck::{Pod, Zeroable};
@@ -22,8 +23,6 @@ use wgpu::util::DeviceExt;
 const COLOR_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba8Unorm;
 /// Depth target format (see the module docs of [`super`] for the depth convention).
 const DEPTH_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
-/// Unit id of the ground's vertices (never a block id).
-const GROUND: u32 = 0x00FF_FFFF;
 /// The ground's id (for naming its meshes in errors).
 pub(crate) const GROUND_ID: u32 = GROUND;
 /// Sky colour (linear RGB as written): [`appearance::SKY`].
@@ -134,46 +133,6 @@ impl Frame {
     }
 }
 
-/// One vertex as the shader reads it (36 bytes): position and normal (local frame), the
-/// along-wall coordinate `u` (m), the index of its style in the style table and its unit's id
-/// (what the id pass writes; per vertex, so that one call may draw many units).
-#[repr(C)]
-#[derive(Clone, Copy, Pod, Zeroable)]
-struct Vertex {
-    position: [f32; 3],
-    normal: [f32; 3],
-    u_m: f32,
-    style: u32,
-    unit: u32,
-}
-
-/// [`BuildingStyle`] as `mesh.wgsl`'s `Style` (storage buffer, 64 bytes): the values exactly as
-/// computed on the CPU, so the shader's arithmetic starts from the same f32s.
-#[repr(C)]
-#[derive(Clone, Copy, Pod, Zeroable)]
-struct GpuStyle {
-    /// rgb facade, w window_half.
-    facade: [f32; 4],
-    /// rgb window, w inv_storey_m.
-    window: [f32; 4],
-    /// rgb roof, w inv_bay_m.
-    roof: [f32; 4],
-    /// x levels.
-    levels: [u32; 4],
-}
-
-impl From<&BuildingStyle> for GpuStyle {
-    fn from(s: &BuildingStyle) -> Self {
-        let c = |rgb: [f32; 3], w: f32| [rgb[0], rgb[1], rgb[2], w];
-        GpuStyle {
-            facade: c(s.facade, s.window_half),
-            window: c(s.window, s.inv_storey_m),
-            roof: c(s.roof, s.inv_bay_m),
-            levels: [s.levels, 0, 0, 0],
-        }
-    }
-}
-
 /// The `appearance` constants `mesh.wgsl` uses, as WGSL declarations printed from the Rust
 /// values (`{:?}` prints the shortest decimal that reads back as the same f32).
 fn wgsl_constants() -> String {
@@ -190,96 +149,12 @@ fn wgsl_constants() -> String {
     )
 }
 
-/// Appends `mesh` to the shared buffers (indices absolute), its styles to the style table (a
-/// mesh without appearance gets style 0, the default); its vertices carry `block`'s id.
-fn push_mesh(
-    vertices: &mut Vec<Vertex>,
-    indices: &mut Vec<u32>,
-    styles: &mut Vec<GpuStyle>,
-    mesh: &Mesh,
-    block: BlockId,
-) -> Result<(), RenderError> {
-    if mesh.positions.len() != mesh.normals.len() || !mesh.indices.len().is_multiple_of(3) {
-        return Err(RenderError::BadMesh {
-            block,
-            positions: mesh.positions.len(),
-            normals: mesh.normals.len(),
-            indices: mesh.indices.len(),
-        });
-    }
-    if !mesh.appearance.is_empty() && mesh.appearance.len() != mesh.positions.len() {
-        return Err(RenderError::BadAppearance {
-            block,
-            positions: mesh.positions.len(),
-            appearance: mesh.appearance.len(),
-        });
-    }
-    if let Some(bad) = mesh
-        .appearance
-        .iter()
-        .find(|a| a.style as usize >= mesh.styles.len())
-    {
-        return Err(RenderError::StyleOutOfRange {
-            block,
-            style: bad.style,
-            styles: mesh.styles.len(),
-        });
-    }
-    if let Some(&bad) = mesh
-        .indices
-        .iter()
-        .find(|&&k| k as usize >= mesh.positions.len())
-    {
-        return Err(RenderError::IndexOutOfRange {
-            block,
-            index: bad,
-            vertices: mesh.positions.len(),
-        });
-    }
-    let offset = u32::try_from(vertices.len() + mesh.positions.len())
-        .map(|_| vertices.len() as u32)
-        .map_err(|_| RenderError::TooManyVertices {
-            block,
-            vertices: vertices.len() + mesh.positions.len(),
-        })?;
-    let style0 = styles.len() as u32;
-    styles.extend(mesh.styles.iter().map(GpuStyle::from));
-    vertices.extend(
-        mesh.positions
-            .iter()
-            .zip(&mesh.normals)
-            .enumerate()
-            .map(|(i, (p, n))| {
-                let (u_m, style) = mesh
-                    .appearance
-                    .get(i)
-                    .map_or((0.0, 0), |a| (a.u_m, style0 + a.style));
-                Vertex {
-                    position: p.to_array(),
-                    normal: n.to_array(),
-                    u_m,
-                    style,
-                    unit: block.0,
-                }
-            }),
-    );
-    indices.extend(mesh.indices.iter().map(|k| k + offset));
-    Ok(())
-}
-
 #[repr(C)]
 #[derive(Clone, Copy, Pod, Zeroable)]
 struct Globals {
     clip_from_world: [[f32; 4]; 4],
     sun: [f32; 4],
     mode: [u32; 4],
-}
-
-/// Where one unit lives in the index buffer (indices are absolute).
-#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord)]
-struct BlockRange {
-    first_index: u32,
-    index_count: u32,
 }
 
 /// How the visible units are turned into draw calls.
@@ -417,71 +292,14 @@ impl MeshRenderer {
             });
         }
         let device = &gpu.device;
-        // Group meshes by block, the blocks in the order of their first appearance, keeping
-        // the input order within a block.
-        let mut first_seen: std::collections::HashMap<BlockId, usize> =
-            std::collections::HashMap::with_capacity(blocks.len());
-        for (i, (id, _)) in blocks.iter().enumerate() {
-            first_seen.entry(*id).or_insert(i);
-        }
-        let mut order: Vec<usize> = (0..blocks.len()).collect();
-        order.sort_by_key(|&i| first_seen[&blocks[i].0]);
-        let mut vertices: Vec<Vertex> = Vec::new();
-        let mut indices: Vec<u32> = Vec::new();
-        // Style 0: the default, for meshes without appearance.
-        let mut styles: Vec<GpuStyle> = vec![GpuStyle::from(&BuildingStyle::default())];
-        // The ground comes first: the plane (a 40 km square at z = 0 around the local origin),
-        // then the ground layers, in drawing order. The ground's own meshes report the
-        // ground's id.
-        let plane_mesh = appearance::ground_plane(appearance::GROUND_PLANE_HALF_M);
-        push_mesh(
-            &mut vertices,
-            &mut indices,
-            &mut styles,
-            &plane_mesh,
-            BlockId(GROUND),
-        )?;
-        let plane = BlockRange {
-            first_index: 0,
-            index_count: indices.len() as u32,
-        };
-        push_mesh(
-            &mut vertices,
-            &mut indices,
-            &mut styles,
-            ground_layers,
-            BlockId(GROUND),
-        )?;
-        let ground = BlockRange {
-            first_index: plane.index_count,
-            index_count: indices.len() as u32 - plane.index_count,
-        };
-        let max_id = blocks.iter().map(|b| b.0 .0).max();
-        if max_id.is_some_and(|m| m >= GROUND) {
-            return Err(RenderError::BlockIdTooLarge {
-                id: max_id.unwrap_or(0),
-                limit: GROUND - 1,
-            });
-        }
-        let mut ranges: Vec<Option<BlockRange>> = vec![None; max_id.map_or(0, |m| m as usize + 1)];
-        let mut i = 0;
-        while i < order.len() {
-            let id = blocks[order[i]].0;
-            let first_index = indices.len();
-            while i < order.len() && blocks[order[i]].0 == id {
-                let mesh = blocks[order[i]].1;
-                push_mesh(&mut vertices, &mut indices, &mut styles, mesh, id)?;
-                i += 1;
-            }
-            let too_many = || RenderError::TooManyVertices {
-                block: id,
-                vertices: vertices.len(),
-            };
-            ranges[id.0 as usize] = Some(BlockRange {
-                first_index: u32::try_from(first_index).map_err(|_| too_many())?,
-                index_count: u32::try_from(indices.len() - first_index).map_err(|_| too_many())?,
-            });
-        }
+        let PackedMeshes {
+            vertices,
+            indices,
+            styles,
+            ranges,
+            plane,
+            ground,
+        } = pack_meshes(blocks, ground_layers)?;
 
         let vertex_buffer = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
             label: Some("block vertices"),

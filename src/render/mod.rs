@@ -23,6 +23,7 @@
 mod blockmap;
 mod frames;
 mod mesh;
+mod pack;
 #[cfg(feature = "window")]
 pub mod window;
 

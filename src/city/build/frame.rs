@@ -21,6 +21,7 @@ use serde::Serialize;
 use super::geometry::polygons_of;
 use super::BuildError;
 use crate::city::model::{Building, LocalFrame};
+use crate::geom::Rect;
 
 /// A feature whose centre is this many times the median centre distance from the origin is an
 /// outlier (when also beyond [`OUTLIER_MIN_DISTANCE_M`]).
@@ -62,22 +63,16 @@ pub fn f32_spacing(d: f64) -> f64 {
 
 /// `[xmin, ymin, xmax, ymax]` of the finite corners of `p`'s outer ring; `None` when it has none.
 pub fn finite_bbox(p: &Polygon<f64>) -> Option<[f64; 4]> {
-    let mut b = [
-        f64::INFINITY,
-        f64::INFINITY,
-        f64::NEG_INFINITY,
-        f64::NEG_INFINITY,
-    ];
-    for c in p.exterior().0.iter() {
-        if c.x.is_finite() && c.y.is_finite() {
-            b = [b[0].min(c.x), b[1].min(c.y), b[2].max(c.x), b[3].max(c.y)];
-        }
-    }
-    (b[0] <= b[2]).then_some(b)
+    p.exterior()
+        .0
+        .iter()
+        .filter(|c| c.x.is_finite() && c.y.is_finite())
+        .fold(None, |b, c| Some(Rect::grow(b, Rect::point([c.x, c.y]))))
+        .map(Rect::to_array)
 }
 
 fn bbox_centre(p: &Polygon<f64>) -> Option<[f64; 2]> {
-    finite_bbox(p).map(|b| [(b[0] + b[2]) * 0.5, (b[1] + b[3]) * 0.5])
+    finite_bbox(p).map(|b| Rect::from(b).centre())
 }
 
 fn median(v: &mut [f64]) -> Option<f64> {

@@ -9,6 +9,8 @@ use std::borrow::Cow;
 
 use geo_types::{Coord, Geometry, LineString, Polygon};
 
+use crate::geom::Rect;
+
 /// The polygons of a geometry (borrowed where the geometry holds them); `None` for a kind
 /// that is not a polygon.
 pub(crate) fn polygons_of(g: &Geometry<f64>) -> Option<Vec<Cow<'_, Polygon<f64>>>> {
@@ -79,19 +81,14 @@ pub fn has_tag(attrs: &Attributes, k: &str, v: &str) -> bool {
 
 /// The box `[xmin, ymin, xmax, ymax]` of the given rings when every coordinate is finite.
 fn finite_box<'a>(rings: impl IntoIterator<Item = &'a LineString<f64>>) -> Option<[f64; 4]> {
-    let mut b = [
-        f64::INFINITY,
-        f64::INFINITY,
-        f64::NEG_INFINITY,
-        f64::NEG_INFINITY,
-    ];
+    let mut b: Option<Rect> = None;
     for c in rings.into_iter().flat_map(|r| &r.0) {
         if !(c.x.is_finite() && c.y.is_finite()) {
             return None;
         }
-        b = [b[0].min(c.x), b[1].min(c.y), b[2].max(c.x), b[3].max(c.y)];
+        b = Some(Rect::grow(b, Rect::point([c.x, c.y])));
     }
-    (b[0] <= b[2]).then_some(b)
+    b.map(Rect::to_array)
 }
 
 /// [`MetricTransform::box_fits`] for many small boxes, decided once per block of a grid.
