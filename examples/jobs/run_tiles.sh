@@ -1,6 +1,6 @@
 #!/bin/bash
 # A city in tiles on one machine: plan, every tile with `xargs -P`, merge, each step under
-# /usr/bin/time -v (peak memory per job). The figures in the README came from this script.
+# /usr/bin/time -v (peak memory per job). The figures in docs/jobs.md come from this script.
 #
 # usage: examples/jobs/run_tiles.sh CITY_DIR OUT_DIR MAX_BUILDINGS [PARALLEL] [-- run options, e.g. --blockmaps 64]
 set -euo pipefail
