@@ -1,4 +1,4 @@
-//! Polygon repair and extrusion against the vertex count (issue 10, item 18): time per call for
+//! Polygon repair and extrusion against the vertex count: time per call for
 //! one n-vertex ring (n = 1k … 100k), for a ring whose every tenth vertex carries a spike, and for
 //! m footprints of 2,000 vertices each, with the exponent k of a least-squares fit t ∝ n^k.
 //!

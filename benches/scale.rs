@@ -1,5 +1,5 @@
 //! Time and peak memory of import, extrusion and block detection against the number of
-//! buildings, with the fitted exponents (issue 13, item 2).
+//! buildings, with the fitted exponents.
 //!
 //! For each N a generated city (seed 1) is written to a folder, then a child process (this
 //! bench binary run again) imports it as `blockwalk import` does (the footprint and street

@@ -1,4 +1,4 @@
-//! Parents built from their children's maps (issue 12, item 1, the option): the max filter on
+//! Parents built from their children's maps (an option): the max filter on
 //! handmade maps, the parent's solid holding its children's (proptest, checked point by point),
 //! and on Helsinki and a generated city every parent agreeing with the polygon-built parent
 //! within ε, its error measured against the polygons within its derived ε, and the coverage

@@ -1,4 +1,4 @@
-//! Input that must not be misplaced, end to end through the city build (issue 10, items 10–16):
+//! Input that must not be misplaced, end to end through the city build:
 //! layers in different CRS, coordinates that do not fit their CRS, a stray building far away,
 //! street layers with nothing usable, every feature refused, implausible heights. Each case
 //! asserts the specific error variant or the documented repair.

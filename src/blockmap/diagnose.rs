@@ -1,4 +1,4 @@
-//! Where a hybrid frame's coverage error comes from (issue 12): every pixel whose coverage
+//! Where a hybrid frame's coverage error comes from: every pixel whose coverage
 //! differs between the hybrid frame (near meshes + far maps, drawn as [`super::CpuHybridRenderer`]
 //! draws them) and the mesh-only frame of the same camera, classified by cause.
 //!

@@ -34,7 +34,7 @@
 //! - Second edges: a texel whose footprint part no single half-plane holds closely (a convex
 //!   corner inside the texel, or a building narrower than the texel: two parallel sides) keeps
 //!   `square ∩ H₁ ∩ H₂`, both half-planes encoded as above and each holding every footprint
-//!   point of the texel, so the intersection does too. The diagnosis of issue 12
+//!   point of the texel, so the intersection does too. The diagnosis of hybrid frames
 //!   (`blockmap::diagnose`) found the one-half-plane excess of such texels to be the largest
 //!   class of wrong pixels on fly-overs. Maps written with one edge section (`(3K + 256) × K`)
 //!   read as maps without second edges.

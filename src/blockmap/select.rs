@@ -24,7 +24,7 @@
 //! stays a map while `e ≤ τ`; a node the previous frame did not decide (a first frame, a node that
 //! was culled or under a map) becomes a map when `e ≤ τ`. The default `h = 0.25` is the 1.25 ratio
 //! BLOCKMAPS.md C.1 suggests, in its form `τ/1.25 … τ`. So every drawn map has `e ≤ τ` on every
-//! frame, which the screen-space bound of issue 12 (no mismatched pixel farther than
+//! frame, which the walk's screen-space bound (no mismatched pixel farther than
 //! `1 px + τ/cos²θ` from a silhouette) needs, and a walk towards the city selects the same maps as
 //! fresh frames of the same cameras. A band above τ (maps held up to `τ·(1 + h)`) was measured
 //! against it on the fly-over of the 80k generated city (τ = 1, K = 64, 1280×1024, 8 frames):

@@ -1,6 +1,6 @@
-//! The screen-space bound of a hybrid frame, checked with the exact geometry (issue 12: "no
-//! mismatched pixel farther than 1 px + τ/cos²θ from a mesh silhouette, on every frame of every
-//! route").
+//! The screen-space bound of a hybrid frame, checked with the exact geometry: no
+//! mismatched pixel may lie farther than 1 px + τ/cos²θ from a mesh silhouette, on every frame of
+//! every route.
 //!
 //! [`super::far::image_error`] measures, from the two pictures alone, how far each
 //! coverage-mismatched pixel lies from a silhouette of the frame that does not cover it (the raw
@@ -33,7 +33,7 @@
 //!    Pixels settled by the lattice or the twin are counted as *sub-pixel*; the rest are
 //!    violations (ratio `raw/r` > 1).
 //!
-//! τ is the selection's threshold, as the issue states the bound; a map the hysteresis keeps
+//! τ is the selection's threshold, as the bound is stated; a map the hysteresis keeps
 //! (`e ≤ τ·(1 + h)`) may project its ε up to `τ·(1 + h)`, and its pixels are judged with τ all
 //! the same (the stricter reading).
 //!

@@ -330,9 +330,7 @@ pub fn run_job(
         }),
         _ => None,
     };
-    let renderer = job
-        .render
-        .then(|| gpu.renderer(scene, job.size, field_ref));
+    let renderer = job.render.then(|| gpu.renderer(scene, job.size, field_ref));
     let drawing = match &renderer {
         None => Drawing::Off,
         Some(Ok(r)) => Drawing::With(r.as_ref()),
