@@ -56,6 +56,7 @@ fn run(name: &str, fp: &Layer, st: Option<&Layer>) {
                     ..BuildOptions::default()
                 },
                 stop,
+                ..TreeOptions::default()
             },
             &|_, _| {},
         )
@@ -119,11 +120,9 @@ fn parents(name: &str, fp: &Layer, st: Option<&Layer>) {
             &layout,
             &tree,
             &TreeOptions {
-                build: BuildOptions {
-                    parents,
-                    ..BuildOptions::default()
-                },
+                build: BuildOptions::default(),
                 stop: Stop::Competitive,
+                parents,
             },
             &|_, _| {},
         )

@@ -74,6 +74,7 @@ fn main() {
                 tree: TreeOptions {
                     build: BuildOptions::default(),
                     stop: Stop::Levels(4),
+                    ..TreeOptions::default()
                 },
                 checks: 0,
                 check_size: (16, 9),

@@ -489,6 +489,7 @@ fn bound_never_violated_on_the_bundled_data() {
                 build: BuildOptions::default(),
                 // Every map the command builds by default (seed 000 §4's competitive stop).
                 stop: Stop::Competitive,
+                ..TreeOptions::default()
             },
             &|_, _| {},
         )
@@ -523,6 +524,7 @@ fn maps_are_deterministic_and_the_footprint_scan_matches_the_oracle() {
             ..BuildOptions::default()
         },
         stop: Stop::Levels(3),
+        ..TreeOptions::default()
     };
     let a = build_tree(&source, &layout, &tree, &opts, &|_, _| {}).unwrap();
     let b = build_tree(&source, &layout, &tree, &opts, &|_, _| {}).unwrap();
@@ -677,6 +679,7 @@ fn scene_builds_the_maps_in_one_call() {
                 tree: TreeOptions {
                     build: BuildOptions::default(),
                     stop: Stop::Levels(2),
+                    ..TreeOptions::default()
                 },
                 checks: 2,
                 check_size: (80, 45),
@@ -755,6 +758,7 @@ fn buildings_the_map_does_not_hold_are_reported_as_vanished() {
                 ..BuildOptions::default()
             },
             stop: Stop::Levels(2),
+            ..TreeOptions::default()
         },
         &|_, _| {},
     )

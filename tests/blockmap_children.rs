@@ -193,11 +193,9 @@ fn both_ways(name: &str, city: &blockwalk::city::City, layout: &blockwalk::block
             layout,
             &tree,
             &TreeOptions {
-                build: BuildOptions {
-                    parents,
-                    ..BuildOptions::default()
-                },
+                build: BuildOptions::default(),
                 stop: Stop::Competitive,
+                parents,
             },
             &|_, _| {},
         )
@@ -326,9 +324,9 @@ fn children_maps_are_deterministic() {
     let tree = BqrTree::build(&bounds, &BqrParams::default()).unwrap();
     let opts = TreeOptions {
         build: BuildOptions {
-            parents: Parents::Children,
             ..BuildOptions::default()
         },
+        parents: Parents::Children,
         stop: Stop::Levels(3),
     };
     let a = build_tree(&source, &layout, &tree, &opts, &|_, _| {}).unwrap();

@@ -52,6 +52,7 @@ fn helsinki_maps() -> (Vec<BlockMap>, Vec<u32>) {
                 ..BuildOptions::default()
             },
             stop,
+            ..TreeOptions::default()
         };
         let t = build_tree(&source, &layout, &tree, &opts, &|_, _| {}).unwrap();
         for m in t.maps {

@@ -89,9 +89,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 ao_radius_m: args.ao_radius,
                 fill_samples: args.fill_samples,
                 fill_share: args.fill_share,
-                parents: args.parents.parse()?,
                 ..BuildOptions::default()
             },
+            parents: args.parents.parse()?,
             stop,
         },
         checks: args.check,

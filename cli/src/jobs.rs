@@ -140,6 +140,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                         ..BuildOptions::default()
                     },
                     stop: Stop::Competitive,
+                    ..TreeOptions::default()
                 },
                 checks: 0,
                 ..CityMapsOptions::default()

@@ -106,6 +106,7 @@ pub fn build_far_maps_with(
         tree: TreeOptions {
             build,
             stop: Stop::Competitive,
+            ..TreeOptions::default()
         },
         checks: 0,
         ..CityMapsOptions::default()

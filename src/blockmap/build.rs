@@ -96,8 +96,6 @@ pub struct BuildOptions {
     /// Store a footprint edge (half-plane) in each texel a footprint edge crosses (see the
     /// module doc); off builds whole-texel columns only.
     pub edges: bool,
-    /// How the maps of inner quadtree nodes are built (a tree option: single maps ignore it).
-    pub parents: Parents,
     /// With [`BuildOptions::edges`], store a second half-plane where two hold a texel's
     /// footprint part more closely than one (a convex corner, a building narrower than the
     /// texel; `layout` doc).
@@ -114,7 +112,6 @@ impl Default for BuildOptions {
             ao: false,
             ao_radius_m: 30.0,
             edges: true,
-            parents: Parents::Polygons,
             two_edges: true,
         }
     }

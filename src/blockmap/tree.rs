@@ -5,7 +5,7 @@
 //! internal nodes from the children because its data is out of core; ours fits in memory, and
 //! this gives each node its own measured bound with no error accumulation). Building inner
 //! nodes from their children's maps is the option [`super::children`]
-//! (`BuildOptions::parents`).
+//! (`TreeOptions::parents`).
 
 use super::build::{build_map, BuildOptions, BuildStats, Parents, ResampleStats};
 use super::children::{build_from_children, node_square, resample_distances};
@@ -46,6 +46,8 @@ pub struct TreeOptions {
     pub build: BuildOptions,
     /// Where to stop.
     pub stop: Stop,
+    /// How the maps of inner nodes are built: from the polygons, or from their children's maps.
+    pub parents: Parents,
 }
 
 impl Default for TreeOptions {
@@ -53,6 +55,7 @@ impl Default for TreeOptions {
         Self {
             build: BuildOptions::default(),
             stop: Stop::Competitive,
+            parents: Parents::Polygons,
         }
     }
 }
@@ -168,7 +171,7 @@ pub fn build_tree(
     opts: &TreeOptions,
     progress: &(dyn Fn(usize, usize) + Sync),
 ) -> Result<MapTree, BlockMapError> {
-    if opts.build.parents == Parents::Children {
+    if opts.parents == Parents::Children {
         return build_tree_from_children(source, layout, tree, opts, progress);
     }
     let sel = select_nodes(tree, opts.build.k, opts.stop);

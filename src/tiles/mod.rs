@@ -456,6 +456,7 @@ pub fn build_tileset(
                 ..BuildOptions::default()
             },
             stop: opts.stop,
+            ..TreeOptions::default()
         },
         progress,
     )

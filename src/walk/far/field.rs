@@ -233,6 +233,7 @@ impl BuildFar for MapTree {
             tree: TreeOptions {
                 build: opts.build,
                 stop: Stop::Competitive,
+                ..TreeOptions::default()
             },
             checks: 0,
             ..CityMapsOptions::default()
