@@ -1,4 +1,4 @@
-//! Ambient occlusion of a BlockMap (seed 002 §4.2.1 stores it in the A channels of the roof/ground
+//! Ambient occlusion of a BlockMap (Di Benedetto, §4.2.1 stores it in the A channels of the roof/ground
 //! section and of the wall columns; §4.3.2 computes it by rendering the occluders from many
 //! directions). Here it is horizon-based over the map's own height field, on the CPU:
 //!
@@ -15,7 +15,7 @@
 //!   the wall's normal). The ground below the horizon counts as open (the same as over flat
 //!   ground), so an unobstructed wall reads 255 like an open roof.
 //!
-//! Deviations from seed 002, for a CPU build: the occluders are the map's own prisms (seed 002
+//! Deviations from Di Benedetto, for a CPU build: the occluders are the map's own prisms (Di Benedetto
 //! renders "all potential occluders", or those within a fixed radius), so the ground near the
 //! map's border misses the occlusion of buildings in other maps; every map computes its own AO
 //! instead of computing it at the leaves and inheriting it upwards, because every map here is built

@@ -1,5 +1,5 @@
 //! The reference ray caster: the exact 2D grid walk (Amanatides & Woo) over the height map that
-//! the GPU runs (seed 002 §4.2.2; BLOCKMAPS.md A.5), written once over a [`Real`] type and run in
+//! the GPU runs (Di Benedetto, §4.2.2; BLOCKMAPS.md A.5), written once over a [`Real`] type and run in
 //! `f32` (operation for operation as the WGSL shader) and in `f64` (the twin, which also flags
 //! rays that pass within a tolerance of a cell corner, a height level or the box's exit, where the
 //! two may legitimately differ).
@@ -176,8 +176,8 @@ impl Cast {
 /// Options of a cast.
 #[derive(Clone, Copy, Debug, Default)]
 pub struct CastOptions<'a> {
-    /// The distance map ([`BlockMap::distance_map`]) for space leaping (seed 000 §3.2); `None`
-    /// runs the plain grid walk (seed 002 §4.2.2).
+    /// The distance map ([`BlockMap::distance_map`]) for space leaping (Cignoni et al., §3.2); `None`
+    /// runs the plain grid walk (Di Benedetto, §4.2.2).
     pub leap: Option<&'a [u8]>,
 }
 
@@ -282,7 +282,7 @@ fn cast_generic<T: Real>(map: &BlockMap, ray: &TexRay<T>, opts: &CastOptions) ->
         steps,
         margin,
     };
-    // Slab test: [t_near, t_far] and the axis of entry (seed 002 §4.2.2 step (d): the longest
+    // Slab test: [t_near, t_far] and the axis of entry (Di Benedetto, §4.2.2 step (d): the longest
     // the ray can travel in the box, so the loop needs no box test).
     let mut t_near = -T::INF;
     let mut t_far = T::INF;
@@ -370,7 +370,7 @@ fn cast_generic<T: Real>(map: &BlockMap, ray: &TexRay<T>, opts: &CastOptions) ->
     let mut leaped_at = -1i64;
     for _ in 0..(2 * k) {
         steps += 1;
-        // Space leap (seed 000 §3.2): from an empty cell at Chebyshev distance D ≥ 2 from any
+        // Space leap (Cignoni et al., §3.2): from an empty cell at Chebyshev distance D ≥ 2 from any
         // prism, every cell within D − 1 is empty: advance by D − 1 texels in max-norm.
         if let Some(dm) = opts.leap {
             let cell = w.j * k + w.i;
@@ -633,7 +633,7 @@ pub struct Surface {
     pub normal: Vec3,
 }
 
-/// The attributes of a hit (seed 002 §4.2.2, Fig. 4.6): a roof reads section 2 and the roof
+/// The attributes of a hit (Di Benedetto, §4.2.2, Fig. 4.6): a roof reads section 2 and the roof
 /// normal; a wall reads the column addressed by the offset map, at the row of the hit's height
 /// in the texel's slice, and the column's normal row. A wall texel without a column (only
 /// possible with an exposure threshold, BLOCKMAPS.md A.4-1) and an inside hit use the roof

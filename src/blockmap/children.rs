@@ -1,4 +1,4 @@
-//! Parents built from their children's maps (the option; seed 002 §4.3.1
+//! Parents built from their children's maps (the option; Di Benedetto, §4.3.1
 //! builds internal nodes "from the 4 children", BLOCKMAPS.md A.3 and A.4-7) instead of from the
 //! source polygons ([`Parents::Children`], `blockwalk blockmaps --parents children`).
 //!
@@ -30,7 +30,7 @@
 //!   polygon builder: the attributes are averaged per texel, not per exposed side, and a texel
 //!   with no walled child texel at all takes its roof colour and the mean of its exposed sides'
 //!   directions as normal.
-//! - **Children without a map** (kids of a mapped node drawn as meshes, seed 000 §4's
+//! - **Children without a map** (kids of a mapped node drawn as meshes, Cignoni et al., §4's
 //!   competitive stop) are built **from the polygons first**, at the same K, and resampled like
 //!   the others; they are not kept.
 //!

@@ -1,11 +1,11 @@
 //! A ray-cast image of one map against the oracle's image of the same buildings' meshes
 //! (BLOCKMAPS.md D.3), from views where the projected error is at most one pixel.
 //!
-//! - **Coverage error** (seed 001's measure): the share of pixels where one image shows a
+//! - **Coverage error** (Andujar et al.'s measure): the share of pixels where one image shows a
 //!   building and the other does not.
 //! - **The screen-space bound**: every mismatched pixel must lie within `1 px + e_px/cos²θ` of a
 //!   silhouette pixel of the image that does not cover it (`θ` the pixel's angle off the
-//!   optical axis, BLOCKMAPS.md A.4-12; `e_px` seed 000 §3.3 with the distance to the nearest
+//!   optical axis, BLOCKMAPS.md A.4-12; `e_px` Cignoni et al., §3.3 with the distance to the nearest
 //!   point of the map's bounding sphere). Derivation, with `r = e_px/cos²θ` the largest image
 //!   shift of a world displacement of ε seen from at least the sphere's distance:
 //!   - the map covers pixel `p` and the mesh does not: the map's hit `P` lies within ε of the
@@ -55,7 +55,7 @@ pub struct ViewCompare {
     pub map_pixels: usize,
     /// Pixels whose coverage differs.
     pub mismatched: usize,
-    /// `mismatched / (width·height)` (seed 001's coverage error).
+    /// `mismatched / (width·height)` (Andujar et al.'s coverage error).
     pub coverage_error: f64,
     /// `mismatched / |mesh ∪ map pixels|`: the same count against the pixels either image
     /// covers, a stricter figure when the map is small on screen.
@@ -101,7 +101,7 @@ pub fn view_at(map: &BlockMap, az: f64, el: f64, height_px: u32, eps_px_target: 
     let r = b.extent().length() * 0.5;
     let mut cam = Camera::new(DVec3::ZERO, 0.0, 0.0);
     let eps = map.meta.eps_m;
-    // e_px = ε·H / (2·d·tan(fov/2)) with d the distance to the sphere's nearest point (seed 000
+    // e_px = ε·H / (2·d·tan(fov/2)) with d the distance to the sphere's nearest point (Cignoni et al.
     // §3.3): choose d for the target, then stand at d + r from the centre.
     let d = eps * height_px as f64 / (2.0 * (0.5 * cam.fov_y).tan() * eps_px_target);
     let dist = d + r;

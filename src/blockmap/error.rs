@@ -1,6 +1,6 @@
 //! The geometric error of a BlockMap, measured (BLOCKMAPS.md §B.3): a sampled symmetric
 //! Hausdorff distance in f64 between the surface of the map's prisms and the surface of the
-//! original prisms, and the declared bound `ε = max(½ voxel diagonal (seed 000 §3.3), measured)`.
+//! original prisms, and the declared bound `ε = max(½ voxel diagonal (Cignoni et al., §3.3), measured)`.
 //!
 //! Both surfaces are taken with the ground (`z = 0`) as part of them, as a viewer sees them.
 //! Distances are exact point-to-surface distances; only the point sets are sampled:
@@ -8,7 +8,7 @@
 //!   half texel, wall points along every ring edge every half texel at the bottom, the top and
 //!   every 2 texels in between (a wall covered by a neighbour prism is not a surface and is
 //!   skipped); for raised parts (`min_height` > 0) the underside and the ground below it, which a
-//!   2.5D map cannot represent (seed 002 §4.2.1: height fields are 2.5D).
+//!   2.5D map cannot represent (Di Benedetto, §4.2.1: height fields are 2.5D).
 //! - map → original: every texel's top at its centre and corners, and every exposed side at its
 //!   midpoint (at the bottom, the top and every 2 texels of its wall) and its two ends (bottom
 //!   and top).
@@ -60,7 +60,7 @@ pub struct ThinFeature {
 /// The measured error of one map.
 #[derive(Clone, Debug, Default, PartialEq, Serialize)]
 pub struct ErrorReport {
-    /// ½·√(2s² + Δz²), metres (seed 000 §3.3).
+    /// ½·√(2s² + Δz²), metres (Cignoni et al., §3.3).
     pub half_voxel_diagonal_m: f64,
     /// Largest original → map distance, metres.
     pub original_to_map_m: f64,

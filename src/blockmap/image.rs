@@ -1,6 +1,6 @@
 //! Images of BlockMaps as the GPU draws them, on the CPU: the reference image the WGSL ray
 //! caster (`render/blockmap.wgsl`) is tested against, and the CPU fallback of hybrid frames
-//! (meshes near, maps far; seed 000 §4, seed 002 §4.2.2).
+//! (meshes near, maps far; Cignoni et al., §4, Di Benedetto, §4.2.2).
 //!
 //! # Rays exactly as the fragment shader makes them
 //! Every value below is computed in `f32` in the same order as the shader (the per-frame and

@@ -1,11 +1,11 @@
-//! The BlockMap texture: the revised RGBA8 layout of seed 002 §4.2.1, its box and its storage as
+//! The BlockMap texture: the revised RGBA8 layout of Di Benedetto, §4.2.1, its box and its storage as
 //! a PNG plus a small JSON file.
 //!
 //! # Which version, and why
-//! - **Texel format and sections: seed 002 §4.2.1** (RGBA8, `(2K + 256) × K`), not the 2007 RGB8
-//!   layout (seed 000 §3.1): RGBA8 is PNG-encodable, carries AO and roof normals, and addresses 256
+//! - **Texel format and sections: Di Benedetto, §4.2.1** (RGBA8, `(2K + 256) × K`), not the 2007 RGB8
+//!   layout (Cignoni et al., §3.1): RGBA8 is PNG-encodable, carries AO and roof normals, and addresses 256
 //!   wall columns in slices instead of rescaling the wall region along u.
-//! - **Distance map: seed 000 §3.1–3.2**, kept out of the texture (the revised B channel holds the
+//! - **Distance map: Cignoni et al., §3.1–3.2**, kept out of the texture (the revised B channel holds the
 //!   roof normal x) as an optional side array ([`BlockMap::distance_map`]), derived from the
 //!   height map, so that the space leap can be measured against the plain grid walk.
 //!
@@ -23,7 +23,7 @@
 //!   `[s·K/S, (s+1)·K/S)`: `K/S − 1` colour rows over the box height, then the normal row.
 //! - Normal components are stored as `byte = round(127·n) + 128`, decoded `(byte − 128)/127`:
 //!   deviation from the `byte/127.5 − 1` reading of BLOCKMAPS.md A.2, so that a flat roof decodes to
-//!   exactly `(0, 0, 1)`. The roof normal's z is rebuilt as `√max(0, 1 − x² − y²)` (seed 002 §4.2.1).
+//!   exactly `(0, 0, 1)`. The roof normal's z is rebuilt as `√max(0, 1 − x² − y²)` (Di Benedetto, §4.2.1).
 //! - Heights decode as `zmin + code/255·(zmax − zmin)` so that `zmax` is exact (BLOCKMAPS.md A.4-4);
 //!   `zmin` is the ground (0), and code 0 is empty: rays pass through, the ground is drawn elsewhere.
 //! - Edges: `n = (decode_unit(R), decode_unit(G))` and `o = (B − 128)/127 · 0.75` texels
@@ -45,7 +45,7 @@ use glam::{DVec3, Vec3};
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 
-/// The height-map sides a BlockMap may have (seed 002 §4.2.1: "64 or 128" are best).
+/// The height-map sides a BlockMap may have (Di Benedetto, §4.2.1: "64 or 128" are best).
 pub const ALLOWED_K: [u32; 3] = [32, 64, 128];
 
 /// Width of the wall attribute section (8-bit offsets address 256 columns).
@@ -138,7 +138,7 @@ pub struct BlockMapMeta {
     pub node_key: u64,
 }
 
-/// A BlockMap (seed 002 §4.2.1): the RGBA8 image and its box.
+/// A BlockMap (Di Benedetto, §4.2.1): the RGBA8 image and its box.
 #[derive(Clone, Debug, PartialEq)]
 pub struct BlockMap {
     /// Box, quantisation and error.
@@ -157,7 +157,7 @@ impl BlockMap {
     pub fn empty(k: u32, min: DVec3, side: f64, zmax: f64) -> Result<Self, BlockMapError> {
         if !ALLOWED_K.contains(&k) {
             return Err(BlockMapError::BadParameter(format!(
-                "K = {k}: expected one of 32, 64, 128 (seed 002 §4.2.1)"
+                "K = {k}: expected one of 32, 64, 128 (Di Benedetto, §4.2.1)"
             )));
         }
         if !(min.is_finite() && side.is_finite() && side > 0.0 && zmax.is_finite()) || zmax <= min.z
@@ -225,7 +225,7 @@ impl BlockMap {
             DVec3::new(m.x + self.meta.side, m.y + self.meta.side, self.meta.zmax),
         )
     }
-    /// Half the diagonal of one voxel (seed 000 §3.3): `½·√(2s² + Δz²)`.
+    /// Half the diagonal of one voxel (Cignoni et al., §3.3): `½·√(2s² + Δz²)`.
     pub fn half_voxel_diagonal(&self) -> f64 {
         let s = self.texel_m();
         let dz = self.dz_m();
@@ -370,7 +370,7 @@ impl BlockMap {
         Vec3::new(x, y, (1.0 - x * x - y * y).max(0.0).sqrt())
     }
 
-    /// The 2007 distance map (seed 000 §3.1–3.2), computed from the height map: per texel, the
+    /// The 2007 distance map (Cignoni et al., §3.1–3.2), computed from the height map: per texel, the
     /// Chebyshev distance in texels to the nearest non-empty texel, clamped to 255 (0 on a
     /// building). Units and metric are not in the paper (BLOCKMAPS.md A.4-8): this reading makes
     /// a leap of `D − 1` texels in max-norm safe.

@@ -1,7 +1,7 @@
-//! BlockMaps for the nodes of the block quadtree (seed 000 §4: "reusing the same spatial
+//! BlockMaps for the nodes of the block quadtree (Cignoni et al., §4: "reusing the same spatial
 //! partitioning"; BLOCKMAPS.md B.2): one map per BqR-tree node, over the node's whole blocks, so
 //! no building is ever cut and a node switches between meshes and its map with disjoint block
-//! sets. Every map is built from the source prisms, not from its children (seed 002 §4.3.1 builds
+//! sets. Every map is built from the source prisms, not from its children (Di Benedetto, §4.3.1 builds
 //! internal nodes from the children because its data is out of core; ours fits in memory, and
 //! this gives each node its own measured bound with no error accumulation). Building inner
 //! nodes from their children's maps is the option [`super::children`]
@@ -32,7 +32,7 @@ pub enum Stop {
     Competitive,
 }
 
-/// Coverage error a checked view should stay under (seed 001 §4, Fig. 4: 0.01).
+/// Coverage error a checked view should stay under (Andujar et al., §4, Fig. 4: 0.01).
 pub const COVERAGE_TARGET: f64 = 0.01;
 
 /// Bytes of a block's meshes per triangle, as the mesh renderer stores them: three unshared
@@ -426,7 +426,7 @@ fn parent_from_children(
 }
 
 /// The hierarchy [`build_tree`] would build over `tree`, with empty maps whose declared ε is half
-/// their voxel diagonal (seed 000 §3.3) made monotone upward: what selection sees of a map tree
+/// their voxel diagonal (Cignoni et al., §3.3) made monotone upward: what selection sees of a map tree
 /// (boxes, ε, blocks), built in milliseconds. For selection tests and for timing selection
 /// apart from construction; nothing here is drawable.
 ///

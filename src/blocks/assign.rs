@@ -1,4 +1,4 @@
-//! Assigning buildings to blocks (seed 003 §3, fourth step): one point of each footprint is tested
+//! Assigning buildings to blocks (Pina, Serón and Cerezo, §3, fourth step): one point of each footprint is tested
 //! against the blocks' bounding boxes (an R-tree), then by the odd-crossing ray test.
 //!
 //! The point is a guaranteed interior point of the footprint (a scanline midpoint, see

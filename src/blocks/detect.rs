@@ -22,7 +22,7 @@ pub struct BlockOptions {
     /// Honour grade separation: leave bridges and tunnels (`Street::grade_separated`) out of the
     /// street graph, so a street passing over or under land does not bound a block.
     ///
-    /// Default `false`: every street line bounds blocks, as in the planar reference (seed 003 §3
+    /// Default `false`: every street line bounds blocks, as in the planar reference (Pina, Serón and Cerezo, §3
     /// "completely surrounded by streets"; momepy's `enclosures` and shapely's
     /// `polygonize(union_all(lines))` use every line). A bridge over water or a railway then closes
     /// the blocks on either side, which is what a block layer is expected to show. Set it when the
@@ -89,7 +89,7 @@ fn finite_poly(p: &Polygon<f64>) -> bool {
     finite_line(p.exterior()) && p.interiors().iter().all(finite_line)
 }
 
-/// Detects the blocks of a city and assigns every building to exactly one block (seed 003 §3).
+/// Detects the blocks of a city and assigns every building to exactly one block (Pina, Serón and Cerezo, §3).
 ///
 /// The source is the street layer when there is one, else the parcels, else the footprints (or
 /// [`BlockOptions::force_source`]). Blocks are in the city's metric world coordinates.

@@ -1,4 +1,4 @@
-//! Faces of a planar graph by the counter-clockwise walk (seed 003 §3: "if the final point of a
+//! Faces of a planar graph by the counter-clockwise walk (Pina, Serón and Cerezo, §3: "if the final point of a
 //! street coincided with the initial point of several streets, the selection of the suitable street
 //! was performed in a counter-clockwise manner").
 //!

@@ -1,4 +1,4 @@
-//! Blocks without a street layer (seed 003 §3: "streets are usually identified in cadastral maps,
+//! Blocks without a street layer (Pina, Serón and Cerezo, §3: "streets are usually identified in cadastral maps,
 //! otherwise it is necessary to perform the identification").
 //!
 //! - From parcels: a block is a connected union of parcels that share boundary. The parcels'

@@ -1,4 +1,4 @@
-//! Streets and urban blocks (seed 003 §3): "any portion of terrain completely surrounded by
+//! Streets and urban blocks (Pina, Serón and Cerezo, §3): "any portion of terrain completely surrounded by
 //! streets".
 //!
 //! Build a planar street graph ([`noding`]: splitting, snapping), extract its bounded faces by the

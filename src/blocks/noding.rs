@@ -1,4 +1,4 @@
-//! Noding street lines into a planar graph (seed 003 §3, first step of "blocks were identified
+//! Noding street lines into a planar graph (Pina, Serón and Cerezo, §3, first step of "blocks were identified
 //! from streets": the streets must meet at shared points before the walk can follow them).
 //!
 //! Every segment is split at every crossing, at every T-junction and where another line's end

@@ -1,4 +1,4 @@
-//! Footprint + heights → a closed, outward-oriented prism [`Mesh`] (seed 003 §3: each building is
+//! Footprint + heights → a closed, outward-oriented prism [`Mesh`] (Pina, Serón and Cerezo, §3: each building is
 //! its footprint extruded to its height).
 //!
 //! - Walls: two triangles per ring edge, with the edge's own outward normal; wall vertices are

@@ -6,7 +6,7 @@
 //! - [`build`]: layers → city (CRS to metric, heights, repair; the [`CityReport`]).
 //! - [`appearance`]: the procedural look of buildings, streets and ground (one definition,
 //!   mirrored in `render/mesh.wgsl`).
-//! - [`extrude`]: footprint + heights → closed, outward-oriented [`Mesh`] (seed 003 §3).
+//! - [`extrude`]: footprint + heights → closed, outward-oriented [`Mesh`] (Pina, Serón and Cerezo, §3).
 //! - [`export`]: glTF binary and GeoJSON.
 //! - [`generate`]: deterministic procedural cities, written as Shapefiles.
 

@@ -1,5 +1,5 @@
 //! View frustum: six planes from a view-projection matrix, and the sphere / box / box∩sphere
-//! tests with plane masking and temporal coherence (seed 004 §3.1, seed 003 §4).
+//! tests with plane masking and temporal coherence (Willmott et al., §3.1, Pina, Serón and Cerezo, §4).
 //!
 //! Everything is f64 and meant for the local frame (world minus `LocalFrame::origin`): a frustum
 //! built from a world-space camera far from the origin is moved into the local frame with
@@ -144,7 +144,7 @@ impl Frustum {
             .all(|pl| !matches!(box_plane(c, e, pl), PlaneSide::Out))
     }
 
-    /// Test of the intersection of a box and a sphere (the BqR-tree leaf volume, seed 003 §4):
+    /// Test of the intersection of a box and a sphere (the BqR-tree leaf volume, Pina, Serón and Cerezo, §4):
     /// outside when the box or the sphere is outside a plane; a plane is cleared when the box or
     /// the sphere is fully inside it (the intersection is then inside it too).
     pub fn test_aabb_sphere(&self, b: &Aabb3, s: &BoundingSphere) -> Containment {

@@ -1,7 +1,7 @@
 //! Robust 2D predicates (orientation, point in ring), built on the `robust` crate.
 //!
 //! Every decision here is exact: orientation uses Shewchuk's adaptive-precision `orient2d`, and
-//! the point-in-ring test (the odd-crossing ray test that seed 003 §3 uses to assign buildings
+//! the point-in-ring test (the odd-crossing ray test that Pina, Serón and Cerezo, §3 uses to assign buildings
 //! to blocks) decides every crossing with that orientation, never with a computed intersection.
 //!
 //! The ring predicates are generic over [`Xy`], so the same code serves world [`Coord`]s
@@ -133,7 +133,7 @@ pub fn on_segment<P: Xy>(a: P, b: P, p: P) -> bool {
         && p.y() <= a.y().max(b.y())
 }
 
-/// Where `p` lies relative to a ring: the odd-crossing ray test (seed 003 §3), exact.
+/// Where `p` lies relative to a ring: the odd-crossing ray test (Pina, Serón and Cerezo, §3), exact.
 ///
 /// A horizontal ray goes from `p` towards +x. An edge counts as crossed when its end points lie
 /// on different sides of the line `y = p.y` under the half-open rule (an end point exactly on the

@@ -10,7 +10,7 @@
 //! the noding kept apart. Hence a second, smaller constant, checked against the first below.
 
 /// Snap tolerance of the blocks' street graph: street vertices closer than this are one node, and
-/// a line end this close to another line joins it (seed 003 §3 needs streets that meet).
+/// a line end this close to another line joins it (Pina, Serón and Cerezo, §3 needs streets that meet).
 ///
 /// 5 cm is far below any street width (so no two real junctions merge) and far above the
 /// millimetre misses of digitised data and the coordinate round-off of UTM northings near 1e7 m

@@ -2,7 +2,7 @@
 //! random views with each, time it, and check every result against brute force
 //! ([`may_be_visible`], built on the exact box–frustum test [`Frustum::intersects_aabb_exact`]).
 //!
-//! This reproduces the setting of seed 003 §5.1 (Table 1: seconds per frame of no tree,
+//! This reproduces the setting of Pina, Serón and Cerezo, §5.1 (Table 1: seconds per frame of no tree,
 //! VAMSplit R-tree and BqR-tree; BqR/VAMSplit = 0.638) for the culling part only: the paper's
 //! frame time includes drawing the accepted geometry, here we report the culling work and the
 //! accepted triangles separately.
@@ -337,7 +337,7 @@ fn measure(
         out.clear();
         let q = CullQuery::with_eye(f, cam.position);
         let t0 = Instant::now();
-        // No hidden-volume filter: nodes completely inside are accepted whole (seed 003 §5).
+        // No hidden-volume filter: nodes completely inside are accepted whole (Pina, Serón and Cerezo, §5).
         let stats = index.cull(&q, None, &mut out);
         times.push(t0.elapsed().as_secs_f64() * 1e6);
         nodes += stats.nodes_visited;

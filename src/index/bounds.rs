@@ -54,7 +54,7 @@ fn ring_vertices(r: &LineString<f64>) -> usize {
 ///   vertices at its own `min_height_m` and `height_m` (the extruded prisms' vertices, so it
 ///   holds the prisms); for a block without buildings, its box's sphere.
 /// - `center`: the centroid of the block outline (local), or of its box when the outline is
-///   degenerate (seed 003 §4 assigns blocks to quadrants by this "geometric center").
+///   degenerate (Pina, Serón and Cerezo, §4 assigns blocks to quadrants by this "geometric center").
 /// - `triangles`: the sum of [`extruded_triangles`] over its buildings.
 ///
 /// Building ids that are not in `city` are skipped (the layout and city disagree; blocks are

@@ -1,4 +1,4 @@
-//! The BqR-tree (seed 003 §4): an adaptive quadtree over the city's bounding rectangle whose
+//! The BqR-tree (Pina, Serón and Cerezo, §4): an adaptive quadtree over the city's bounding rectangle whose
 //! nodes hold bounding spheres and whose leaves hold one block each with a box∩sphere volume.
 //!
 //! # Layout
@@ -116,7 +116,7 @@ struct ObjectSlot {
     node: u32,
 }
 
-/// The BqR-tree (seed 003 §4). Immutable for blocks after its build; mobile objects can be
+/// The BqR-tree (Pina, Serón and Cerezo, §4). Immutable for blocks after its build; mobile objects can be
 /// inserted, moved and removed.
 #[derive(Clone, Debug)]
 pub struct BqrTree {
@@ -169,7 +169,7 @@ impl Builder<'_> {
             pass: idx,
             box_only: false,
         });
-        // A quadrant with one block is indivisible (seed 003 §4); several blocks with the same
+        // A quadrant with one block is indivisible (Pina, Serón and Cerezo, §4); several blocks with the same
         // centre can never be separated: stop at the depth limit with a multi-block leaf.
         if items.len() <= 1 || depth >= self.max_depth {
             self.order.extend_from_slice(items);
@@ -179,7 +179,7 @@ impl Builder<'_> {
                 let b = &self.input[i as usize].aabb;
                 aabb = aabb.union(*b);
                 // The leaf volume is the block's own sphere (the smallest around its geometry,
-                // `BlockBounds::sphere`) ∩ a box. Deviation (seed 003 §4 intersects it with the
+                // `BlockBounds::sphere`) ∩ a box. Deviation (Pina, Serón and Cerezo, §4 intersects it with the
                 // quadrant box): a block is assigned by its centre and may stick out of its
                 // quadrant, so the quadrant box is not conservative; we intersect with the
                 // block's own AABB. Each holds the geometry, so the intersection does.
@@ -226,7 +226,7 @@ impl Builder<'_> {
             );
             *child = self.build(head, cmin, cmax, (key << 2) | q as u64, depth + 1, idx);
         }
-        // Inner node: the sphere enclosing its children's spheres, bottom-up (seed 003 §4).
+        // Inner node: the sphere enclosing its children's spheres, bottom-up (Pina, Serón and Cerezo, §4).
         let mut aabb = Aabb3::EMPTY;
         let mut sphere: Option<BoundingSphere> = None;
         for &c in children.iter().filter(|&&c| c != NONE) {
@@ -250,7 +250,7 @@ impl Builder<'_> {
 }
 
 impl BqrTree {
-    /// Builds the tree over `bounds` (seed 003 §4): the city's bounding rectangle (of the
+    /// Builds the tree over `bounds` (Pina, Serón and Cerezo, §4): the city's bounding rectangle (of the
     /// blocks' boxes and centres) is split into four equal quadrants recursively until a
     /// quadrant holds at most one block centre.
     ///
@@ -637,7 +637,7 @@ impl BqrTree {
             stats: CullStats::default(),
         };
         if let (Some(hot), None, None) = (&self.hot, &sink.keep, &coherence) {
-            // The plain frustum cull (seed 003 §5) on the traversal layout: the same blocks.
+            // The plain frustum cull (Pina, Serón and Cerezo, §5) on the traversal layout: the same blocks.
             hot.cull(query.frustum, query.eye, &mut sink);
             return sink.stats;
         }
@@ -844,7 +844,7 @@ impl Traversal<'_, '_, '_, '_> {
         sink.stats.nodes_visited += 1;
         let mut m = mask;
         let tests = &mut sink.stats.plane_tests;
-        // Top-down culling (seed 003 §5): outside → cull the subtree, inside → accept it
+        // Top-down culling (Pina, Serón and Cerezo, §5): outside → cull the subtree, inside → accept it
         // without further tests, partial → descend. `m` keeps the planes still crossed.
         let res = if m == 0 {
             Containment::Inside
@@ -958,7 +958,7 @@ impl Traversal<'_, '_, '_, '_> {
     }
 }
 
-/// The smaller of `merged` (the sphere around the children's spheres, seed 003 §4) and the
+/// The smaller of `merged` (the sphere around the children's spheres, Pina, Serón and Cerezo, §4) and the
 /// sphere around the corners of `aabb`, the box of the node's whole content. Both hold every
 /// block and object of the subtree, so either is conservative; the box's sphere is often the
 /// smaller one, as the merged spheres accumulate slack level after level.

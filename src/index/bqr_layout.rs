@@ -1,5 +1,5 @@
-//! The BqR-tree's traversal layout: the same tree (seed 003 §4) laid out for the frustum cull of
-//! seed 003 §5, apart from the node records that the build, the mobile objects and
+//! The BqR-tree's traversal layout: the same tree (Pina, Serón and Cerezo, §4) laid out for the frustum cull of
+//! Pina, Serón and Cerezo, §5, apart from the node records that the build, the mobile objects and
 //! [`super::BqrTree::node`] use.
 //!
 //! # Why a second layout
@@ -329,7 +329,7 @@ impl Walk<'_, '_, '_, '_, '_> {
         self.sink.stats.nodes_visited += 1;
         let mut m = mask;
         if m != 0 {
-            // Top-down culling (seed 003 §5) on the planes still crossed (`m`).
+            // Top-down culling (Pina, Serón and Cerezo, §5) on the planes still crossed (`m`).
             self.sink.stats.plane_tests += u64::from(m.count_ones());
             let (out, inside) = self.planes.sphere(&n.c, n.r);
             if out & m != 0 {

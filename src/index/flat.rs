@@ -6,7 +6,7 @@ use super::{
 use crate::blocks::BlockId;
 use crate::geom::{Aabb3, Containment, Frustum, ALL_PLANES};
 
-/// Accepts every block without a test (the paper's "no tree", seed 003 §5.1 Table 1).
+/// Accepts every block without a test (the paper's "no tree", Pina, Serón and Cerezo, §5.1 Table 1).
 #[derive(Clone, Debug)]
 pub struct NoStructure {
     blocks: Vec<BlockBounds>,

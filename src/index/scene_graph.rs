@@ -1,18 +1,18 @@
-//! The VAMSplit R-tree over *buildings* with scene-graph semantics: the setting of seed 003 §5.1,
+//! The VAMSplit R-tree over *buildings* with scene-graph semantics: the setting of Pina, Serón and Cerezo, §5.1,
 //! where the comparison structure is an R-tree over the scene's geometry loaded into a scene
 //! graph (OpenGL Performer) whose leaves are drawn whole.
 //!
 //! The items are single buildings (or any boxes); they are grouped top-down by White & Jain's
 //! VAMSplit into *pages* of at most [`SceneGraphParams::leaf_capacity`] items, and the pages into
 //! inner nodes of at most [`SceneGraphParams::node_capacity`] children. Culling is Performer's
-//! (seed 003 §5.1): a node outside the frustum is dropped with its subtree, a node inside it is
+//! (Pina, Serón and Cerezo, §5.1): a node outside the frustum is dropped with its subtree, a node inside it is
 //! accepted with its subtree without further tests, a partly inside node is descended, and a
 //! *leaf* (a page) whose box meets the frustum is accepted whole: its items are not tested one by
 //! one, because in a scene graph the leaf is one piece of geometry. The output ids are *page*
 //! ids (`BlockId(p)` for page `p`, see [`SceneGraphTree::page_items`]), the unit the renderer
 //! draws.
 //!
-//! Deviation from seed 003: the paper does not give the tree's fan-out; the default (8 items a
+//! Deviation from Pina, Serón and Cerezo: the paper does not give the tree's fan-out; the default (8 items a
 //! page, 8 children a node) is the block VAMSplit tree's.
 
 use super::bqr::box_distance_2;

@@ -1,5 +1,5 @@
 //! The smallest sphere around a block's geometry, the sphere half of the BqR-tree's
-//! "bounding-box-sphere" leaf volume (seed 003 §4: "calculate [the blocks'] geometric centers and
+//! "bounding-box-sphere" leaf volume (Pina, Serón and Cerezo, §4: "calculate [the blocks'] geometric centers and
 //! bounding spheres"; the leaf volume is that sphere intersected with a box).
 //!
 //! # Method

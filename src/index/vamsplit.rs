@@ -1,5 +1,5 @@
 //! The VAMSplit R-tree (White & Jain 1996), the structure the BqR-tree is compared with in
-//! seed 003 §5.1.
+//! Pina, Serón and Cerezo, §5.1.
 //!
 //! A static top-down build: a node's items are split recursively in two on the dimension of
 //! maximum variance of the block centres, at the multiple of the child subtree's capacity

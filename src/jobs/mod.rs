@@ -3,12 +3,12 @@
 //!
 //! Three steps, each a function and a `blockwalk jobs` command:
 //!
-//! 1. [`plan`]: the street graph's faces for the whole city (seed 003 §3), then one streaming
+//! 1. [`plan`]: the street graph's faces for the whole city (Pina, Serón and Cerezo, §3), then one streaming
 //!    pass over the footprints (read [`STREAM_CHUNK`] at a time, never all at once) that repairs
 //!    each footprint and assigns it to its block with the one-job rule
 //!    ([`crate::blocks::assign::assign`]), counting buildings and growing each block's box; the
 //!    buildings in no face form the outskirts groups, as in [`crate::blocks::detect`]. The blocks
-//!    are then cut into tiles along the block quadtree (the BqR-tree's quadrant rule, seed 003
+//!    are then cut into tiles along the block quadtree (the BqR-tree's quadrant rule, Pina, Serón and Cerezo
 //!    §4: the region of the blocks' boxes and centres split into four equal quadrants, a block
 //!    going to the quadrant of its centre) where a node holds at most `max_buildings`
 //!    buildings (a single block, or blocks at the depth limit, is never split: a tile can hold

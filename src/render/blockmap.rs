@@ -1,4 +1,4 @@
-//! The far-field pass: BlockMaps ray-cast on the GPU (seed 000 §3.2, seed 002 §4.2.2), drawn
+//! The far-field pass: BlockMaps ray-cast on the GPU (Cignoni et al., §3.2, Di Benedetto, §4.2.2), drawn
 //! into the colour and depth targets the mesh pass left (see the module docs of [`super`]).
 //!
 //! - **Storage**: maps are uploaded once as `Rgba8Uint` 2D texture arrays, one array ("page")

@@ -1,4 +1,4 @@
-// Ray-cast BlockMaps (seed 000 §3.2, seed 002 §4.2.2): one instance per selected map; each
+// Ray-cast BlockMaps (Cignoni et al., §3.2, Di Benedetto, §4.2.2): one instance per selected map; each
 // rasterises its box's back faces, and every fragment walks the map's height field with the grid
 // walk of `blockmap::cast` (Amanatides–Woo in 2D), operation for operation as `cast_f32` does it,
 // shades the hit as `blockmap::cast::surface` + `blockmap::colors::lit`, and writes its depth.

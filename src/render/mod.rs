@@ -15,7 +15,7 @@
 //! (`Depth32Float`, cleared to 1.0, `Less`, standard — not reversed — depth of the same
 //! `clip_from_world` that [`crate::geom::Camera::clip_from_world`] gives, depth range 0..1). Both
 //! textures are created with `RENDER_ATTACHMENT | TEXTURE_BINDING | COPY_SRC`, so a far-field
-//! pass (ray-cast BlockMaps, seed 000) can either load them as attachments (`LoadOp::Load`) and
+//! pass (ray-cast BlockMaps, Cignoni et al.) can either load them as attachments (`LoadOp::Load`) and
 //! depth-test its fragments with `Less`, writing `@builtin(frag_depth)` computed with the same
 //! projection, or sample the depth texture. Pixels no block covers keep depth 1.0 and the sky
 //! colour; the ground plane writes its depth too.

@@ -1,7 +1,7 @@
 //! Tables, plots and reports a person would rather look at than read.
 //!
 //! - [`plot`]: line and scatter plots to PNG / SVG.
-//! - [`walk`]: writes a walk's records (seed 003 §5.1): per-frame CSV, Table 1, Fig. 4, frames,
+//! - [`walk`]: writes a walk's records (Pina, Serón and Cerezo, §5.1): per-frame CSV, Table 1, Fig. 4, frames,
 //!   JSON, HTML. This module only writes: the walk itself is [`crate::walk`].
 
 pub mod plot;

@@ -1,4 +1,4 @@
-//! Routes for any city: the paper's route (seed 003 §5), a street-level walk, an orbit; and the
+//! Routes for any city: the paper's route (Pina, Serón and Cerezo, §5), a street-level walk, an orbit; and the
 //! street graph they walk on.
 
 use super::obstacles::{Obstacles, EYE_CLEARANCE_M};
@@ -307,7 +307,7 @@ fn keep_clear(
     }
 }
 
-/// Parameters of the paper's route (seed 003 §5).
+/// Parameters of the paper's route (Pina, Serón and Cerezo, §5).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct PaperRouteParams {
     /// Eye height above the ground while walking, metres.
@@ -331,7 +331,7 @@ pub struct PaperRouteParams {
 }
 
 impl Default for PaperRouteParams {
-    /// The proportions of seed 003 Fig. 4: the rise spans frames 48–140 of about 200, so about a
+    /// The proportions of Pina, Serón and Cerezo, Fig. 4: the rise spans frames 48–140 of about 200, so about a
     /// quarter of the time walks in, 45 % rises, the rest descends.
     fn default() -> Self {
         Self {
@@ -347,7 +347,7 @@ impl Default for PaperRouteParams {
     }
 }
 
-/// The paper's route (seed 003 §5) for a city whose geometry lies in `bounds` (local frame):
+/// The paper's route (Pina, Serón and Cerezo, §5) for a city whose geometry lies in `bounds` (local frame):
 /// it starts outside the city at street level (south of the box, `start_margin` out), walks to
 /// the centre (along the street network when `streets` has nodes: the shortest path, over the
 /// streets a camera can walk clear of `obstacles`, from the street node nearest the start to the
@@ -458,7 +458,7 @@ pub fn paper_route(
         lens,
         obstacles,
     );
-    // Straight down at the top, turning to the landing pitch on the way down (seed 003 Fig. 4
+    // Straight down at the top, turning to the landing pitch on the way down (Pina, Serón and Cerezo, Fig. 4
     // flies down "facing the floor"; the last frames look at the city, not at the ground).
     keys.push(KeyFrame::new(
         params.duration,

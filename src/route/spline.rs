@@ -1,6 +1,6 @@
 //! Interpolation kernels: centripetal Catmull–Rom for positions, squad for orientations.
 //!
-//! The route of seed 003 §5 is a sequence of camera moves; these kernels turn its key frames into a
+//! The route of Pina, Serón and Cerezo, §5 is a sequence of camera moves; these kernels turn its key frames into a
 //! smooth path that passes exactly through every key.
 
 use glam::{DQuat, DVec3};

@@ -1,16 +1,16 @@
-//! The coarse mesh of an inner tile: a BlockMap's height field as prisms (seed 000 §3: the map
+//! The coarse mesh of an inner tile: a BlockMap's height field as prisms (Cignoni et al., §3: the map
 //! is a height field of texel columns), their tops and their exposed walls, merged where flat.
 //!
 //! Tops of equal height code and colour are merged greedily into rectangles (runs along a row,
 //! then rows of equal runs); walls between a texel and a lower neighbour (or the ground) are
 //! merged into runs along their line with equal top, bottom and colour. Roof colours are the
 //! map's roof section (times its ambient occlusion), wall colours the map's wall column at
-//! mid-height (seed 002 §4.2.1), or the roof colour darkened for a texel without a column. The
+//! mid-height (Di Benedetto, §4.2.1), or the roof colour darkened for a texel without a column. The
 //! mesh is closed against the ground plane only (no floor), like the extruded prisms seen from
 //! above.
 //!
 //! The mesh is the map's own geometry, the texel prisms that the reference caster intersects
-//! (seed 002 §4.2.2) and that the error measure compares with the buildings (`blockmap::error`),
+//! (Di Benedetto, §4.2.2) and that the error measure compares with the buildings (`blockmap::error`),
 //! so the map's declared ε bounds its distance to the buildings: the tile's `geometricError`.
 //! Only the roof normals (sloped roofs) are not carried: tops are drawn flat.
 

@@ -4,11 +4,11 @@
 //! - The tile tree is the BqR-tree's ([`crate::index::BqrTree`]), as far as
 //!   [`crate::blockmap::build_tree`] gives its nodes a BlockMap: each mapped node is an inner
 //!   tile whose content is its map's height field as a coarse mesh ([`heightfield`]), with
-//!   `geometricError` = the map's declared ε (seed 000 §3.3; made monotone by the map tree);
+//!   `geometricError` = the map's declared ε (Cignoni et al., §3.3; made monotone by the map tree);
 //!   below it, each quadrant that has no map of its own becomes a leaf tile holding the meshes
 //!   of that quadrant's whole blocks (`geometricError` 0). Blocks are never cut, so every block
 //!   lies in exactly one leaf and REPLACE refinement swaps a node's map for exactly its blocks'
-//!   meshes (seed 000 §4: the far field reuses the spatial partition).
+//!   meshes (Cignoni et al., §4: the far field reuses the spatial partition).
 //! - Leaves are glTF with one feature per building: a per-vertex `_FEATURE_ID_0`
 //!   (`EXT_mesh_features`) indexing a property table (`EXT_structural_metadata`, class
 //!   `building`: `source_id`, `height_m`, `min_height_m`); see
@@ -94,7 +94,7 @@ pub enum TilesError {
 pub struct TilesetOptions {
     /// BlockMap height-map side K of the inner tiles (32, 64 or 128).
     pub k: u32,
-    /// Which quadtree nodes get a map (inner tiles); [`Stop::Competitive`] by default (seed 000
+    /// Which quadtree nodes get a map (inner tiles); [`Stop::Competitive`] by default (Cignoni et al.
     /// §4: a map where it costs fewer bytes than the meshes).
     pub stop: Stop,
 }

@@ -1,5 +1,5 @@
 //! Adversarial cameras for occlusion culling: eyes where a conservative cull map is easiest to
-//! get wrong (seed 004 §3.2 assumes whole walls are drawn; the frame clips at the near plane and
+//! get wrong (Willmott et al., §3.2 assumes whole walls are drawn; the frame clips at the near plane and
 //! rounds meshes to f32).
 //!
 //! Every view stands next to one building of the city, at `k · near` from a corner or a wall

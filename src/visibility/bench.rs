@@ -1,5 +1,5 @@
 //! The occlusion benchmark: the culler against the oracle over random views, at several cull
-//! map resolutions (seed 004 §3.2): time, effectiveness and false culls.
+//! map resolutions (Willmott et al., §3.2): time, effectiveness and false culls.
 
 use super::culler::{CullerOptions, OcclusionCuller};
 use super::cullmap::Resolution;

@@ -1,5 +1,5 @@
 //! Culling inside the surviving blocks: each building of a block that the structure kept is
-//! tested on its own against the view frustum and the cull map (seed 004 §3.2.8, "for each B in
+//! tested on its own against the view frustum and the cull map (Willmott et al., §3.2.8, "for each B in
 //! T: if B is within VF … if pointOccluded(OP)").
 //!
 //! Blocks are the unit the structures hand over; a block next to the viewer keeps all its
@@ -7,7 +7,7 @@
 //! [`BlockBuildings::refine`] keeps, of the buildings of the given blocks, those whose box is not
 //! outside the frustum and not hidden by the cull map.
 //!
-//! Deviation from seed 004 §3.2.8: the seed tests one occluder point per building (the centre of
+//! Deviation from Willmott et al., §3.2.8: the seed tests one occluder point per building (the centre of
 //! its footprint at its top) and exempts the buildings of the "local model"; here a building's
 //! whole box is tested with [`CullMap::box_hidden`], the same conservative test the blocks get
 //! (every cell its footprint touches must hide its top), so a building that its own shadow

@@ -1,7 +1,7 @@
 //! Per-frame occlusion culling: select occluders near the viewer, draw their shadows into the
-//! cull map, and test the index's nodes against it while frustum culling (seed 004 §3.2.5–3.2.8).
+//! cull map, and test the index's nodes against it while frustum culling (Willmott et al., §3.2.5–3.2.8).
 //!
-//! Conservative for the drawn frame, whatever the camera: seed 004 assumes each occluder's whole
+//! Conservative for the drawn frame, whatever the camera: Willmott et al. assumes each occluder's whole
 //! wall is drawn, exactly where the f64 footprint puts it. Here
 //! - walls nearer the eye than [`near_plane_reach`] are cut off the occluders (the frame clips
 //!   them at the near plane, and what lies behind a clipped corner shows);
@@ -105,7 +105,7 @@ pub struct OcclusionStats {
     pub cull: CullStats,
 }
 
-/// Occlusion culling with occluder shadows and a cull map (seed 004 §3.2).
+/// Occlusion culling with occluder shadows and a cull map (Willmott et al., §3.2).
 #[derive(Debug)]
 pub struct OcclusionCuller {
     blocks: Vec<BlockOccluders>,
@@ -231,7 +231,7 @@ impl OcclusionCuller {
         )
     }
 
-    /// The occluders chosen for `camera` (seed 004 §3.2.5): facade edges facing the viewer, of
+    /// The occluders chosen for `camera` (Willmott et al., §3.2.5): facade edges facing the viewer, of
     /// blocks within the local radius whose box meets the frustum, the `max_occluders` largest,
     /// nearest first.
     ///
@@ -239,7 +239,7 @@ impl OcclusionCuller {
     /// mesh, [`Slack::f32_mesh`]) from the eye in plan view: the renderer and the oracle clip
     /// everything nearer than the near plane, so a wall there hides nothing, and a shadow that
     /// assumed it did would hide what the frame shows through the clipped corner of a building
-    /// (seed 004 §3.2.2 assumes the whole wall is drawn). A sub-segment of a solid wall is still
+    /// (Willmott et al., §3.2.2 assumes the whole wall is drawn). A sub-segment of a solid wall is still
     /// a solid wall, so the cut edges' shadows stay conservative.
     pub fn select(&self, camera: &Camera, out: &mut Vec<Occluder>) -> (u64, Option<SkipReason>) {
         out.clear();
@@ -394,7 +394,7 @@ impl OcclusionCuller {
             !h
         };
         // Without a usable map there is nothing to filter: no callback, so structures keep
-        // their "node completely inside → accept the subtree" shortcut (seed 003 §5).
+        // their "node completely inside → accept the subtree" shortcut (Pina, Serón and Cerezo, §5).
         let hidden_filter: Option<&mut dyn FnMut(&Aabb3) -> bool> =
             if use_map { Some(&mut filter) } else { None };
         st.cull = index.cull(&query, hidden_filter, out);

@@ -1,4 +1,4 @@
-//! The cull map (seed 004 §3.2.3–3.2.4): a regular grid over the city's plan-view bounds, per cell
+//! The cull map (Willmott et al., §3.2.3–3.2.4): a regular grid over the city's plan-view bounds, per cell
 //! the height below which everything is hidden this frame.
 //!
 //! Shadows are drawn on the CPU in f64 and kept as f32 cells, rounded down. A cell takes a
@@ -358,7 +358,7 @@ impl CullMap {
     }
 
     /// Restricts [`CullMap::draw`] to the cells that meet the convex hull of `points` grown by
-    /// `pad` metres (the frustum's plan-view footprint, seed 004 §3.2.4: cells nobody looks at
+    /// `pad` metres (the frustum's plan-view footprint, Willmott et al., §3.2.4: cells nobody looks at
     /// need no shadow). Drawing fewer cells only ever hides less, so any window is conservative;
     /// boxes that stick out of the window are not hidden.
     pub fn set_window(&mut self, points: &[DVec2], pad: f64) {

@@ -1,7 +1,7 @@
 //! The per-frame roles a walk or a viewer plays, as traits, with their CPU implementations:
 //!
 //! - [`OcclusionCulling`]: culls a frame through a [`CityIndex`], dropping what is proven
-//!   hidden ([`OcclusionCuller`], seed 004 §3.2).
+//!   hidden ([`OcclusionCuller`], Willmott et al., §3.2).
 //! - [`VisibilityOracle`]: the exact set of blocks a camera sees ([`MeshOracle`], the CPU
 //!   z-buffer of [`super::oracle`]).
 //! - [`FrameRenderer`]: draws a frame of the blocks a culler kept ([`CpuFrameRenderer`], the
@@ -34,10 +34,10 @@ pub trait OcclusionCulling: Sync {
     ) -> CullStats;
 }
 
-/// The occluder-shadow culler (seed 004 §3.2).
+/// The occluder-shadow culler (Willmott et al., §3.2).
 impl OcclusionCulling for OcclusionCuller {
     fn describe(&self) -> String {
-        "occluder shadows + cull map (seed 004 §3.2)".into()
+        "occluder shadows + cull map (Willmott et al., §3.2)".into()
     }
     fn cull_frame(
         &self,

@@ -1,4 +1,4 @@
-//! Occlusion culling with occluder shadows and a cull map (seed 004 §3.2), and the visibility
+//! Occlusion culling with occluder shadows and a cull map (Willmott et al., §3.2), and the visibility
 //! oracle that checks it.
 //!
 //! - [`shadow`]: [`Occluder`] (a facade's top edge) and its [`OccluderShadow`] from a viewpoint.
@@ -13,7 +13,7 @@
 //! - [`adversarial`]: seeded adversarial views (eyes at the near plane's distance from corners
 //!   and walls, on wall planes, over roofs, straight up and down).
 //! - [`synthetic`]: a synthetic grid city with exact meshes, for tests and benches.
-//! - [`buildings`]: per-building culling inside the blocks that survived (seed 004 §3.2.8).
+//! - [`buildings`]: per-building culling inside the blocks that survived (Willmott et al., §3.2.8).
 //! - [`bench`]: the culler against the oracle over random views, per cull map resolution.
 
 pub mod adversarial;

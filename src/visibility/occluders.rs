@@ -1,5 +1,5 @@
 //! Occluders of a city: facade top edges, per block, with collinear runs merged along block
-//! fronts (seed 004 §3.2.5).
+//! fronts (Willmott et al., §3.2.5).
 
 use super::shadow::Occluder;
 use crate::blocks::{BlockId, BlockLayout};

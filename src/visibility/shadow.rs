@@ -1,4 +1,4 @@
-//! The occluder shadow of one facade edge (seed 004 §3.2.2, after Wonka & Schmalstieg 1999).
+//! The occluder shadow of one facade edge (Willmott et al., §3.2.2, after Wonka & Schmalstieg 1999).
 //!
 //! A facade edge `(a, b)` at height `h` stands for a wall that is solid from the ground up to `h`
 //! along the whole segment. Seen from a viewpoint `v`, a point `p` is hidden by that wall exactly
@@ -96,7 +96,7 @@ impl ShadowPlane {
     }
 }
 
-/// The occluder shadow of one edge (seed 004 §3.2.2, figure 8): the plan-view region where
+/// The occluder shadow of one edge (Willmott et al., §3.2.2, figure 8): the plan-view region where
 /// anything below [`OccluderShadow::plane`] is hidden behind the wall.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct OccluderShadow {
@@ -147,7 +147,7 @@ pub enum NoShadow {
 }
 
 impl OccluderShadow {
-    /// Builds the shadow of `occ` seen from `viewer` (seed 004 §3.2.2). The edge may face the
+    /// Builds the shadow of `occ` seen from `viewer` (Willmott et al., §3.2.2). The edge may face the
     /// viewer or not: a solid wall hides what is behind it either way.
     ///
     /// Cases: viewer below the edge top (the plane rises behind the wall), at its height (the

@@ -1,10 +1,10 @@
-//! Table 1 of seed 003: averages per structure and culling mode along a route.
+//! Table 1 of Pina, Serón and Cerezo: averages per structure and culling mode along a route.
 
 use super::{CullMode, FrameRecord};
 use crate::index::Structure;
 use serde::Serialize;
 
-/// Averages over the route for one structure and mode (seed 003 Table 1).
+/// Averages over the route for one structure and mode (Pina, Serón and Cerezo, Table 1).
 #[derive(Clone, Debug, Serialize)]
 pub struct SummaryRow {
     /// The structure.

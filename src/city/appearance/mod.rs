@@ -1,7 +1,7 @@
 //! Procedural appearance: one deterministic definition of what buildings, streets and the ground
 //! look like, shared by the mesh shader (`render/mesh.wgsl` mirrors [`facade_color`] and
 //! [`shade`] line for line), the CPU fallback renderer (`visibility::oracle::shade`) and BlockMap
-//! construction (seed 000 §3.3 and seed 002 §4.3 take wall and roof colours "from the geometry";
+//! construction (Cignoni et al., §3.3 and Di Benedetto, §4.3 take wall and roof colours "from the geometry";
 //! here the geometry's colours are these functions).
 //!
 //! # The definition

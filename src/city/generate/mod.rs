@@ -1,5 +1,5 @@
 //! Deterministic procedural cities, written as Shapefiles, for benchmarks at scales the bundled
-//! real data does not reach (seed 003 §6 measures cities of tens of thousands of buildings).
+//! real data does not reach (Pina, Serón and Cerezo, §6 measures cities of tens of thousands of buildings).
 //!
 //! The layout: a street grid whose block sizes (60–150 m) and street widths (12–25 m) vary at
 //! random; each block is cut into parcels along its four sides (a perimeter block, the common

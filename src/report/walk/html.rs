@@ -46,7 +46,7 @@ const TABLE1_NOTE: &str = "<p>Seed 003 Table 1 (OpenGL Performer, Zaragoza, GeFo
     the VAMSplit R-tree over the same blocks as the BqR-tree; <code>scenegraph</code> is the \
     paper's setting, a VAMSplit R-tree over buildings whose leaves (pages of up to 8 buildings) \
     are drawn whole; its <i>blocks</i> column counts pages. The <code>+buildings</code> modes \
-    test each building of the surviving blocks against the frustum (and the cull map), seed 004 \
+    test each building of the surviving blocks against the frustum (and the cull map), Willmott et al. \
     §3.2.8; <i>buildings</i> counts those drawn.</p>";
 
 /// `v` with `d` decimals, or a dash.
@@ -77,7 +77,7 @@ pub fn page(record: &WalkRecord, ctx: &ReportContext, e: &Embedded) -> String {
         t = record.total_s * 1e3
     );
     machine_section(&mut h, record, ctx);
-    h.push_str("<h2>Average per frame (seed 003 Table 1)</h2><table><tr><th>structure</th><th>culling</th><th>ms/frame</th><th>ratio BqR/structure</th><th>cull ms</th><th>render ms</th><th>triangles</th><th>blocks</th><th>buildings</th><th>nodes</th><th>false culls</th></tr>");
+    h.push_str("<h2>Average per frame (Pina, Serón and Cerezo, Table 1)</h2><table><tr><th>structure</th><th>culling</th><th>ms/frame</th><th>ratio BqR/structure</th><th>cull ms</th><th>render ms</th><th>triangles</th><th>blocks</th><th>buildings</th><th>nodes</th><th>false culls</th></tr>");
     for r in &record.summary {
         let _ = write!(
             h,
@@ -122,7 +122,7 @@ pub fn page(record: &WalkRecord, ctx: &ReportContext, e: &Embedded) -> String {
     for p in &e.plots {
         let _ = write!(
             h,
-            "<h2>Along the route ({m}; seed 003 Fig. 4)</h2><p><img src=\"{ft}\" alt=\"time per frame, {m}\"></p><p><img src=\"{tr}\" alt=\"triangles drawn, {m}\"></p>",
+            "<h2>Along the route ({m}; Pina, Serón and Cerezo, Fig. 4)</h2><p><img src=\"{ft}\" alt=\"time per frame, {m}\"></p><p><img src=\"{tr}\" alt=\"triangles drawn, {m}\"></p>",
             m = escape(p.mode.name()),
             ft = p.frame_time,
             tr = p.triangles,

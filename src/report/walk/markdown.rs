@@ -1,9 +1,9 @@
-//! Table 1 of seed 003 as Markdown.
+//! Table 1 of Pina, Serón and Cerezo as Markdown.
 
 use crate::walk::SummaryRow;
 use std::fmt::Write as _;
 
-/// The summary as a Markdown table (seed 003 Table 1, plus culling and triangle columns).
+/// The summary as a Markdown table (Pina, Serón and Cerezo, Table 1, plus culling and triangle columns).
 pub fn summary_markdown(summary: &[SummaryRow]) -> String {
     let mut s = String::new();
     let _ = writeln!(

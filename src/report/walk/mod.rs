@@ -1,4 +1,4 @@
-//! Writes a [`WalkRecord`] (seed 003 §5.1, Fig. 4 and Table 1): per-frame CSV, the Table-1
+//! Writes a [`WalkRecord`] (Pina, Serón and Cerezo, §5.1, Fig. 4 and Table 1): per-frame CSV, the Table-1
 //! summary as Markdown, one JSON object, frame-time and triangle plots along the route, the kept
 //! frames as PNG, and a self-contained HTML page that links them.
 //!
