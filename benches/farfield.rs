@@ -84,14 +84,14 @@ fn main() {
         .expect("maps");
     let nodes = &maps.maps.maps;
     let refs: Vec<&BlockMap> = nodes.iter().map(|m| &m.map).collect();
-    let r = match GpuFrameRenderer::new(&scene.meshes, &scene.ground, size) {
+    let r = match GpuFrameRenderer::new(scene.block_meshes(), &scene.ground, size) {
         Ok(r) => r.with_far_field(&refs).expect("far field"),
         Err(e) => {
             println!("farfield: no GPU ({e}); nothing to measure");
             return;
         }
     };
-    let all_blocks: Vec<BlockId> = scene.meshes.iter().map(|(b, _)| *b).collect();
+    let all_blocks: Vec<BlockId> = scene.block_meshes().iter().map(|(b, _)| *b).collect();
     let triangles: u64 = scene.triangles_by_block().iter().sum();
     println!(
         "farfield: {} ({} blocks, {triangles} triangles), {} maps at K = {} (levels 0..=3), {}x{}, {}, median of {frames} frames",

@@ -63,7 +63,11 @@ fn run_source(name: &str, source: &CitySource, seed: u64) {
         occlusion: None,
     };
     let scene = Scene::load(source, &opts, &mut |_| {}).unwrap();
-    let refs: Vec<(BlockId, &Mesh)> = scene.meshes.iter().map(|(id, m)| (*id, m)).collect();
+    let refs: Vec<(BlockId, &Mesh)> = scene
+        .block_meshes()
+        .iter()
+        .map(|(id, m)| (*id, m))
+        .collect();
     let base = OcclusionCuller::new(&scene.city, &scene.layout, CullerOptions::default()).unwrap();
     let cullers: Vec<OcclusionCuller> = RESOLUTIONS
         .iter()

@@ -231,7 +231,7 @@ mod helsinki {
         // Conservative against the oracle: every block the oracle sees is drawn, as a mesh or
         // inside a drawn map, with the cull map pruning nodes.
         let culler = scene.occlusion.as_ref().unwrap();
-        let oracle = MeshOracle::new(&scene.meshes);
+        let oracle = MeshOracle::new(scene.block_meshes());
         let mut sel = Selector::new(&maps, &scene.bounds, SelectOptions::default()).unwrap();
         let mut checked = 0;
         let mut hidden = 0;

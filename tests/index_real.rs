@@ -20,11 +20,11 @@ fn scene_bounds(buildings: &str, streets: &str) -> Vec<BlockBounds> {
     let scene = Scene::load(&source, &opts, &mut |_| {}).expect("scene");
     let (city, layout, bounds) = (&scene.city, &scene.layout, &scene.bounds);
     assert_eq!(bounds.len(), layout.blocks.len());
-    assert_eq!(scene.meshes.len(), layout.blocks.len());
+    assert_eq!(scene.block_meshes().len(), layout.blocks.len());
     for (i, ((bb, bl), (mid, mesh))) in bounds
         .iter()
         .zip(&layout.blocks)
-        .zip(&scene.meshes)
+        .zip(scene.block_meshes())
         .enumerate()
     {
         assert_eq!(bb.id, bl.id);

@@ -26,7 +26,11 @@ fn helsinki_no_false_culls() {
         occlusion: None,
     };
     let scene = Scene::load(&source, &opts, &mut |_| {}).unwrap();
-    let refs: Vec<(BlockId, &Mesh)> = scene.meshes.iter().map(|(id, m)| (*id, m)).collect();
+    let refs: Vec<(BlockId, &Mesh)> = scene
+        .block_meshes()
+        .iter()
+        .map(|(id, m)| (*id, m))
+        .collect();
     let opts = BenchOptions {
         resolutions: vec![64, 256, 1024],
         views: ViewOptions {

@@ -162,9 +162,9 @@ fn buildings_are_laid_out_block_by_block_and_runs_are_counted_exactly() {
         assert!(want <= set.len());
     }
     // Blocks: neighbouring block ids are neighbours in the buffer.
-    let blocks: Vec<BlockId> = scene.meshes.iter().map(|(b, _)| *b).collect();
+    let blocks: Vec<BlockId> = scene.block_meshes().iter().map(|(b, _)| *b).collect();
     let nonempty = scene
-        .meshes
+        .block_meshes()
         .iter()
         .filter(|(_, m)| m.triangle_count() > 0)
         .count();

@@ -469,8 +469,11 @@ fn generated_routes_keep_clear_of_buildings_and_see_the_city() {
                 )
             })
             .collect();
-        let meshes: Vec<(blockwalk::blocks::BlockId, &blockwalk::city::Mesh)> =
-            scene.meshes.iter().map(|(id, m)| (*id, m)).collect();
+        let meshes: Vec<(blockwalk::blocks::BlockId, &blockwalk::city::Mesh)> = scene
+            .block_meshes()
+            .iter()
+            .map(|(id, m)| (*id, m))
+            .collect();
         let ctx = RouteContext {
             city: &scene.name,
             bounds: scene.city_bounds(),

@@ -164,7 +164,11 @@ fn cesium_loads_the_helsinki_tileset_and_refines_it() {
         let mut cam = Camera::looking_at(*eye, centre);
         cam.aspect = W as f64 / H as f64;
         cam.far = 20_000.0;
-        let blocks: Vec<_> = scene.meshes.iter().map(|(id, m)| (*id, m)).collect();
+        let blocks: Vec<_> = scene
+            .block_meshes()
+            .iter()
+            .map(|(id, m)| (*id, m))
+            .collect();
         let ours = shade(&blocks, &cam, W, H);
         ours.save(out.join(format!("ours_{name}.png"))).unwrap();
         let theirs = image::open(out.join(format!("cesium_{name}.png")))

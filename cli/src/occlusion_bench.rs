@@ -98,7 +98,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         ..SceneOptions::default()
     };
     let scene_data = load_scene(&args.city, args.seed, &opts)?;
-    let refs: Vec<_> = scene_data.meshes.iter().map(|(id, m)| (*id, m)).collect();
+    let refs: Vec<_> = scene_data
+        .block_meshes()
+        .iter()
+        .map(|(id, m)| (*id, m))
+        .collect();
     let index = scene_data
         .index(args.index)
         .expect("the scene builds the structure asked for");

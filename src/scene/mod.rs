@@ -105,8 +105,9 @@ pub struct Scene {
     /// Its blocks; every building is in exactly one.
     pub layout: BlockLayout,
     /// One mesh per block (local frame): the block's buildings' meshes merged once (or the exact
-    /// block meshes a synthetic grid brings).
-    pub meshes: Vec<(BlockId, Mesh)>,
+    /// block meshes a synthetic grid brings); held by the draw units once they are built
+    /// ([`Scene::block_meshes`] reads them either way).
+    meshes: Vec<(BlockId, Mesh)>,
     /// One mesh per building (local frame, indexed by building id), extruded once for the whole
     /// scene: the draw units, the far field's construction, the silhouette bound's exact prisms
     /// and the tile export take these instead of extruding again. Empty for a building whose
@@ -264,10 +265,13 @@ impl Scene {
         params: &SceneGraphParams,
         mode: BuildingsMode,
     ) -> Result<(), SceneError> {
+        if let Some(old) = self.units.take() {
+            self.meshes = old.into_block_meshes();
+        }
         let units = DrawUnits::build(
             &self.building_meshes,
             &self.layout,
-            &self.meshes,
+            &mut self.meshes,
             params,
             mode,
         )
@@ -313,8 +317,16 @@ impl Scene {
         Ok(())
     }
 
+    /// One mesh per block (local frame, in the layout's order): the block's buildings' meshes
+    /// merged once, or the exact meshes a synthetic grid brings.
+    pub fn block_meshes(&self) -> &[(BlockId, Mesh)] {
+        self.units
+            .as_ref()
+            .map_or(&self.meshes, |u| u.block_meshes())
+    }
+
     /// The meshes a renderer of this scene must hold: [`DrawUnits::meshes`] when the scene has
-    /// units, else [`Scene::meshes`].
+    /// units, else [`Scene::block_meshes`].
     pub fn draw_meshes(&self) -> &[(BlockId, Mesh)] {
         self.units.as_ref().map_or(&self.meshes, |u| &u.meshes)
     }

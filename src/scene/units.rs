@@ -65,6 +65,8 @@ pub struct DrawUnits {
     pub buildings: BlockBuildings,
     /// The scene-graph tree over the buildings (the items' ids are building ids).
     pub scene_graph: SceneGraphTree,
+    /// Where the page meshes start in [`DrawUnits::meshes`] (the blocks' end).
+    page_start: usize,
     /// Where the building meshes start in [`DrawUnits::meshes`].
     building_start: usize,
     /// Where each unit lies in the renderer's layout of [`DrawUnits::meshes`].
@@ -74,8 +76,9 @@ pub struct DrawUnits {
 }
 
 impl DrawUnits {
-    /// The units of a city split into `layout`'s blocks whose meshes are `block_meshes`
-    /// (cloned: the block units draw exactly the scene's meshes), its buildings' meshes
+    /// The units of a city split into `layout`'s blocks whose meshes are `block_meshes` (moved
+    /// into the units once the scene graph is built, so that the block units draw exactly the
+    /// scene's meshes without a copy; left in place when the build fails), its buildings' meshes
     /// `building_meshes` (indexed by building id, as the scene extruded them), the scene graph
     /// built with `params`.
     ///
@@ -84,7 +87,7 @@ impl DrawUnits {
     pub fn build(
         building_meshes: &[Mesh],
         layout: &BlockLayout,
-        block_meshes: &[(BlockId, Mesh)],
+        block_meshes: &mut Vec<(BlockId, Mesh)>,
         params: &SceneGraphParams,
         mode: BuildingsMode,
     ) -> Result<Self, IndexError> {
@@ -128,7 +131,8 @@ impl DrawUnits {
         let scene_graph = SceneGraphTree::build(&items, params)?;
         let page_offset = block_meshes.iter().map(|(b, _)| b.0 + 1).max().unwrap_or(0);
         let building_offset = page_offset + scene_graph.page_count() as u32;
-        let mut meshes: Vec<(BlockId, Mesh)> = block_meshes.to_vec();
+        let mut meshes: Vec<(BlockId, Mesh)> = std::mem::take(block_meshes);
+        let page_start = meshes.len();
         for p in 0..scene_graph.page_count() {
             let mut m = Mesh::default();
             for id in scene_graph.page_items(p) {
@@ -168,6 +172,7 @@ impl DrawUnits {
             building_offset,
             buildings,
             scene_graph,
+            page_start,
             building_start,
             order,
             mode,
@@ -234,6 +239,17 @@ impl DrawUnits {
             ),
             Unit::Building(b) => Box::new(std::iter::once(b)),
         }
+    }
+
+    /// The blocks' meshes (the first range of [`DrawUnits::meshes`]).
+    pub fn block_meshes(&self) -> &[(BlockId, Mesh)] {
+        &self.meshes[..self.page_start]
+    }
+
+    /// Gives the blocks' meshes back (the units are dropped).
+    pub fn into_block_meshes(mut self) -> Vec<(BlockId, Mesh)> {
+        self.meshes.truncate(self.page_start);
+        self.meshes
     }
 
     /// The buildings' meshes alone, by unit id (for a building-level oracle), block by block

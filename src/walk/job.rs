@@ -95,7 +95,7 @@ pub enum JobError {
         city: String,
         /// What went wrong.
         #[source]
-        source: RouteError,
+        source: Box<RouteError>,
     },
     /// The draw units cannot be built.
     #[error(transparent)]
@@ -237,7 +237,7 @@ pub fn resolve_route(
         .map_err(|source| JobError::Route {
             route: choice.to_string(),
             city: scene.name.clone(),
-            source,
+            source: Box::new(source),
         })
 }
 

@@ -373,7 +373,7 @@ pub fn run_walk_with_far(
     // CPU fallback.
     let cpu_far = match (&far, &drawing) {
         (Some(f), Drawing::CpuFallback { .. }) => Some(f.field.cpu_renderer(
-            &scene.meshes,
+            scene.block_meshes(),
             &scene.ground,
             params.size,
         )),
@@ -505,7 +505,7 @@ struct Oracles<'s> {
 
 impl<'s> Oracles<'s> {
     fn new(scene: &'s Scene, size: Option<(u32, u32)>, notes: &mut Vec<String>) -> Self {
-        let blocks = MeshOracle::new(&scene.meshes);
+        let blocks = MeshOracle::new(scene.block_meshes());
         if let Some((w, h)) = size {
             notes.push(format!(
                 "false culls counted against the {}",
@@ -604,7 +604,7 @@ impl Walker<'_> {
                 let culled = self.step.cull(self.scene, index, mode, cam);
                 let is_reference = index.structure() == self.reference;
                 let keep_image = self.params.image_every > 0
-                    && f % self.params.image_every == 0
+                    && f.is_multiple_of(self.params.image_every)
                     && is_reference
                     && mode == last_mode;
                 let far_here = is_reference
