@@ -152,18 +152,6 @@ pub fn peak_memory_bytes() -> Option<u64> {
     Some(kb * 1024)
 }
 
-/// `--k`: a BlockMap height-map side the layout allows (32, 64 or 128, seed 002 §4.2.1).
-pub fn parse_k(s: &str) -> Result<u32, String> {
-    let k: u32 = s
-        .parse()
-        .map_err(|_| format!("{s}: expected 32, 64 or 128"))?;
-    if blockwalk::blockmap::layout::ALLOWED_K.contains(&k) {
-        Ok(k)
-    } else {
-        Err(format!("{k}: expected 32, 64 or 128"))
-    }
-}
-
 /// The far-field options `walk` and `view` share: BlockMaps or none, τ, K and the hysteresis.
 #[derive(clap::Args, Debug, Clone)]
 pub struct FarArgs {
@@ -175,7 +163,7 @@ pub struct FarArgs {
     #[arg(long, default_value_t = 1.0)]
     pub tau: f64,
     /// BlockMap height-map side K (32, 64 or 128).
-    #[arg(long, value_parser = parse_k, default_value_t = 64)]
+    #[arg(long, default_value_t = 64)]
     pub k: u32,
     /// Hysteresis h: a node drawn finer in the previous frame becomes a map only when its error is at most τ/(1 + h) (a map stays one while its error is at most τ).
     #[arg(long, default_value_t = blockwalk::blockmap::select::DEFAULT_HYSTERESIS)]
@@ -183,22 +171,17 @@ pub struct FarArgs {
 }
 
 impl FarArgs {
-    /// τ and the hysteresis as selection settings, refused when τ is not a positive number of
-    /// pixels or h is negative.
+    /// τ and the hysteresis as selection settings, with K checked too (the library refuses
+    /// each with the reason).
     pub fn select(&self) -> anyhow::Result<blockwalk::blockmap::SelectOptions> {
-        anyhow::ensure!(
-            self.tau.is_finite() && self.tau > 0.0,
-            "--tau {}: expected a positive number of pixels",
-            self.tau
-        );
-        anyhow::ensure!(
-            self.hysteresis.is_finite() && self.hysteresis >= 0.0,
-            "--hysteresis {}: expected a number ≥ 0",
-            self.hysteresis
-        );
-        Ok(blockwalk::blockmap::SelectOptions {
-            tau_px: self.tau,
-            hysteresis: self.hysteresis,
-        })
+        blockwalk::blockmap::BuildOptions {
+            k: self.k,
+            ..Default::default()
+        }
+        .validate()?;
+        Ok(blockwalk::blockmap::SelectOptions::new(
+            self.tau,
+            self.hysteresis,
+        )?)
     }
 }

@@ -25,7 +25,7 @@ pub struct Args {
     #[arg(long, value_delimiter = ',', default_value = "0.5,1,2,4,8,16")]
     pub taus: Vec<f64>,
     /// Height-map sides K.
-    #[arg(long, value_parser = super::common::parse_k, value_delimiter = ',', default_value = "32,64,128")]
+    #[arg(long, value_delimiter = ',', default_value = "32,64,128")]
     pub ks: Vec<u32>,
     /// Routes: `paper`, `orbit`, `flyover` (high, the whole city in view), `street`, or files.
     #[arg(long, value_delimiter = ',', default_value = "paper,orbit,flyover")]
@@ -164,10 +164,16 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         "--flyover-near-share {}: expected a share in [0, 1)",
         args.flyover_near_share
     );
-    anyhow::ensure!(
-        args.taus.iter().all(|t| t.is_finite() && *t > 0.0),
-        "--taus: expected positive numbers of pixels"
-    );
+    for &tau in &args.taus {
+        SelectOptions::new(tau, SelectOptions::default().hysteresis)?;
+    }
+    for &k in &args.ks {
+        blockwalk::blockmap::BuildOptions {
+            k,
+            ..Default::default()
+        }
+        .validate()?;
+    }
     let opts = SceneOptions {
         structures: vec![blockwalk::index::Structure::Bqr],
         occlusion: None,
