@@ -16,7 +16,7 @@ use std::path::PathBuf;
 pub struct Args {
     #[command(flatten)]
     pub city: CityArgs,
-    /// The route P plays: `paper`, `orbit`, `street`, or a route file (.toml / .json).
+    /// The route P plays: `paper`, `orbit`, `street`, `flyover`, or a route file (.toml / .json).
     #[arg(long, default_value = "paper")]
     pub route: RouteChoice,
     /// The spatial structure that culls each frame.

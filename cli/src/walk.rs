@@ -14,8 +14,7 @@ use blockwalk::walk::{
 use indicatif::{ProgressBar, ProgressStyle};
 use std::path::PathBuf;
 
-/// Most frames a walk may sample (a route file or `--frames`): 100,000, about an hour at 30 fps.
-pub const MAX_FRAMES: usize = 100_000;
+use blockwalk::route::MAX_FRAMES;
 
 /// Arguments.
 #[derive(clap::Args, Debug)]
@@ -188,49 +187,16 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         leaf_capacity: args.page_capacity as usize,
         ..Default::default()
     };
-    let default_pages = scene
-        .units
-        .as_ref()
-        .is_some_and(|u| *u.scene_graph.params() == pages);
-    match scene.units.as_mut() {
-        Some(u) if default_pages => u.mode = args.buildings,
-        Some(_) => {
-            // Rebuilt with the asked page size; the scene-graph index must be the same tree.
-            scene
-                .build_units(&pages, args.buildings)
-                .with_context(|| format!("splitting {} into pages", scene.name))?;
-            let tree = scene.units.as_ref().map(|u| u.scene_graph.clone());
-            for index in scene.indexes.iter_mut() {
-                if let (Structure::SceneGraph, Some(t)) = (index.structure(), tree.clone()) {
-                    *index = Box::new(t);
-                }
-            }
-        }
-        None if args.buildings != BuildingsMode::Off => {
-            scene
-                .build_units(&pages, args.buildings)
-                .with_context(|| format!("splitting {} into buildings", scene.name))?
-        }
-        None => {}
-    }
-    // `flyover` (the far-field sweep's high fly-over) unless a file of that name exists.
-    let (route, file_frames) = match &args.route {
-        RouteChoice::File(p) if p.as_os_str() == "flyover" && !p.exists() => (
-            super::farfield_sweep::flyover_route(scene.city_bounds(), args.size.aspect())?,
-            None,
-        ),
-        choice => resolve_route(choice, &scene, args.size)?,
-    };
+    scene
+        .set_pages(&pages, args.buildings)
+        .with_context(|| format!("splitting {} into pages and buildings", scene.name))?;
+    let (route, file_frames) = resolve_route(&args.route, &scene, args.size)?;
     let frames = args
         .frames
         .map(|f| f as usize)
         .or(file_frames)
         .unwrap_or(300);
-    anyhow::ensure!(
-        (1..=MAX_FRAMES).contains(&frames),
-        "{}: {frames} frames; expected 1..={MAX_FRAMES}",
-        args.route
-    );
+    let frames = blockwalk::route::check_frames(&args.route.to_string(), frames)?;
     let params = WalkParams {
         route,
         frames,

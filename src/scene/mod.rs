@@ -319,6 +319,37 @@ impl Scene {
         }
         t
     }
+
+    /// Pages of `params` and single buildings as draw units, with the walk's per-building
+    /// `mode`: the units are kept when they were built with `params` (only the mode is set),
+    /// rebuilt otherwise, and the [`Structure::SceneGraph`] index, when the scene has one, is
+    /// replaced by the rebuilt tree so that the index and the units agree. Without units and with
+    /// `mode` off nothing is built.
+    ///
+    /// # Errors
+    /// [`SceneError::Index`] for bad scene-graph parameters.
+    pub fn set_pages(
+        &mut self,
+        params: &SceneGraphParams,
+        mode: BuildingsMode,
+    ) -> Result<(), SceneError> {
+        match self.units.as_mut() {
+            Some(u) if u.scene_graph.params() == params => u.mode = mode,
+            Some(_) => {
+                self.build_units(params, mode)?;
+                if let Some(tree) = self.units.as_ref().map(|u| u.scene_graph.clone()) {
+                    for index in self.indexes.iter_mut() {
+                        if index.structure() == Structure::SceneGraph {
+                            *index = Box::new(tree.clone());
+                        }
+                    }
+                }
+            }
+            None if mode != BuildingsMode::Off => self.build_units(params, mode)?,
+            None => {}
+        }
+        Ok(())
+    }
 }
 
 /// One mesh per block: its buildings extruded (in parallel) and merged, in block order.
