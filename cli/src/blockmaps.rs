@@ -1,4 +1,4 @@
-//! `blockwalk blockmaps`: BlockMaps for the nodes of the block quadtree (seed 000 §3–5, seed 002
+//! `blockwalk blockmaps`: BlockMaps for the nodes of the block quadtree (Cignoni et al., §3–5, Di Benedetto's thesis
 //! ch. 4), their measured error, written as PNG + JSON.
 
 use super::common::{load_scene, CityArgs};
@@ -21,7 +21,7 @@ pub struct Args {
     #[arg(long, conflicts_with = "leaf_blocks", value_parser = clap::value_parser!(u32).range(1..))]
     pub levels: Option<u32>,
     /// Maps down to nodes of at most M blocks. Without --levels or --leaf-blocks, maps stop
-    /// where a node's meshes take fewer bytes than a map (seed 000 §4).
+    /// where a node's meshes take fewer bytes than a map (Cignoni et al., §4).
     #[arg(long)]
     pub leaf_blocks: Option<usize>,
     /// Output directory.
@@ -41,7 +41,7 @@ pub struct Args {
     /// Share of a texel's samples that must hit a building to fill it.
     #[arg(long, default_value_t = BuildOptions::default().fill_share)]
     pub fill_share: f64,
-    /// Compute ambient occlusion (seed 002 §4.2.1), horizon-based over each map's height map.
+    /// Compute ambient occlusion (Di Benedetto's thesis, §4.2.1), horizon-based over each map's height map.
     #[arg(long)]
     pub ao: bool,
     /// How far ambient occlusion looks for occluders, metres.

@@ -39,6 +39,15 @@ pub struct CityArgs {
     /// Leave out street features with this attribute value (k=v), e.g. `tunnel=1`.
     #[arg(long = "exclude-tag")]
     pub exclude_tag: Vec<String>,
+    /// The city's name in summaries and reports (default: the footprint file's name, or its
+    /// folder's when the file has a generic name such as buildings.shp).
+    #[arg(long)]
+    pub name: Option<String>,
+    /// The footprint layer's CRS: `EPSG:NNNN`, a PROJ string, WKT, or a .prj / WKT file; states
+    /// it for a file without one (otherwise taken as metres in a local frame) or replaces a
+    /// wrong one.
+    #[arg(long)]
+    pub crs: Option<String>,
 }
 
 /// A spinner on stderr, hidden when stderr is not a terminal.
@@ -66,13 +75,19 @@ impl CityArgs {
                 self.inputs.len()
             );
         };
+        let crs = self
+            .crs
+            .as_deref()
+            .map(blockwalk::city::build::parse_crs)
+            .transpose()?;
         Ok(CitySource::parse(
             input,
             self.streets.clone(),
             self.parcels.clone(),
             &self.exclude_tag,
             seed,
-        )?)
+        )?
+        .with_name_and_crs(self.name.clone(), crs))
     }
 }
 

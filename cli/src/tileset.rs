@@ -19,7 +19,7 @@ pub struct Args {
     #[arg(long, default_value_t = 64)]
     pub k: u32,
     /// Inner tiles for the first N levels of the quadtree (default: a map where it costs fewer
-    /// bytes than the meshes, seed 000 §4).
+    /// bytes than the meshes, Cignoni et al., §4).
     #[arg(long, value_parser = clap::value_parser!(u32).range(1..))]
     pub levels: Option<u32>,
     /// Output directory (tileset.json and tiles/).

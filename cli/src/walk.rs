@@ -1,4 +1,4 @@
-//! `blockwalk walk`: a camera route through the city with every spatial structure (seed 003 §5.1).
+//! `blockwalk walk`: a camera route through the city with every spatial structure (Pina, Serón and Cerezo, §5.1).
 
 use super::common::{load_scene, CityArgs, Size};
 use anyhow::Context;
@@ -21,7 +21,7 @@ use blockwalk::route::MAX_FRAMES;
 pub struct Args {
     #[command(flatten)]
     pub city: CityArgs,
-    /// The route: `paper` (seed 003 §5), `orbit`, `street` (a walk across the street graph),
+    /// The route: `paper` (Pina, Serón and Cerezo, §5), `orbit`, `street` (a walk across the street graph),
     /// `flyover` (high, most of the city in view), or a route file (.toml / .json, see
     /// examples/routes/).
     #[arg(long, default_value = "paper")]
@@ -41,7 +41,7 @@ pub struct Args {
     #[arg(long, value_parser = super::common::choice::<OcclusionMode>(), default_value_t = OcclusionMode::Auto)]
     pub occlusion: OcclusionMode,
     /// Test each building of the blocks that survive (frustum, and the cull map with
-    /// occlusion; seed 004 §3.2.8): on, off, or auto (with and without, side by side, and
+    /// occlusion; Willmott et al., §3.2.8): on, off, or auto (with and without, side by side, and
     /// which pays).
     #[arg(long, value_parser = super::common::choice::<BuildingsMode>(), default_value_t = BuildingsMode::Auto)]
     pub buildings: BuildingsMode,
@@ -84,7 +84,7 @@ pub struct Args {
     pub keep_far: bool,
 }
 
-/// The BlockMaps of `scene` at `k` (seed 000 §4's competitive stop), with a spinner.
+/// The BlockMaps of `scene` at `k` (Cignoni et al., §4's competitive stop), with a spinner.
 pub fn build_far_maps(scene: &Scene, k: u32, quiet: bool) -> anyhow::Result<MapTree> {
     let build = blockwalk::blockmap::BuildOptions {
         k,
