@@ -170,8 +170,8 @@ pub fn peak_memory_bytes() -> Option<u64> {
 /// The far-field options `walk` and `view` share: BlockMaps or none, τ, K and the hysteresis.
 #[derive(clap::Args, Debug, Clone)]
 pub struct FarArgs {
-    /// Far field: `blockmaps` draws far nodes of the block quadtree as ray-cast BlockMaps (seed
-    /// 000 §4–5) and near blocks as meshes; `none` draws meshes only.
+    /// Far field: `blockmaps` draws far nodes of the block quadtree as ray-cast BlockMaps (Cignoni
+    /// et al., §4–5) and near blocks as meshes; `none` draws meshes only.
     #[arg(long = "far", value_parser = choice::<blockwalk::walk::FarMode>(), default_value_t = blockwalk::walk::FarMode::None)]
     pub mode: blockwalk::walk::FarMode,
     /// Largest projected error of a drawn BlockMap, pixels (τ).
