@@ -1,4 +1,4 @@
-//! `blockwalk blockmaps`: BlockMaps for the nodes of the block quadtree (seed 000 §3–5, seed 002
+//! `blockwalk blockmaps`: BlockMaps for the nodes of the block quadtree (Cignoni et al., §3–5, Di Benedetto's thesis
 //! ch. 4), their measured error, written as PNG + JSON.
 
 use super::common::{load_scene, CityArgs};
@@ -15,13 +15,13 @@ pub struct Args {
     #[command(flatten)]
     pub city: CityArgs,
     /// Height-map side K: 32, 64 or 128.
-    #[arg(long, value_parser = super::common::parse_k, default_value_t = 64)]
+    #[arg(long, default_value_t = 64)]
     pub k: u32,
     /// Maps for the first N levels of the quadtree.
-    #[arg(long, conflicts_with = "leaf_blocks")]
+    #[arg(long, conflicts_with = "leaf_blocks", value_parser = clap::value_parser!(u32).range(1..))]
     pub levels: Option<u32>,
     /// Maps down to nodes of at most M blocks. Without --levels or --leaf-blocks, maps stop
-    /// where a node's meshes take fewer bytes than a map (seed 000 §4).
+    /// where a node's meshes take fewer bytes than a map (Cignoni et al., §4).
     #[arg(long)]
     pub leaf_blocks: Option<usize>,
     /// Output directory.
@@ -41,7 +41,7 @@ pub struct Args {
     /// Share of a texel's samples that must hit a building to fill it.
     #[arg(long, default_value_t = BuildOptions::default().fill_share)]
     pub fill_share: f64,
-    /// Compute ambient occlusion (seed 002 §4.2.1), horizon-based over each map's height map.
+    /// Compute ambient occlusion (Di Benedetto's thesis, §4.2.1), horizon-based over each map's height map.
     #[arg(long)]
     pub ao: bool,
     /// How far ambient occlusion looks for occluders, metres.
@@ -58,24 +58,6 @@ pub struct Args {
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
-    if let Some(l) = args.levels {
-        anyhow::ensure!(l >= 1, "--levels must be at least 1");
-    }
-    anyhow::ensure!(
-        args.ao_radius.is_finite() && args.ao_radius > 0.0,
-        "--ao-radius {}: expected a radius > 0 in metres",
-        args.ao_radius
-    );
-    anyhow::ensure!(
-        (1..=8).contains(&args.fill_samples),
-        "--fill-samples {}: expected 1 to 8",
-        args.fill_samples
-    );
-    anyhow::ensure!(
-        args.fill_share > 0.0 && args.fill_share <= 1.0,
-        "--fill-share {}: expected a share in (0, 1]",
-        args.fill_share
-    );
     let stop = match (args.levels, args.leaf_blocks) {
         (Some(l), _) => Stop::Levels(l),
         (None, Some(m)) => Stop::LeafBlocks(m),
@@ -97,6 +79,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         checks: args.check,
         check_size: (160, 90),
     };
+    opts.tree.build.validate()?;
     let scene = load_scene(
         &args.city,
         0,

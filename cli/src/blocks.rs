@@ -1,4 +1,4 @@
-//! `blockwalk blocks`: streets and urban blocks (seed 003 §3), GeoJSON in the input's own
+//! `blockwalk blocks`: streets and urban blocks (Pina, Serón and Cerezo, §3), GeoJSON in the input's own
 //! coordinates, an SVG/PNG map, a summary.
 
 use super::common::{load_city, spinner, CityArgs};

@@ -39,6 +39,15 @@ pub struct CityArgs {
     /// Leave out street features with this attribute value (k=v), e.g. `tunnel=1`.
     #[arg(long = "exclude-tag")]
     pub exclude_tag: Vec<String>,
+    /// The city's name in summaries and reports (default: the footprint file's name, or its
+    /// folder's when the file has a generic name such as buildings.shp).
+    #[arg(long)]
+    pub name: Option<String>,
+    /// The footprint layer's CRS: `EPSG:NNNN`, a PROJ string, WKT, or a .prj / WKT file; states
+    /// it for a file without one (otherwise taken as metres in a local frame) or replaces a
+    /// wrong one.
+    #[arg(long)]
+    pub crs: Option<String>,
 }
 
 /// A spinner on stderr, hidden when stderr is not a terminal.
@@ -66,13 +75,19 @@ impl CityArgs {
                 self.inputs.len()
             );
         };
+        let crs = self
+            .crs
+            .as_deref()
+            .map(blockwalk::city::build::parse_crs)
+            .transpose()?;
         Ok(CitySource::parse(
             input,
             self.streets.clone(),
             self.parcels.clone(),
             &self.exclude_tag,
             seed,
-        )?)
+        )?
+        .with_name_and_crs(self.name.clone(), crs))
     }
 }
 
@@ -152,30 +167,18 @@ pub fn peak_memory_bytes() -> Option<u64> {
     Some(kb * 1024)
 }
 
-/// `--k`: a BlockMap height-map side the layout allows (32, 64 or 128, seed 002 §4.2.1).
-pub fn parse_k(s: &str) -> Result<u32, String> {
-    let k: u32 = s
-        .parse()
-        .map_err(|_| format!("{s}: expected 32, 64 or 128"))?;
-    if blockwalk::blockmap::layout::ALLOWED_K.contains(&k) {
-        Ok(k)
-    } else {
-        Err(format!("{k}: expected 32, 64 or 128"))
-    }
-}
-
 /// The far-field options `walk` and `view` share: BlockMaps or none, τ, K and the hysteresis.
 #[derive(clap::Args, Debug, Clone)]
 pub struct FarArgs {
-    /// Far field: `blockmaps` draws far nodes of the block quadtree as ray-cast BlockMaps (seed
-    /// 000 §4–5) and near blocks as meshes; `none` draws meshes only.
+    /// Far field: `blockmaps` draws far nodes of the block quadtree as ray-cast BlockMaps (Cignoni
+    /// et al., §4–5) and near blocks as meshes; `none` draws meshes only.
     #[arg(long = "far", value_parser = choice::<blockwalk::walk::FarMode>(), default_value_t = blockwalk::walk::FarMode::None)]
     pub mode: blockwalk::walk::FarMode,
     /// Largest projected error of a drawn BlockMap, pixels (τ).
     #[arg(long, default_value_t = 1.0)]
     pub tau: f64,
     /// BlockMap height-map side K (32, 64 or 128).
-    #[arg(long, value_parser = parse_k, default_value_t = 64)]
+    #[arg(long, default_value_t = 64)]
     pub k: u32,
     /// Hysteresis h: a node drawn finer in the previous frame becomes a map only when its error is at most τ/(1 + h) (a map stays one while its error is at most τ).
     #[arg(long, default_value_t = blockwalk::blockmap::select::DEFAULT_HYSTERESIS)]
@@ -183,22 +186,17 @@ pub struct FarArgs {
 }
 
 impl FarArgs {
-    /// τ and the hysteresis as selection settings, refused when τ is not a positive number of
-    /// pixels or h is negative.
+    /// τ and the hysteresis as selection settings, with K checked too (the library refuses
+    /// each with the reason).
     pub fn select(&self) -> anyhow::Result<blockwalk::blockmap::SelectOptions> {
-        anyhow::ensure!(
-            self.tau.is_finite() && self.tau > 0.0,
-            "--tau {}: expected a positive number of pixels",
-            self.tau
-        );
-        anyhow::ensure!(
-            self.hysteresis.is_finite() && self.hysteresis >= 0.0,
-            "--hysteresis {}: expected a number ≥ 0",
-            self.hysteresis
-        );
-        Ok(blockwalk::blockmap::SelectOptions {
-            tau_px: self.tau,
-            hysteresis: self.hysteresis,
-        })
+        blockwalk::blockmap::BuildOptions {
+            k: self.k,
+            ..Default::default()
+        }
+        .validate()?;
+        Ok(blockwalk::blockmap::SelectOptions::new(
+            self.tau,
+            self.hysteresis,
+        )?)
     }
 }

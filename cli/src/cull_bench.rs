@@ -1,4 +1,4 @@
-//! `blockwalk cull-bench`: compare the spatial structures on frustum culling (seed 003 §5.1).
+//! `blockwalk cull-bench`: compare the spatial structures on frustum culling (Pina, Serón and Cerezo, §5.1).
 
 use super::common::{load_scene, spinner, CityArgs};
 use anyhow::{bail, Context};
@@ -42,7 +42,7 @@ pub struct Args {
     /// Skip the brute-force check (false culls are then not counted).
     #[arg(long)]
     pub no_check: bool,
-    /// Also cull every view through each structure with the occlusion culler (cull map, seed 004
+    /// Also cull every view through each structure with the occlusion culler (cull map, Willmott et al.,
     /// §3.2) and report it beside frustum-only culling. Needs a city (e.g. `synthetic:30x30`),
     /// not `--synthetic N`, which has blocks but no buildings to cast shadows.
     #[arg(long, conflicts_with = "synthetic")]
@@ -282,7 +282,7 @@ fn print_summary(name: &str, r: &CullBenchReport) -> anyhow::Result<()> {
     }
     if let Some(x) = r.bqr_over_vamsplit() {
         outln!(
-            "BqR/VAMSplit: cull time {:.3}, nodes visited {:.3}, plane tests {:.3}, triangles {:.3} (seed 003 Table 1: frame time 0.638)",
+            "BqR/VAMSplit: cull time {:.3}, nodes visited {:.3}, plane tests {:.3}, triangles {:.3} (Pina, Serón and Cerezo Table 1: frame time 0.638)",
             x[0], x[1], x[2], x[3]
         );
     }

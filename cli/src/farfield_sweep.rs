@@ -7,14 +7,12 @@
 use super::common::{load_scene, CityArgs, Size};
 use anyhow::Context;
 use blockwalk::blockmap::SelectOptions;
-use blockwalk::geom::{Aabb3, Camera};
 use blockwalk::report::plot::{write_plot, PlotKind, Series};
-use blockwalk::route::{CameraRoute, KeyFrame, Lens, RouteChoice};
+use blockwalk::route::{flyover_route_with_near, CameraRoute, RouteChoice, FLYOVER_NEAR_SHARE};
 use blockwalk::scene::{Scene, SceneOptions};
 use blockwalk::walk::{
     run_walk_with_far, Drawing, FarSetup, FarSummary, OcclusionMode, WalkParams,
 };
-use glam::DVec3;
 use serde::Serialize;
 use std::path::PathBuf;
 
@@ -27,11 +25,11 @@ pub struct Args {
     #[arg(long, value_delimiter = ',', default_value = "0.5,1,2,4,8,16")]
     pub taus: Vec<f64>,
     /// Height-map sides K.
-    #[arg(long, value_parser = super::common::parse_k, value_delimiter = ',', default_value = "32,64,128")]
+    #[arg(long, value_delimiter = ',', default_value = "32,64,128")]
     pub ks: Vec<u32>,
     /// Routes: `paper`, `orbit`, `flyover` (high, the whole city in view), `street`, or files.
     #[arg(long, value_delimiter = ',', default_value = "paper,orbit,flyover")]
-    pub routes: Vec<String>,
+    pub routes: Vec<RouteChoice>,
     /// Frames per route.
     #[arg(long, default_value_t = 12)]
     pub frames: usize,
@@ -95,81 +93,34 @@ pub struct Row {
     pub frame_time_ratio_vs_mesh: Option<f64>,
 }
 
-/// A high fly-over: across the city's box from south-west to north-east at an altitude of
-/// 0.8 × its larger side, looking ahead and down 35°, so that most of the city stays in view.
-/// The near plane lies at half the height above the highest roof (nothing is nearer), as a
-/// viewer sets it for a view from high up: with the lens's 0.5 m, Depth32Float cannot tell a
-/// wall's lower metres from the ground kilometres away, and the ground's depth test then decides
-/// pixels differently for meshes and maps (issue 12's diagnosis: half the fly-over's mismatched
-/// pixels on the 80k city).
-pub fn flyover_route(bounds: Aabb3, aspect: f64) -> anyhow::Result<CameraRoute> {
-    flyover_route_with_near(bounds, aspect, FLYOVER_NEAR_SHARE)
-}
-
-/// The near plane of [`flyover_route`] as a share of the height above the highest roof.
-pub const FLYOVER_NEAR_SHARE: f64 = 0.5;
-
-/// [`flyover_route`] with the near plane at `near_share` of the height above the highest roof
-/// (`0`: the lens's default near plane).
-pub fn flyover_route_with_near(
-    bounds: Aabb3,
-    aspect: f64,
+fn route_of(
+    choice: &RouteChoice,
+    scene: &Scene,
+    size: Size,
     near_share: f64,
 ) -> anyhow::Result<CameraRoute> {
-    let e = bounds.extent();
-    let side = e.x.max(e.y).max(100.0);
-    let z = bounds.max.z + 0.8 * side;
-    let c = bounds.center();
-    let a = DVec3::new(bounds.min.x - 0.3 * e.x, bounds.min.y - 0.3 * e.y, z);
-    let b = DVec3::new(c.x + 0.2 * e.x, c.y + 0.2 * e.y, z);
-    let look = |p: DVec3| {
-        Camera::looking_at(
-            p,
-            p + (DVec3::new(c.x, c.y, p.z) - a).normalize() * side
-                + DVec3::new(0.0, 0.0, -side * 0.7),
-        )
-    };
-    let (ca, cb) = (look(a), look(b));
-    let base = Lens::default();
-    let lens = Lens {
-        aspect,
-        far: 4.0 * side + z * 2.0,
-        near: if near_share > 0.0 {
-            (near_share * (z - bounds.max.z)).max(base.near)
-        } else {
-            base.near
-        },
-        ..base
-    };
-    Ok(CameraRoute::new(
-        "flyover",
-        vec![
-            KeyFrame::new(0.0, a, ca.yaw, ca.pitch),
-            KeyFrame::new(30.0, b, cb.yaw, cb.pitch),
-        ],
-        lens,
-    )?)
-}
-
-fn route_of(name: &str, scene: &Scene, size: Size, near_share: f64) -> anyhow::Result<CameraRoute> {
-    if name == "flyover" {
-        return flyover_route_with_near(scene.city_bounds(), size.aspect(), near_share);
+    if *choice == RouteChoice::Flyover {
+        return Ok(flyover_route_with_near(
+            scene.city_bounds(),
+            size.aspect(),
+            near_share,
+        )?);
     }
-    let choice: RouteChoice = name.parse().unwrap_or(RouteChoice::Paper);
-    Ok(super::walk::resolve_route(&choice, scene, size)?.0)
+    Ok(super::walk::resolve_route(choice, scene, size)?.0)
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
     anyhow::ensure!(args.frames >= 2, "--frames {}: at least 2", args.frames);
-    anyhow::ensure!(
-        args.flyover_near_share.is_finite() && (0.0..1.0).contains(&args.flyover_near_share),
-        "--flyover-near-share {}: expected a share in [0, 1)",
-        args.flyover_near_share
-    );
-    anyhow::ensure!(
-        args.taus.iter().all(|t| t.is_finite() && *t > 0.0),
-        "--taus: expected positive numbers of pixels"
-    );
+    for &tau in &args.taus {
+        SelectOptions::new(tau, SelectOptions::default().hysteresis)?;
+    }
+    for &k in &args.ks {
+        blockwalk::blockmap::BuildOptions {
+            k,
+            ..Default::default()
+        }
+        .validate()?;
+    }
     let opts = SceneOptions {
         structures: vec![blockwalk::index::Structure::Bqr],
         occlusion: None,
@@ -183,7 +134,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         .iter()
         .map(|r| {
             Ok((
-                r.clone(),
+                r.to_string(),
                 route_of(r, &scene, args.size, args.flyover_near_share)?,
             ))
         })

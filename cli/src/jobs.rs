@@ -47,7 +47,7 @@ enum Step {
         tile: usize,
         /// Build the tile's BlockMaps too, at this height-map side K (32, 64 or 128); maps
         /// stop where a node's meshes take fewer bytes than a map.
-        #[arg(long, value_parser = super::common::parse_k)]
+        #[arg(long)]
         blockmaps: Option<u32>,
         /// Print one JSON object instead of the summary.
         #[arg(long)]
@@ -132,6 +132,13 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             blockmaps,
             json,
         } => {
+            if let Some(k) = blockmaps {
+                BuildOptions {
+                    k,
+                    ..BuildOptions::default()
+                }
+                .validate()?;
+            }
             let pb = spinner(format!("tile {tile}"));
             let maps = blockmaps.map(|k| CityMapsOptions {
                 tree: TreeOptions {

@@ -80,6 +80,7 @@ enum Command {
     /// The main job on the bundled real data.
     Demo(demo::Args),
     /// Fly through the city in a window (feature `window`).
+    #[command(after_help = view::KEYS)]
     View(view::Args),
 }
 
@@ -99,8 +100,40 @@ pub fn stdout_written(r: std::io::Result<()>) -> anyhow::Result<()> {
     }
 }
 
+/// When `XDG_RUNTIME_DIR` is unset, points it at a private folder (mode 0700) made for this
+/// process, so that the graphics drivers (Mesa) find one instead of warning on standard error;
+/// returns that folder, to be removed at exit.
+fn private_runtime_dir() -> Option<std::path::PathBuf> {
+    if std::env::var_os("XDG_RUNTIME_DIR").is_some() {
+        return None;
+    }
+    let dir = std::env::temp_dir().join(format!("blockwalk-runtime-{}", std::process::id()));
+    let mut b = std::fs::DirBuilder::new();
+    #[cfg(unix)]
+    std::os::unix::fs::DirBuilderExt::mode(&mut b, 0o700);
+    b.create(&dir).ok()?;
+    std::env::set_var("XDG_RUNTIME_DIR", &dir);
+    Some(dir)
+}
+
 fn main() -> std::process::ExitCode {
-    let cli = Cli::parse();
+    let runtime_dir = private_runtime_dir();
+    let status = run_main();
+    if let Some(d) = runtime_dir {
+        let _ = std::fs::remove_dir_all(d);
+    }
+    status
+}
+
+fn run_main() -> std::process::ExitCode {
+    // Not `Cli::parse`, which exits the process (leaving the runtime folder behind).
+    let cli = match Cli::try_parse() {
+        Ok(cli) => cli,
+        Err(e) => {
+            let _ = e.print();
+            return std::process::ExitCode::from(u8::try_from(e.exit_code()).unwrap_or(2));
+        }
+    };
     match dispatch(cli.command) {
         Ok(()) => std::process::ExitCode::SUCCESS,
         Err(e) if e.chain().any(|c| c.is::<StdoutClosed>()) => std::process::ExitCode::SUCCESS,

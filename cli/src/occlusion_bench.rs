@@ -1,5 +1,5 @@
 //! `blockwalk occlusion-bench`: occlusion culling with the cull map at several resolutions over
-//! random street-level and flying views, checked against the CPU visibility oracle (seed 004
+//! random street-level and flying views, checked against the CPU visibility oracle (Willmott et al.
 //! §3.2): ms per frame, occluders, blocks culled, false culls, effectiveness, and a plot of
 //! effectiveness against time.
 

@@ -16,11 +16,11 @@ pub struct Args {
     #[command(flatten)]
     pub city: CityArgs,
     /// Height-map side K of the inner tiles' BlockMaps: 32, 64 or 128.
-    #[arg(long, value_parser = super::common::parse_k, default_value_t = 64)]
+    #[arg(long, default_value_t = 64)]
     pub k: u32,
     /// Inner tiles for the first N levels of the quadtree (default: a map where it costs fewer
-    /// bytes than the meshes, seed 000 §4).
-    #[arg(long)]
+    /// bytes than the meshes, Cignoni et al., §4).
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..))]
     pub levels: Option<u32>,
     /// Output directory (tileset.json and tiles/).
     #[arg(short = 'o', long = "out")]
@@ -31,9 +31,11 @@ pub struct Args {
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
-    if let Some(l) = args.levels {
-        anyhow::ensure!(l >= 1, "--levels must be at least 1");
+    blockwalk::blockmap::BuildOptions {
+        k: args.k,
+        ..Default::default()
     }
+    .validate()?;
     let t0 = std::time::Instant::now();
     let scene = load_scene(
         &args.city,

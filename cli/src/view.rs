@@ -1,5 +1,5 @@
 //! `blockwalk view`: fly through the city in a window (feature `window`), culling every frame
-//! with one spatial structure and optionally the occlusion culler (seed 003 §4, seed 004 §3).
+//! with one spatial structure and optionally the occlusion culler (Pina, Serón and Cerezo, §4, Willmott et al., §3).
 //!
 //! Without a display: `xvfb-run -s "-screen 0 1280x720x24" blockwalk view CITY --frames 30
 //! --screenshot view.png` renders 30 frames along the route and saves the last one.
@@ -11,12 +11,23 @@ use blockwalk::route::RouteChoice;
 use blockwalk::walk::FarMode;
 use std::path::PathBuf;
 
+/// The viewer's keys, shown by `blockwalk view --help` and printed to standard error when the
+/// window opens.
+pub const KEYS: &str = "Keys:
+  W A S D, arrow keys   move
+  left mouse drag       look around
+  Q / E, PageDown / Up  move down / up
+  Shift                 move five times faster
+  P                     play or pause the route
+  Esc                   quit
+The title shows frames per second, blocks and triangles drawn, and the structure.";
+
 /// Arguments.
 #[derive(clap::Args, Debug)]
 pub struct Args {
     #[command(flatten)]
     pub city: CityArgs,
-    /// The route P plays: `paper`, `orbit`, `street`, or a route file (.toml / .json).
+    /// The route P plays: `paper`, `orbit`, `street`, `flyover`, or a route file (.toml / .json).
     #[arg(long, default_value = "paper")]
     pub route: RouteChoice,
     /// The spatial structure that culls each frame.
@@ -108,6 +119,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         }),
     };
     let far_on = far.is_some();
+    eprintln!("{KEYS}");
     let viewer_scene = ViewerScene {
         scene,
         structure: args.structure,

@@ -1,4 +1,4 @@
-//! `blockwalk walk`: a camera route through the city with every spatial structure (seed 003 §5.1).
+//! `blockwalk walk`: a camera route through the city with every spatial structure (Pina, Serón and Cerezo, §5.1).
 
 use super::common::{load_scene, CityArgs, Size};
 use anyhow::Context;
@@ -14,15 +14,14 @@ use blockwalk::walk::{
 use indicatif::{ProgressBar, ProgressStyle};
 use std::path::PathBuf;
 
-/// Most frames a walk may sample (a route file or `--frames`): 100,000, about an hour at 30 fps.
-pub const MAX_FRAMES: usize = 100_000;
+use blockwalk::route::MAX_FRAMES;
 
 /// Arguments.
 #[derive(clap::Args, Debug)]
 pub struct Args {
     #[command(flatten)]
     pub city: CityArgs,
-    /// The route: `paper` (seed 003 §5), `orbit`, `street` (a walk across the street graph),
+    /// The route: `paper` (Pina, Serón and Cerezo, §5), `orbit`, `street` (a walk across the street graph),
     /// `flyover` (high, most of the city in view), or a route file (.toml / .json, see
     /// examples/routes/).
     #[arg(long, default_value = "paper")]
@@ -42,7 +41,7 @@ pub struct Args {
     #[arg(long, value_parser = super::common::choice::<OcclusionMode>(), default_value_t = OcclusionMode::Auto)]
     pub occlusion: OcclusionMode,
     /// Test each building of the blocks that survive (frustum, and the cull map with
-    /// occlusion; seed 004 §3.2.8): on, off, or auto (with and without, side by side, and
+    /// occlusion; Willmott et al., §3.2.8): on, off, or auto (with and without, side by side, and
     /// which pays).
     #[arg(long, value_parser = super::common::choice::<BuildingsMode>(), default_value_t = BuildingsMode::Auto)]
     pub buildings: BuildingsMode,
@@ -85,7 +84,7 @@ pub struct Args {
     pub keep_far: bool,
 }
 
-/// The BlockMaps of `scene` at `k` (seed 000 §4's competitive stop), with a spinner.
+/// The BlockMaps of `scene` at `k` (Cignoni et al., §4's competitive stop), with a spinner.
 pub fn build_far_maps(scene: &Scene, k: u32, quiet: bool) -> anyhow::Result<MapTree> {
     let build = blockwalk::blockmap::BuildOptions {
         k,
@@ -184,49 +183,16 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         leaf_capacity: args.page_capacity as usize,
         ..Default::default()
     };
-    let default_pages = scene
-        .units
-        .as_ref()
-        .is_some_and(|u| *u.scene_graph.params() == pages);
-    match scene.units.as_mut() {
-        Some(u) if default_pages => u.mode = args.buildings,
-        Some(_) => {
-            // Rebuilt with the asked page size; the scene-graph index must be the same tree.
-            scene
-                .build_units(&pages, args.buildings)
-                .with_context(|| format!("splitting {} into pages", scene.name))?;
-            let tree = scene.units.as_ref().map(|u| u.scene_graph.clone());
-            for index in scene.indexes.iter_mut() {
-                if let (Structure::SceneGraph, Some(t)) = (index.structure(), tree.clone()) {
-                    *index = Box::new(t);
-                }
-            }
-        }
-        None if args.buildings != BuildingsMode::Off => {
-            scene
-                .build_units(&pages, args.buildings)
-                .with_context(|| format!("splitting {} into buildings", scene.name))?
-        }
-        None => {}
-    }
-    // `flyover` (the far-field sweep's high fly-over) unless a file of that name exists.
-    let (route, file_frames) = match &args.route {
-        RouteChoice::File(p) if p.as_os_str() == "flyover" && !p.exists() => (
-            super::farfield_sweep::flyover_route(scene.city_bounds(), args.size.aspect())?,
-            None,
-        ),
-        choice => resolve_route(choice, &scene, args.size)?,
-    };
+    scene
+        .set_pages(&pages, args.buildings)
+        .with_context(|| format!("splitting {} into pages and buildings", scene.name))?;
+    let (route, file_frames) = resolve_route(&args.route, &scene, args.size)?;
     let frames = args
         .frames
         .map(|f| f as usize)
         .or(file_frames)
         .unwrap_or(300);
-    anyhow::ensure!(
-        (1..=MAX_FRAMES).contains(&frames),
-        "{}: {frames} frames; expected 1..={MAX_FRAMES}",
-        args.route
-    );
+    let frames = blockwalk::route::check_frames(&args.route.to_string(), frames)?;
     let params = WalkParams {
         route,
         frames,

@@ -138,5 +138,5 @@ fn a_bad_tau_is_refused_before_a_window_opens() {
         .expect("run blockwalk view");
     assert!(!out.status.success());
     let err = String::from_utf8_lossy(&out.stderr);
-    assert!(err.contains("--tau 0"), "{err}");
+    assert!(err.contains("tau 0"), "{err}");
 }

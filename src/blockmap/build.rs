@@ -102,6 +102,51 @@ pub struct BuildOptions {
     pub two_edges: bool,
 }
 
+impl BuildOptions {
+    /// Checks the options before anything is built.
+    ///
+    /// # Errors
+    /// [`BlockMapError::BadParameter`], naming the option, for a K other than 32, 64 or 128, a
+    /// slice minimum outside 2..=K, `fill_samples` outside 1..=8, `fill_share` outside (0, 1],
+    /// or (with AO) an AO radius that is not a finite number of metres > 0.
+    pub fn validate(&self) -> Result<(), BlockMapError> {
+        let bad = |m: String| Err(BlockMapError::BadParameter(m));
+        if !super::layout::ALLOWED_K.contains(&self.k) {
+            let why = if self.k.is_power_of_two() {
+                "out of range"
+            } else {
+                "not a power of two"
+            };
+            return bad(format!("k = {}: {why}; expected 32, 64 or 128", self.k));
+        }
+        if self.min_slice_rows < 2 || self.min_slice_rows > self.k {
+            return bad(format!(
+                "min_slice_rows = {}: need 2..=K",
+                self.min_slice_rows
+            ));
+        }
+        if !(1..=8).contains(&self.fill_samples) {
+            return bad(format!(
+                "fill_samples = {}: expected 1 to 8",
+                self.fill_samples
+            ));
+        }
+        if !(self.fill_share > 0.0 && self.fill_share <= 1.0) {
+            return bad(format!(
+                "fill_share = {}: expected a share in (0, 1]",
+                self.fill_share
+            ));
+        }
+        if self.ao && !(self.ao_radius_m.is_finite() && self.ao_radius_m > 0.0) {
+            return bad(format!(
+                "ao_radius_m = {}: need a finite radius > 0",
+                self.ao_radius_m
+            ));
+        }
+        Ok(())
+    }
+}
+
 impl Default for BuildOptions {
     fn default() -> Self {
         Self {
@@ -199,18 +244,7 @@ pub fn build_map(
     buildings: &[u32],
     opts: &BuildOptions,
 ) -> Result<(BlockMap, Vec<u32>, BuildStats), BlockMapError> {
-    if opts.min_slice_rows < 2 || opts.min_slice_rows > opts.k {
-        return Err(BlockMapError::BadParameter(format!(
-            "min_slice_rows = {}: need 2..=K",
-            opts.min_slice_rows
-        )));
-    }
-    if opts.ao && !(opts.ao_radius_m.is_finite() && opts.ao_radius_m > 0.0) {
-        return Err(BlockMapError::BadParameter(format!(
-            "ao_radius_m = {}: need a finite radius > 0",
-            opts.ao_radius_m
-        )));
-    }
+    opts.validate()?;
     let bs: Vec<&SourceBuilding> = buildings
         .iter()
         .filter_map(|&i| source.buildings.get(i as usize).and_then(|b| b.as_ref()))

@@ -53,6 +53,23 @@ pub struct SelectOptions {
     pub hysteresis: f64,
 }
 
+impl SelectOptions {
+    /// τ (pixels) and the hysteresis `h`, checked.
+    ///
+    /// # Errors
+    /// [`SelectError::BadTau`] unless τ is a finite number > 0; [`SelectError::BadHysteresis`]
+    /// unless `0 ≤ h < 1`.
+    pub fn new(tau_px: f64, hysteresis: f64) -> Result<Self, SelectError> {
+        if !(tau_px.is_finite() && tau_px > 0.0) {
+            return Err(SelectError::BadTau(tau_px));
+        }
+        if !(0.0..1.0).contains(&hysteresis) {
+            return Err(SelectError::BadHysteresis(hysteresis));
+        }
+        Ok(Self { tau_px, hysteresis })
+    }
+}
+
 impl Default for SelectOptions {
     fn default() -> Self {
         Self {
@@ -98,6 +115,12 @@ pub struct Selection {
 /// Why a selector cannot be built over a map tree.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum SelectError {
+    /// τ is not a finite number of pixels > 0.
+    #[error("tau {0}: expected a finite number of pixels > 0")]
+    BadTau(f64),
+    /// The hysteresis is outside [0, 1).
+    #[error("hysteresis {0}: expected a number in [0, 1)")]
+    BadHysteresis(f64),
     /// A map holds a block the scene has no bounds for.
     #[error("map of node {key}: block {block} has no bounds in the scene")]
     UnknownBlock {

@@ -30,20 +30,54 @@ pub enum RouteChoice {
     Orbit,
     /// A street-level walk across the street graph, corner to corner.
     Street,
+    /// A high fly-over with the whole city in view ([`super::flyover_route`]).
+    Flyover,
     /// A route file (`.toml` / `.json`, see [`RouteFile`]).
     File(PathBuf),
 }
 
-impl FromStr for RouteChoice {
-    type Err = std::convert::Infallible;
-    /// `paper`, `orbit`, `street`, or else a route file's path.
-    fn from_str(s: &str) -> Result<Self, Self::Err> {
-        Ok(match s {
+impl RouteChoice {
+    /// The generated routes' names, in the order they are listed.
+    pub const NAMES: [&'static str; 4] = ["paper", "orbit", "street", "flyover"];
+
+    /// The generated route called `name`.
+    pub fn named(name: &str) -> Option<Self> {
+        Some(match name {
             "paper" => RouteChoice::Paper,
             "orbit" => RouteChoice::Orbit,
             "street" => RouteChoice::Street,
-            path => RouteChoice::File(PathBuf::from(path)),
+            "flyover" => RouteChoice::Flyover,
+            _ => return None,
         })
+    }
+}
+
+impl FromStr for RouteChoice {
+    type Err = RouteError;
+    /// A generated route's name ([`RouteChoice::NAMES`]), or else an existing route file.
+    ///
+    /// # Errors
+    /// [`RouteError::Unknown`] (its message lists the names) when `s` is no route name and no
+    /// file by that name can be read; [`RouteError::Bad`] for a folder.
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        if let Some(c) = RouteChoice::named(s) {
+            return Ok(c);
+        }
+        let path = PathBuf::from(s);
+        match std::fs::metadata(&path) {
+            Ok(m) if m.is_file() => Ok(RouteChoice::File(path)),
+            Ok(_) => Err(RouteError::Bad {
+                route: s.into(),
+                problem: format!(
+                    "not a route file (a folder), and not a route name ({})",
+                    RouteChoice::NAMES.join(", ")
+                ),
+            }),
+            Err(source) => Err(RouteError::Unknown {
+                name: s.into(),
+                source,
+            }),
+        }
     }
 }
 
@@ -53,6 +87,7 @@ impl std::fmt::Display for RouteChoice {
             RouteChoice::Paper => f.write_str("paper"),
             RouteChoice::Orbit => f.write_str("orbit"),
             RouteChoice::Street => f.write_str("street"),
+            RouteChoice::Flyover => f.write_str("flyover"),
             RouteChoice::File(p) => write!(f, "{}", p.display()),
         }
     }
@@ -138,6 +173,7 @@ impl RouteChoice {
                     None,
                 )
             }
+            RouteChoice::Flyover => (super::flyover_route(ctx.bounds, ctx.aspect)?, None),
             RouteChoice::File(path) => {
                 let f = RouteFile::read(path)?;
                 let mut r = f.to_route(Some(ctx.frame))?;
@@ -165,12 +201,30 @@ mod tests {
             RouteChoice::Street
         );
         assert_eq!(
-            "routes/a.toml".parse::<RouteChoice>().unwrap(),
-            RouteChoice::File("routes/a.toml".into())
+            "flyover".parse::<RouteChoice>().unwrap(),
+            RouteChoice::Flyover
         );
-        for c in ["paper", "orbit", "street", "x/y.json"] {
+        let dir = tempfile::tempdir().unwrap();
+        let file = dir.path().join("a.toml");
+        std::fs::write(&file, "").unwrap();
+        let name = file.to_str().unwrap();
+        assert_eq!(
+            name.parse::<RouteChoice>().unwrap(),
+            RouteChoice::File(file.clone())
+        );
+        for c in ["paper", "orbit", "street", "flyover", name] {
             assert_eq!(c.parse::<RouteChoice>().unwrap().to_string(), c);
         }
+    }
+
+    #[test]
+    fn an_unknown_name_lists_the_routes_and_says_there_is_no_such_file() {
+        let e = "streets".parse::<RouteChoice>().unwrap_err().to_string();
+        assert!(
+            e.starts_with("route 'streets': not a route name (paper, orbit, street, flyover)"),
+            "{e}"
+        );
+        assert!(e.contains("(os error 2)"), "{e}");
     }
 
     #[test]

@@ -11,14 +11,35 @@
 
 pub mod choice;
 pub mod file;
+pub mod flyover;
 pub mod generate;
 pub mod obstacles;
 pub mod spline;
 
 pub use choice::{RouteChoice, RouteContext};
 pub use file::RouteFile;
+pub use flyover::{flyover_route, flyover_route_with_near, FLYOVER_NEAR_SHARE};
 pub use generate::{orbit_route, paper_route, street_walk, PaperRouteParams, StreetGraph};
 pub use obstacles::{Obstacles, EYE_CLEARANCE_M};
+
+/// Most frames a walk may sample (a route file or a caller's count): 100,000, about an hour at
+/// 30 fps.
+pub const MAX_FRAMES: usize = 100_000;
+
+/// `frames` checked for the route `route`: 1 to [`MAX_FRAMES`].
+///
+/// # Errors
+/// [`RouteError::Bad`] (naming the route and the count) outside that range.
+pub fn check_frames(route: &str, frames: usize) -> Result<usize, RouteError> {
+    if (1..=MAX_FRAMES).contains(&frames) {
+        Ok(frames)
+    } else {
+        Err(RouteError::Bad {
+            route: route.into(),
+            problem: format!("{frames} frames; expected 1 to {MAX_FRAMES}"),
+        })
+    }
+}
 
 use crate::geom::Camera;
 use glam::{DQuat, DVec3};
@@ -52,6 +73,15 @@ pub enum RouteError {
         route: String,
         /// What is wrong.
         problem: String,
+    },
+    /// A route that is neither a generated route's name nor a file that can be read.
+    #[error("route '{name}': not a route name (paper, orbit, street, flyover), and not a route file: {source}")]
+    Unknown {
+        /// What was given.
+        name: String,
+        /// Why it cannot be read as a file.
+        #[source]
+        source: std::io::Error,
     },
     /// The route file could not be read.
     #[error("{file}: {source}")]

@@ -284,39 +284,6 @@ impl Scene {
         Ok(())
     }
 
-    /// Sets the draw units a walk needs: the per-building test `mode`, and the scene graph's
-    /// pages made with `pages`. Units are built when the mode asks for them or when the scene
-    /// graph's pages change; the [`Structure::SceneGraph`] index is then replaced by the tree of
-    /// the new pages, so that the structure and the units are one tree.
-    ///
-    /// # Errors
-    /// [`SceneError::Index`] for bad scene-graph parameters.
-    pub fn set_pages(
-        &mut self,
-        pages: &SceneGraphParams,
-        mode: BuildingsMode,
-    ) -> Result<(), SceneError> {
-        let same_pages = self
-            .units
-            .as_ref()
-            .is_some_and(|u| u.scene_graph.params() == pages);
-        match self.units.as_mut() {
-            Some(u) if same_pages => u.mode = mode,
-            Some(_) => {
-                self.build_units(pages, mode)?;
-                let tree = self.units.as_ref().map(|u| u.scene_graph.clone());
-                for index in self.indexes.iter_mut() {
-                    if let (Structure::SceneGraph, Some(t)) = (index.structure(), tree.clone()) {
-                        *index = Box::new(t);
-                    }
-                }
-            }
-            None if mode != BuildingsMode::Off => self.build_units(pages, mode)?,
-            None => {}
-        }
-        Ok(())
-    }
-
     /// One mesh per block (local frame, in the layout's order): the block's buildings' meshes
     /// merged once, or the exact meshes a synthetic grid brings.
     pub fn block_meshes(&self) -> &[(BlockId, Mesh)] {
@@ -380,6 +347,37 @@ impl Scene {
             t[b.id.0 as usize] = u64::from(b.triangles);
         }
         t
+    }
+
+    /// Pages of `params` and single buildings as draw units, with the walk's per-building
+    /// `mode`: the units are kept when they were built with `params` (only the mode is set),
+    /// rebuilt otherwise, and the [`Structure::SceneGraph`] index, when the scene has one, is
+    /// replaced by the rebuilt tree so that the index and the units agree. Without units and with
+    /// `mode` off nothing is built.
+    ///
+    /// # Errors
+    /// [`SceneError::Index`] for bad scene-graph parameters.
+    pub fn set_pages(
+        &mut self,
+        params: &SceneGraphParams,
+        mode: BuildingsMode,
+    ) -> Result<(), SceneError> {
+        match self.units.as_mut() {
+            Some(u) if u.scene_graph.params() == params => u.mode = mode,
+            Some(_) => {
+                self.build_units(params, mode)?;
+                if let Some(tree) = self.units.as_ref().map(|u| u.scene_graph.clone()) {
+                    for index in self.indexes.iter_mut() {
+                        if index.structure() == Structure::SceneGraph {
+                            *index = Box::new(tree.clone());
+                        }
+                    }
+                }
+            }
+            None if mode != BuildingsMode::Off => self.build_units(params, mode)?,
+            None => {}
+        }
+        Ok(())
     }
 }
 

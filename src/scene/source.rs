@@ -49,6 +49,10 @@ pub enum CitySource {
         parcels: Option<PathBuf>,
         /// Street features left out when their attribute `k` equals `v`.
         exclude_street_tags: Vec<(String, String)>,
+        /// The city's name (`None`: [`crate::city::build::city_name`]).
+        name: Option<String>,
+        /// The footprint layer's CRS, replacing the file's (`None`: the file's).
+        crs: Option<crate::importers::Crs>,
     },
     /// A synthetic grid of `cols × rows` blocks of box buildings (see [`SyntheticCity`]).
     Synthetic {
@@ -154,7 +158,30 @@ impl CitySource {
             streets,
             parcels,
             exclude_street_tags,
+            name: None,
+            crs: None,
         })
+    }
+
+    /// The same source with the city's name and the footprint layer's CRS stated (each `None`
+    /// leaves it as it was); a synthetic city keeps its own.
+    pub fn with_name_and_crs(
+        mut self,
+        name: Option<String>,
+        crs: Option<crate::importers::Crs>,
+    ) -> Self {
+        if let CitySource::Files {
+            name: n, crs: c, ..
+        } = &mut self
+        {
+            if name.is_some() {
+                *n = name;
+            }
+            if crs.is_some() {
+                *c = crs;
+            }
+        }
+        self
     }
 
     /// The layer files this source reads: footprints, streets, parcels (folder convention
@@ -208,6 +235,8 @@ impl CitySource {
                     footprints,
                     parcels,
                     exclude_street_tags,
+                    name,
+                    crs,
                     ..
                 },
                 Some((fp, st, _)),
@@ -216,6 +245,8 @@ impl CitySource {
                 streets: st,
                 parcels: parcels.clone(),
                 exclude_street_tags: exclude_street_tags.clone(),
+                name: name.clone(),
+                crs: crs.clone(),
             }),
             _ => Ok(self.clone()),
         }
@@ -309,6 +340,8 @@ impl CitySource {
             }
             CitySource::Files {
                 exclude_street_tags,
+                name,
+                crs,
                 ..
             } => {
                 let (f, s, p) = self
@@ -317,6 +350,12 @@ impl CitySource {
                 let mut opts = opts.clone();
                 opts.exclude_street_tags
                     .extend(exclude_street_tags.iter().cloned());
+                if name.is_some() {
+                    opts.name.clone_from(name);
+                }
+                if crs.is_some() {
+                    opts.crs.clone_from(crs);
+                }
                 progress(&format!(
                     "building the city from {} footprints",
                     f.features.len()

@@ -57,6 +57,79 @@ pub struct BuildOptions {
     pub heights: HeightFields,
     /// Leave out street features whose attribute `k` equals `v` (compared as text).
     pub exclude_street_tags: Vec<(String, String)>,
+    /// The city's name; `None`: [`city_name`] of the footprint file.
+    pub name: Option<String>,
+    /// The footprint layer's CRS, stated or replacing the one its file gives (a Shapefile
+    /// without `.prj`, a wrong one); `None`: the file's ([`parse_crs`] reads one from text).
+    pub crs: Option<crate::importers::Crs>,
+}
+
+/// Footprint file stems that say nothing about the city (`buildings.shp` of a city folder).
+pub const GENERIC_LAYER_NAMES: [&str; 6] = [
+    "buildings",
+    "building",
+    "footprints",
+    "footprint",
+    "polygons",
+    "layer",
+];
+
+/// A city's name from its footprint file and the layer's name (the file stem): the layer's name,
+/// unless it is generic ([`GENERIC_LAYER_NAMES`], any case) and the file lies in a named folder
+/// (not `.`), whose name is then the city's (`data/helsinki/buildings.shp` → `helsinki`).
+pub fn city_name(footprint_file: &std::path::Path, layer_name: &str) -> String {
+    let generic = GENERIC_LAYER_NAMES
+        .iter()
+        .any(|g| g.eq_ignore_ascii_case(layer_name));
+    let folder = footprint_file
+        .parent()
+        .and_then(|p| p.file_name())
+        .map(|n| n.to_string_lossy().into_owned())
+        .filter(|n| !n.is_empty() && n != "." && n != "..");
+    match folder {
+        Some(f) if generic => f,
+        _ => layer_name.to_string(),
+    }
+}
+
+/// A CRS from text: `EPSG:NNNN`, a PROJ string (`+proj=… `, projected, in metres), WKT, or the
+/// path of a file holding WKT (a `.prj`).
+///
+/// # Errors
+/// [`BuildError::Options`] naming the text and the problem (an unknown code, a unit other than
+/// the metre, a file that cannot be read, …).
+pub fn parse_crs(text: &str) -> Result<crate::importers::Crs, BuildError> {
+    use crate::importers::Crs;
+    let t = text.trim();
+    let bad = |why: String| BuildError::Options(format!("CRS '{text}': {why}"));
+    if let Some(code) = t.strip_prefix("EPSG:").or_else(|| t.strip_prefix("epsg:")) {
+        let code: u32 = code
+            .trim()
+            .parse()
+            .map_err(|_| bad("expected EPSG:NNNN".into()))?;
+        return Crs::from_epsg(code).map_err(|e| bad(e.to_string()));
+    }
+    if t.starts_with("+proj=") {
+        if t.contains("+proj=longlat") || t.contains("+proj=latlong") {
+            return Err(bad(
+                "geographic PROJ strings are not taken: give EPSG:4326 or the code".into(),
+            ));
+        }
+        if t.contains("+units=") && !t.contains("+units=m ") && !t.ends_with("+units=m") {
+            return Err(bad("the unit is not the metre".into()));
+        }
+        return Ok(Crs::Projected {
+            epsg: None,
+            name: t.to_string(),
+            proj4: t.to_string(),
+        });
+    }
+    let wkt = if std::path::Path::new(t).is_file() {
+        std::fs::read_to_string(t).map_err(|e| bad(e.to_string()))?
+    } else {
+        t.to_string()
+    };
+    Crs::from_wkt(&wkt).map_err(|e| bad(e.to_string()))
 }
 
 /// A building whose height attribute could not be used, for the report.
@@ -118,9 +191,25 @@ pub fn build_city(
 ) -> Result<City, BuildError> {
     let hf = &opts.heights;
     check_heights(hf)?;
+    let stated;
+    let footprints = match &opts.crs {
+        Some(crs) if *crs != footprints.crs => {
+            stated = Layer {
+                crs: crs.clone(),
+                ..footprints.clone()
+            };
+            &stated
+        }
+        _ => footprints,
+    };
     let transform = frame::footprint_transform(footprints)?;
     let mut report = CityReport {
-        crs: transform.describe(),
+        crs: match footprints.crs {
+            crate::importers::Crs::Unknown => {
+                "no CRS: coordinates taken as metres in a local frame".into()
+            }
+            _ => transform.describe(),
+        },
         ..Default::default()
     };
     let buildings = repair_report::build_footprints(footprints, &transform, hf, &mut report);
@@ -135,7 +224,7 @@ pub fn build_city(
     report.notes.extend(frame::frame_notes(&frame_report));
     report.frame = frame_report;
 
-    with_layers(
+    let mut city = with_layers(
         footprints,
         streets,
         parcels,
@@ -143,7 +232,12 @@ pub fn build_city(
         (transform, local),
         buildings,
         report,
-    )
+    )?;
+    city.name = opts
+        .name
+        .clone()
+        .unwrap_or_else(|| city_name(&footprints.source, &footprints.name));
+    Ok(city)
 }
 
 /// [`build_city`] with the metric transform and the local frame given instead of derived from
@@ -274,6 +368,47 @@ pub fn count_height_sources(buildings: &[Building]) -> BTreeMap<String, usize> {
 
 #[cfg(test)]
 mod tests {
+
+    #[test]
+    fn a_city_is_named_after_its_folder_when_its_file_is_generic() {
+        use std::path::Path;
+        let n = |p: &str, stem: &str| city_name(Path::new(p), stem);
+        assert_eq!(n("data/helsinki/buildings.shp", "buildings"), "helsinki");
+        assert_eq!(n("x/astana/Footprints.gpkg", "Footprints"), "astana");
+        assert_eq!(
+            n("data/bubenec/bubenec_houses.shp", "bubenec_houses"),
+            "bubenec_houses"
+        );
+        assert_eq!(n("buildings.shp", "buildings"), "buildings");
+        assert_eq!(n("./buildings.shp", "buildings"), "buildings");
+    }
+
+    #[test]
+    fn a_crs_is_read_from_a_code_a_proj_string_or_wkt() {
+        use crate::importers::Crs;
+        assert!(matches!(
+            parse_crs("EPSG:32633").unwrap(),
+            Crs::Projected {
+                epsg: Some(32633),
+                ..
+            }
+        ));
+        assert!(matches!(
+            parse_crs("+proj=utm +zone=35 +ellps=GRS80 +units=m").unwrap(),
+            Crs::Projected { epsg: None, .. }
+        ));
+        for bad in [
+            "EPSG:x",
+            "EPSG:1",
+            "+proj=longlat",
+            "+proj=tmerc +units=us-ft",
+            "nonsense",
+        ] {
+            let e = parse_crs(bad).unwrap_err().to_string();
+            assert!(e.contains(bad), "{e}");
+        }
+    }
+
     use super::*;
     use crate::city::model::BuildingId;
     use crate::geom::predicates::polygon_area;
