@@ -50,6 +50,45 @@ pub struct CityArgs {
     pub crs: Option<String>,
 }
 
+/// The library's progress as a spinner (stages) and a bar (counts) on stderr, hidden with
+/// `--json` or when stderr is not a terminal.
+pub struct Progress {
+    bar: ProgressBar,
+    stage: std::sync::Mutex<String>,
+}
+
+impl Progress {
+    /// Progress on stderr, hidden when `quiet`.
+    pub fn new(quiet: bool) -> Self {
+        let bar = spinner("");
+        if quiet {
+            bar.set_draw_target(ProgressDrawTarget::hidden());
+        }
+        Self {
+            bar,
+            stage: std::sync::Mutex::new(String::new()),
+        }
+    }
+
+    /// Clears the line.
+    pub fn finish(&self) {
+        self.bar.finish_and_clear();
+    }
+}
+
+impl blockwalk::walk::JobProgress for Progress {
+    fn stage(&self, what: &str) {
+        if let Ok(mut s) = self.stage.lock() {
+            *s = what.to_string();
+        }
+        self.bar.set_message(what.to_string());
+    }
+    fn count(&self, done: usize, total: usize) {
+        let stage = self.stage.lock().map(|s| s.clone()).unwrap_or_default();
+        self.bar.set_message(format!("{stage}: {done}/{total}"));
+    }
+}
+
 /// A spinner on stderr, hidden when stderr is not a terminal.
 pub fn spinner(msg: impl Into<String>) -> ProgressBar {
     let pb = if std::io::stderr().is_terminal() {

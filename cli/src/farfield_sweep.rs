@@ -106,7 +106,7 @@ fn route_of(
             near_share,
         )?);
     }
-    Ok(super::walk::resolve_route(choice, scene, size)?.0)
+    Ok(blockwalk::walk::job::resolve_route(choice, scene, size.aspect())?.0)
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
@@ -156,7 +156,19 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             two_edges: args.edges > 1,
             ..Default::default()
         };
-        let maps = super::walk::build_far_maps_with(&scene, build, args.json)?;
+        let progress = super::common::Progress::new(args.json);
+        use blockwalk::walk::{BuildFar, JobProgress};
+        progress.stage(&format!(
+            "building the BlockMaps of {} (K = {k})",
+            scene.name
+        ));
+        let maps = blockwalk::blockmap::MapTree::build(
+            &scene,
+            &blockwalk::walk::BlockMapsOptions { build },
+            &|d, t| progress.count(d, t),
+        )
+        .with_context(|| format!("building the BlockMaps of {}", scene.name))?;
+        progress.finish();
         let build_s = t0.elapsed().as_secs_f64();
         if !args.json {
             outln!(
@@ -167,7 +179,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         }
         let gpu = args
             .gpu
-            .then(|| super::walk::gpu_renderer(&scene, args.size, Some(&maps)));
+            .then(|| super::walk::gpu().renderer(&scene, args.size.pair(), Some(&maps)));
         if let Some(Err(e)) = &gpu {
             notes.push(format!(
                 "K = {k}: no GPU renderer ({e}); CPU hybrid renderer"

@@ -45,7 +45,6 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             ..SceneOptions::default()
         },
     )?;
-    let meshes = blockwalk::city::extrude::extrude_city(&scene.city);
     let bar = if args.json || !std::io::stderr().is_terminal() {
         ProgressBar::hidden()
     } else {
@@ -66,7 +65,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         &scene.city,
         &scene.layout,
         &scene.bounds,
-        &meshes,
+        &scene.building_meshes,
         &args.out,
         &opts,
         &|done, total| {

@@ -109,12 +109,24 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         ..SceneOptions::default()
     };
     let scene = load_scene(&args.city, args.seed, &opts)?;
-    let (route, _) = super::walk::resolve_route(&args.route, &scene, args.size)?;
+    let (route, _) = blockwalk::walk::job::resolve_route(&args.route, &scene, args.size.aspect())?;
     let name = scene.name.clone();
     let far = match args.far.mode {
         FarMode::None => None,
         FarMode::Blockmaps => Some(ViewerFar {
-            field: Box::new(super::walk::build_far_maps(&scene, args.far.k, args.json)?),
+            field: {
+                let progress = super::common::Progress::new(args.json);
+                let opts = blockwalk::walk::BlockMapsOptions {
+                    build: blockwalk::blockmap::BuildOptions {
+                        k: args.far.k,
+                        ..Default::default()
+                    },
+                };
+                let f = blockwalk::walk::job::build_far(&scene, args.far.mode, &opts, &progress)?
+                    .ok_or_else(|| anyhow::anyhow!("no far field was asked for"))?;
+                progress.finish();
+                f
+            },
             select,
         }),
     };

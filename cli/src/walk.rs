@@ -2,16 +2,14 @@
 
 use super::common::{load_scene, CityArgs, Size};
 use anyhow::Context;
-use blockwalk::blockmap::MapTree;
 use blockwalk::index::Structure;
 use blockwalk::report;
-use blockwalk::route::{RouteChoice, RouteContext};
-use blockwalk::scene::{BuildingsMode, Scene, SceneOptions};
-use blockwalk::visibility::{CullerOptions, FrameRenderer};
+use blockwalk::route::RouteChoice;
+use blockwalk::scene::{BuildingsMode, SceneOptions};
+use blockwalk::visibility::CullerOptions;
 use blockwalk::walk::{
-    run_walk_with_far, Drawing, FarMode, FarSetup, OcclusionMode, WalkParams, WalkRecord,
+    run_job, BlockMapsOptions, FarJob, FarMode, GpuRenderers, OcclusionMode, WalkJob, WalkRecord,
 };
-use indicatif::{ProgressBar, ProgressStyle};
 use std::path::PathBuf;
 
 use blockwalk::route::MAX_FRAMES;
@@ -84,91 +82,16 @@ pub struct Args {
     pub keep_far: bool,
 }
 
-/// The BlockMaps of `scene` at `k` (Cignoni et al., §4's competitive stop), with a spinner.
-pub fn build_far_maps(scene: &Scene, k: u32, quiet: bool) -> anyhow::Result<MapTree> {
-    let build = blockwalk::blockmap::BuildOptions {
-        k,
-        ..Default::default()
-    };
-    build_far_maps_with(scene, build, quiet)
-}
-
-/// [`build_far_maps`] with the given map options (the side K is `build.k`).
-pub fn build_far_maps_with(
-    scene: &Scene,
-    build: blockwalk::blockmap::BuildOptions,
-    quiet: bool,
-) -> anyhow::Result<MapTree> {
-    use blockwalk::blockmap::{CityMapsOptions, Stop, TreeOptions};
-    let k = build.k;
-    let opts = CityMapsOptions {
-        tree: TreeOptions {
-            build,
-            stop: Stop::Competitive,
-            ..TreeOptions::default()
-        },
-        checks: 0,
-        ..CityMapsOptions::default()
-    };
-    let pb = super::common::spinner(format!(
-        "building the BlockMaps of {} (K = {k})",
-        scene.name
-    ));
-    if quiet {
-        pb.set_draw_target(indicatif::ProgressDrawTarget::hidden());
+/// The walk's GPU renderers: wgpu's with the `render` feature, none without.
+pub fn gpu() -> &'static dyn GpuRenderers {
+    #[cfg(feature = "render")]
+    {
+        &blockwalk::render::WgpuRenderers
     }
-    let maps = scene
-        .blockmaps(&opts, &|done, total| {
-            pb.set_message(format!("BlockMaps {done}/{total}"))
-        })
-        .with_context(|| format!("building the BlockMaps of {}", scene.name))?;
-    pb.finish_and_clear();
-    Ok(maps.maps)
-}
-
-/// The route `choice` over `scene` at `size`, and the frames a route file asks for.
-pub fn resolve_route(
-    choice: &RouteChoice,
-    scene: &Scene,
-    size: Size,
-) -> anyhow::Result<(blockwalk::route::CameraRoute, Option<usize>)> {
-    let ctx = RouteContext {
-        city: &scene.name,
-        bounds: scene.city_bounds(),
-        street_edges: &scene.layout.street_edges,
-        buildings: &scene.city.buildings,
-        frame: &scene.city.frame,
-        aspect: size.aspect(),
-    };
-    choice
-        .resolve(&ctx)
-        .with_context(|| format!("making the {choice} route over {}", scene.name))
-}
-
-/// A GPU renderer for the scene (drawing the far field `far` when given), or why there is none.
-#[cfg(feature = "render")]
-pub fn gpu_renderer(
-    scene: &Scene,
-    size: Size,
-    far: Option<&MapTree>,
-) -> Result<Box<dyn FrameRenderer>, String> {
-    let r =
-        blockwalk::render::GpuFrameRenderer::new(scene.draw_meshes(), &scene.ground, size.pair())
-            .map_err(|e| e.to_string())?;
-    match far {
-        None => Ok(Box::new(r)),
-        Some(m) => Ok(Box::new(r.with_far(m).map_err(|e| e.to_string())?)),
+    #[cfg(not(feature = "render"))]
+    {
+        &blockwalk::walk::NoGpu("built without the `render` feature")
     }
-}
-
-/// Without the `render` feature there is no GPU renderer.
-#[cfg(not(feature = "render"))]
-pub fn gpu_renderer(
-    _scene: &Scene,
-    _size: Size,
-    _far: Option<&MapTree>,
-) -> Result<Box<dyn FrameRenderer>, String> {
-    Err("built without the `render` feature".into())
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
@@ -178,78 +101,39 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         ..SceneOptions::default()
     };
     let mut scene = load_scene(&args.city, args.seed, &opts)?;
-    // Pages (the scene graph asked for) and buildings as draw units.
-    let pages = blockwalk::index::SceneGraphParams {
-        leaf_capacity: args.page_capacity as usize,
-        ..Default::default()
+    let far = match args.far.mode {
+        FarMode::None => None,
+        mode => Some(FarJob {
+            mode,
+            maps: BlockMapsOptions {
+                build: blockwalk::blockmap::BuildOptions {
+                    k: args.far.k,
+                    ..Default::default()
+                },
+            },
+            select: args.far.select()?,
+            reference: args.reference,
+            keep: args.keep_far,
+        }),
     };
-    scene
-        .set_pages(&pages, args.buildings)
-        .with_context(|| format!("splitting {} into pages and buildings", scene.name))?;
-    let (route, file_frames) = resolve_route(&args.route, &scene, args.size)?;
-    let frames = args
-        .frames
-        .map(|f| f as usize)
-        .or(file_frames)
-        .unwrap_or(300);
-    let frames = blockwalk::route::check_frames(&args.route.to_string(), frames)?;
-    let params = WalkParams {
-        route,
-        frames,
+    let job = WalkJob {
+        route: args.route.clone(),
+        frames: args.frames.map(|f| f as usize),
         occlusion: args.occlusion,
-        image_every: if args.render { args.image_every } else { 0 },
+        buildings: args.buildings,
+        pages: blockwalk::index::SceneGraphParams {
+            leaf_capacity: args.page_capacity as usize,
+            ..Default::default()
+        },
+        render: args.render,
+        image_every: args.image_every,
         oracle: args.oracle,
         size: args.size.pair(),
+        far,
     };
-    let select = args.far.select()?;
-    anyhow::ensure!(
-        !args.reference || args.render,
-        "--reference compares drawn frames: add --render"
-    );
-    let maps = match args.far.mode {
-        FarMode::None => None,
-        FarMode::Blockmaps => Some(build_far_maps(&scene, args.far.k, args.json)?),
-    };
-    // The exact prisms the silhouette bound is checked with (only with the reference).
-    let source = if args.reference && maps.is_some() {
-        Some(
-            blockwalk::blockmap::Source::new(&scene.city, &scene.layout, &scene.building_meshes)
-                .with_context(|| format!("preparing the buildings of {}", scene.name))?,
-        )
-    } else {
-        None
-    };
-    let far = maps.as_ref().map(|m| FarSetup {
-        field: m,
-        select,
-        reference: args.reference,
-        leave_out: !args.keep_far,
-        probe_frames: 8,
-        source: source.as_ref(),
-    });
-    let gpu = args
-        .render
-        .then(|| gpu_renderer(&scene, args.size, maps.as_ref()));
-    let drawing = match &gpu {
-        None => Drawing::Off,
-        Some(Ok(r)) => Drawing::With(r.as_ref()),
-        Some(Err(reason)) => Drawing::CpuFallback {
-            reason: reason.clone(),
-        },
-    };
-    let bar = ProgressBar::new(frames as u64).with_style(
-        ProgressStyle::with_template("{msg} [{bar:40}] {pos}/{len} frames ({eta})")
-            .unwrap_or_else(|_| ProgressStyle::default_bar())
-            .progress_chars("=> "),
-    );
-    bar.set_message(format!("walk {}", params.route.name));
-    if args.json {
-        bar.set_draw_target(indicatif::ProgressDrawTarget::hidden());
-    }
-    let record = run_walk_with_far(&scene, &params, drawing, far, &mut |done, _| {
-        bar.set_position(done as u64)
-    })?;
-    bar.finish_and_clear();
+    let progress = super::common::Progress::new(args.json);
+    let record = run_job(&mut scene, &job, gpu(), &progress)?;
+    progress.finish();
     let ctx = report::walk::ReportContext {
         plan: report::walk::Plan::from_scene(&scene),
         machine: Some(report::walk::Machine::detect()),

@@ -12,8 +12,7 @@ use crate::route::{CameraRoute, RouteChoice, RouteContext, RouteError};
 use crate::scene::{BuildingsMode, Scene, SceneError};
 use crate::visibility::FrameRenderer;
 
-/// Most frames a walk may sample: 100,000, about an hour at 30 fps.
-pub const MAX_FRAMES: usize = 100_000;
+pub use crate::route::MAX_FRAMES;
 
 /// Frames along a route when neither the job nor the route file says.
 pub const DEFAULT_FRAMES: usize = 300;
@@ -144,26 +143,20 @@ impl WalkJob {
                 ));
             }
             check_select(&f.select)?;
+            f.maps
+                .build
+                .validate()
+                .map_err(|e| JobError::Parameter(e.to_string()))?;
         }
         Ok(())
     }
 }
 
-/// τ a positive number of pixels, the hysteresis in `[0, 1)`.
+/// τ a positive number of pixels, the hysteresis in `[0, 1)` ([`SelectOptions::new`]'s rule).
 fn check_select(s: &SelectOptions) -> Result<(), JobError> {
-    if !(s.tau_px.is_finite() && s.tau_px > 0.0) {
-        return Err(JobError::Parameter(format!(
-            "τ = {}: expected a positive number of pixels",
-            s.tau_px
-        )));
-    }
-    if !(s.hysteresis.is_finite() && (0.0..1.0).contains(&s.hysteresis)) {
-        return Err(JobError::Parameter(format!(
-            "hysteresis {}: expected a number in [0, 1)",
-            s.hysteresis
-        )));
-    }
-    Ok(())
+    SelectOptions::new(s.tau_px, s.hysteresis)
+        .map(|_| ())
+        .map_err(|e| JobError::Parameter(e.to_string()))
 }
 
 /// Who can draw on a GPU: the `render` module's renderers, or none.
@@ -285,13 +278,11 @@ pub fn run_job(
     let scene = &*scene;
     let aspect = job.size.0 as f64 / job.size.1 as f64;
     let (route, file_frames) = resolve_route(&job.route, scene, aspect)?;
-    let frames = job.frames.or(file_frames).unwrap_or(DEFAULT_FRAMES);
-    if !(1..=MAX_FRAMES).contains(&frames) {
-        return Err(JobError::Parameter(format!(
-            "{}: {frames} frames; expected 1..={MAX_FRAMES}",
-            job.route
-        )));
-    }
+    let frames = crate::route::check_frames(
+        &job.route.to_string(),
+        job.frames.or(file_frames).unwrap_or(DEFAULT_FRAMES),
+    )
+    .map_err(|e| JobError::Parameter(e.to_string()))?;
     let params = WalkParams {
         route,
         frames,
@@ -394,10 +385,10 @@ mod tests {
             assert!(e.contains(word), "{e}");
         }
         for (tau, h, word) in [
-            (f64::NAN, 0.25, "τ"),
-            (-1.0, 0.25, "τ"),
-            (0.0, 0.25, "τ"),
-            (f64::INFINITY, 0.25, "τ"),
+            (f64::NAN, 0.25, "tau"),
+            (-1.0, 0.25, "tau"),
+            (0.0, 0.25, "tau"),
+            (f64::INFINITY, 0.25, "tau"),
             (1.0, -0.1, "hysteresis"),
             (1.0, 1.0, "hysteresis"),
             (1.0, f64::NAN, "hysteresis"),
