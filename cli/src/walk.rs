@@ -164,6 +164,9 @@ fn print_summary(record: &WalkRecord, out: &std::path::Path) -> anyhow::Result<(
         record.cameras.len(),
         record.renderer
     );
+    for line in report::walk::verdict::conclusion(record) {
+        outln!("{line}");
+    }
     out!(
         "{}",
         report::walk::markdown::summary_markdown(&record.summary)

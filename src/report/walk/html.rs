@@ -76,6 +76,9 @@ pub fn page(record: &WalkRecord, ctx: &ReportContext, e: &Embedded) -> String {
         n = record.cameras.len(),
         t = record.total_s * 1e3
     );
+    for line in super::verdict::conclusion(record) {
+        let _ = write!(h, "<p><b>{}</b></p>", escape(&line));
+    }
     machine_section(&mut h, record, ctx);
     h.push_str("<h2>Average per frame (Pina, Serón and Cerezo, Table 1)</h2><table><tr><th>structure</th><th>culling</th><th>ms/frame</th><th>ratio BqR/structure</th><th>cull ms</th><th>render ms</th><th>triangles</th><th>blocks</th><th>buildings</th><th>nodes</th><th>false culls</th></tr>");
     for r in &record.summary {

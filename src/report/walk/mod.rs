@@ -13,6 +13,7 @@ pub mod csv;
 pub mod html;
 pub mod map;
 pub mod markdown;
+pub mod verdict;
 
 pub use context::{Machine, Plan, ReportContext};
 
@@ -263,7 +264,12 @@ pub fn write_with(
         Ok(())
     };
     put("frames.csv", csv::frames_csv(record))?;
-    put("summary.md", markdown::summary_markdown(&record.summary))?;
+    let mut md: String = verdict::conclusion(record)
+        .iter()
+        .map(|l| format!("{l}\n\n"))
+        .collect();
+    md.push_str(&markdown::summary_markdown(&record.summary));
+    put("summary.md", md)?;
     put(
         "report.json",
         serde_json::to_string_pretty(&json_with(record, ctx)).unwrap_or_default(),
