@@ -3,7 +3,7 @@
 //! exactly one extrusion per building to the process's counter. One test in its own binary, so
 //! that no other test extrudes while it counts.
 
-mod data_path;
+mod support;
 
 use blockwalk::blockmap::{CityMapsOptions, Source};
 use blockwalk::city::extrude::extrusions;
@@ -12,7 +12,7 @@ use blockwalk::route::{RouteChoice, RouteContext};
 use blockwalk::scene::{BuildingsMode, CitySource, Scene, SceneOptions};
 use blockwalk::visibility::CullerOptions;
 use blockwalk::walk::{run_walk_with_far, Drawing, FarSetup, OcclusionMode, WalkParams};
-use data_path::data;
+use support::data::data;
 
 #[test]
 fn a_hybrid_walk_extrudes_every_building_once() {

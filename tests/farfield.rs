@@ -2,7 +2,7 @@
 //! drawn exactly once, monotone in τ, hysteresis against flicker, conservative against the
 //! oracle), and hybrid walks on Helsinki with the CPU fallback.
 
-mod data_path;
+mod support;
 use blockwalk::blockmap::{skeleton_tree, MapTree, SelectOptions, Selection, Selector, Stop};
 use blockwalk::blocks::BlockId;
 use blockwalk::geom::{Camera, Containment};
@@ -188,7 +188,7 @@ mod helsinki {
     use std::collections::HashSet;
 
     fn scene() -> Scene {
-        crate::data_path::helsinki_bqr_occlusion()
+        crate::support::data::helsinki_bqr_occlusion()
     }
 
     fn maps(scene: &Scene) -> MapTree {

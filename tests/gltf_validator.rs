@@ -14,18 +14,17 @@ use blockwalk::city::City;
 use blockwalk::scene::CitySource;
 use serde_json::Value;
 
-#[path = "support/node_tools.rs"]
-mod node_tools;
+mod support;
 
 /// `Some(node)` when node and the validator are installed; otherwise prints why and gives
 /// `None`, or panics under `BLOCKWALK_REQUIRE_VALIDATORS=1`.
 fn validator_or_skip(test: &str) -> Option<String> {
-    node_tools::or_skip(test, node_tools::node_with(&["gltf-validator"]))
+    support::node::or_skip(test, support::node::node_with(&["gltf-validator"]))
 }
 
 /// The validator's JSON report on one file.
 fn validate(node: &str, file: &Path) -> Value {
-    node_tools::run_json(node, "validate_gltf.js", file)
+    support::node::run_json(node, "validate_gltf.js", file)
 }
 
 fn counts(report: &Value) -> [u64; 4] {

@@ -1,4 +1,4 @@
-//! The repository's bundled data for the integration tests (`mod data_path;` in a test file).
+//! The repository's bundled data and the scenes the tests build from it.
 
 use blockwalk::index::Structure;
 use blockwalk::scene::{CitySource, Scene, SceneOptions};
@@ -7,13 +7,10 @@ use std::path::PathBuf;
 
 /// `data/REL` in the repository (Bubeneč and Helsinki are copied there; see `data/README.md`).
 pub fn data(rel: &str) -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .join("data")
-        .join(rel)
+    super::repo().join("data").join(rel)
 }
 
 /// Helsinki (bundled) with the BqR-tree and the occlusion culler.
-#[allow(dead_code)] // not every test file that includes this module builds the scene
 pub fn helsinki_bqr_occlusion() -> Scene {
     let source = CitySource::parse(
         &data("helsinki/buildings.shp"),
