@@ -11,7 +11,7 @@
 //! `BLOCKWALK_ADVERSARIAL_VIEWS=10000` for the full count. Eyes inside a building (a touching
 //! neighbour) are counted apart as vacuous: they are checked too, but not counted as passes.
 
-mod data_path;
+mod support;
 use blockwalk::blocks::{BlockId, BlockOptions};
 use blockwalk::city::Mesh;
 use blockwalk::index::Structure;
@@ -19,10 +19,10 @@ use blockwalk::scene::{CitySource, Scene, SceneOptions};
 use blockwalk::visibility::adversarial::{adversarial_views, AdversarialOptions, BuildingSolids};
 use blockwalk::visibility::oracle::visible_blocks_supersampled;
 use blockwalk::visibility::{CullMap, CullerOptions, OcclusionCuller, Resolution};
-use data_path::data;
 use rayon::prelude::*;
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::PathBuf;
+use support::data::data;
 
 /// Views per city in CI.
 const CI_VIEWS: usize = 600;

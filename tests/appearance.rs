@@ -12,7 +12,7 @@
 //! The GPU test needs an adapter (lavapipe will do); without one it prints why and passes, unless
 //! `BLOCKWALK_REQUIRE_GPU` is set.
 
-mod common;
+mod support;
 
 use blockwalk::blocks::BlockId;
 use blockwalk::city::appearance::{
@@ -308,7 +308,7 @@ mod gpu {
     use super::*;
     use blockwalk::render::{MeshRenderer, RenderOptions, Shading};
 
-    use super::common::gpu_or_skip;
+    use crate::support::gpu::gpu_or_skip;
 
     #[test]
     fn gpu_frames_match_the_rust_definition_and_the_cpu_fallback() {

@@ -1,7 +1,7 @@
 //! BlockMaps end to end: the f32 caster against its f64 twin (proptest), PNG round trip, the
 //! error bound on the bundled real data, and ray-cast images against the oracle's mesh images.
 
-mod data_path;
+mod support;
 use blockwalk::blockmap::cast::{cast_f32, cast_f64, surface, CastOptions, Hit, TexRay};
 use blockwalk::blockmap::compare::{compare_view, random_views};
 use blockwalk::blockmap::{
@@ -13,9 +13,9 @@ use blockwalk::city::extrude::extrude_city;
 use blockwalk::importers::{read_layer, Theme};
 use blockwalk::index::{block_bounds, BqrParams, BqrTree};
 use blockwalk::visibility::synthetic::SyntheticCity;
-use data_path::data;
 use glam::{DVec2, DVec3};
 use proptest::prelude::*;
+use support::data::data;
 
 /// A map with random heights: `fill` of the texels non-empty, some at the top level 255, and
 /// half of the non-empty ones with a random footprint edge (a half-plane through the texel).

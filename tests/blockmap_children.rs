@@ -4,7 +4,7 @@
 //! within ε, its error measured against the polygons within its derived ε, and the coverage
 //! error of a random view per map for both options.
 
-mod data_path;
+mod support;
 use blockwalk::blockmap::children::{
     build_from_children, column_height, directed_distance, Parents,
 };
@@ -16,9 +16,9 @@ use blockwalk::city::extrude::extrude_city;
 use blockwalk::city::generate::{generate_city, write_city, GenerateParams};
 use blockwalk::importers::{read_layer, Theme};
 use blockwalk::index::{block_bounds, BqrParams, BqrTree};
-use data_path::data;
 use glam::{DVec2, DVec3};
 use proptest::prelude::*;
+use support::data::data;
 
 /// A child map with one texel of height `h` and roof colour `rgb`.
 fn one_texel(min: DVec2, side: f64, zmax: f64, at: (u32, u32), h: f64, rgb: [u8; 3]) -> BlockMap {

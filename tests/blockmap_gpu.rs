@@ -8,9 +8,8 @@
 //! `BLOCKWALK_REQUIRE_GPU` is set, in which case they fail.
 #![cfg(feature = "render")]
 
-mod common;
+mod support;
 
-mod data_path;
 use blockwalk::blockmap::cast::{cast_f64, CastOptions};
 use blockwalk::blockmap::image::twin_ray;
 use blockwalk::blockmap::{
@@ -26,10 +25,10 @@ use blockwalk::index::{block_bounds, BqrParams, BqrTree};
 use blockwalk::render::{GpuFrameRenderer, NO_MAP};
 use blockwalk::visibility::oracle;
 use blockwalk::visibility::FrameRenderer;
-use common::gpu_or_skip;
-use data_path::data;
 use glam::DVec3;
 use rand::{Rng, SeedableRng};
+use support::data::data;
+use support::gpu::gpu_or_skip;
 
 const W: u32 = 160;
 const H: u32 = 120;

@@ -7,6 +7,8 @@
 //! repository: it is read from `../shared/data/astana` (or `$BLOCKWALK_ASTANA`); without it the test
 //! prints `SKIPPED` on the terminal and passes, unless `BLOCKWALK_REQUIRE_ASTANA=1`.
 
+mod support;
+
 use blockwalk::blocks::conformance::{
     compare_faces, Comparison, ExpectedList, ExpectedMismatch, MismatchKind,
 };
@@ -14,12 +16,9 @@ use blockwalk::blocks::{detect_geometry, BlockKind, BlockOptions, BlockSource};
 use blockwalk::geom::predicates::robust_interior_point;
 use geo_types::{LineString, MultiLineString, MultiPolygon, Polygon};
 use std::io::Write;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::time::Instant;
-
-fn repo(rel: &str) -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join(rel)
-}
+use support::data::{astana_dir, data};
 
 fn read_lines(p: &Path) -> Vec<LineString<f64>> {
     let shapes: Vec<shapefile::Polyline> =
@@ -49,7 +48,7 @@ fn conformance(city: &str, lines: &Path, reference: &Path, list: &str) -> (usize
     let t0 = Instant::now();
     let lines = read_lines(lines);
     let reference = read_faces(reference);
-    let list_path = repo("tests/conformance").join(list);
+    let list_path = support::repo().join("tests/conformance").join(list);
     let list = ExpectedList::read(&list_path).unwrap_or_else(|e| panic!("{e}"));
     let t1 = Instant::now();
     let mut layout = detect_geometry(
@@ -184,8 +183,8 @@ fn dump(
 fn bubenec_conforms_to_momepy_enclosures() {
     let (ours, reference, matched) = conformance(
         "bubenec",
-        &repo("data/bubenec/streets.shp"),
-        &repo("data/bubenec/reference/enclosures_momepy.shp"),
+        &data("bubenec/streets.shp"),
+        &data("bubenec/reference/enclosures_momepy.shp"),
         "bubenec_blocks.toml",
     );
     assert_eq!((ours, reference, matched), (7, 7, 7));
@@ -195,24 +194,11 @@ fn bubenec_conforms_to_momepy_enclosures() {
 fn helsinki_conforms_to_polygonize() {
     let (ours, reference, matched) = conformance(
         "helsinki",
-        &repo("data/helsinki/streets_blockclass.shp"),
-        &repo("data/helsinki/reference/blocks_polygonize_blockclass.shp"),
+        &data("helsinki/streets_blockclass.shp"),
+        &data("helsinki/reference/blocks_polygonize_blockclass.shp"),
         "helsinki_blocks.toml",
     );
     assert_eq!((ours, reference, matched), (70, 70, 70));
-}
-
-/// The Astana directory: `$BLOCKWALK_ASTANA`, else `../shared/data/astana` from the repository.
-fn astana_dir() -> Result<PathBuf, String> {
-    let (dir, named) = match std::env::var_os("BLOCKWALK_ASTANA") {
-        Some(d) => (PathBuf::from(d), "$BLOCKWALK_ASTANA"),
-        None => (repo("../shared/data/astana"), "../shared/data/astana"),
-    };
-    if dir.join("streets_blockclass.shp").is_file() {
-        Ok(dir)
-    } else {
-        Err(format!("{named} absent ({})", dir.display()))
-    }
 }
 
 #[test]

@@ -1,12 +1,12 @@
 //! Block detection on the bundled real data, against the reference faces in `data/*/reference/`
 //! (computed with shapely/GEOS `polygonize(union_all(lines))`, see `data/README.md`).
 
-mod data_path;
+mod support;
 use blockwalk::blocks::{detect_geometry, BlockKind, BlockLayout, BlockOptions, BlockSource};
 use blockwalk::geom::predicates::polygon_area;
-use data_path::data;
 use geo::BooleanOps;
 use geo_types::{LineString, MultiLineString, MultiPolygon, Polygon};
+use support::data::data;
 
 fn read_polygons(rel: &str) -> Vec<Polygon<f64>> {
     let shapes: Vec<shapefile::Polygon> = shapefile::read_shapes_as(data(rel)).unwrap();

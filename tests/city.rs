@@ -1,9 +1,9 @@
 //! End-to-end tests of the city stage on the bundled real data (`data/`) and on generated
 //! cities: import, repair, heights, extrusion, glTF and GeoJSON export.
 
-mod data_path;
-use data_path::data;
+mod support;
 use std::collections::BTreeSet;
+use support::data::data;
 
 use blockwalk::city::build::{build_city, BuildOptions};
 use blockwalk::city::export::{geojson_value, glb_bytes, write_geojson};

@@ -4,6 +4,8 @@
 //! volume), and the file read back (building count, each solid's volume against its prism's
 //! `area × (top − bottom)` within the quantisation).
 
+mod support;
+
 use std::collections::HashMap;
 use std::path::Path;
 
@@ -13,13 +15,8 @@ use blockwalk::city::export::cityjson::{
 use blockwalk::city::generate::{generate_city, write_city, GenerateParams};
 use blockwalk::city::City;
 use blockwalk::geom::predicates::polygon_area;
-use blockwalk::scene::CitySource;
 use serde_json::Value;
-
-fn load(buildings: &Path, streets: Option<&str>) -> City {
-    let source = CitySource::parse(buildings, streets.map(Into::into), None, &[], 0).unwrap();
-    source.load(&Default::default(), &mut |_| {}).unwrap().city
-}
+use support::data::load_city;
 
 /// Every check `cjval` makes, errors and warnings alike; the failing ones as "check: message".
 fn cjval_failures(v: &cjval::CJValidator) -> Vec<String> {
@@ -246,7 +243,7 @@ fn check_city(city: &City, label: &str) -> Value {
 
 #[test]
 fn bubenec_is_valid_closed_and_has_no_wrong_epsg() {
-    let city = load(
+    let city = load_city(
         Path::new("data/bubenec/buildings.shp"),
         Some("data/bubenec/streets.shp"),
     );
@@ -261,7 +258,7 @@ fn bubenec_is_valid_closed_and_has_no_wrong_epsg() {
 
 #[test]
 fn helsinki_is_valid_closed_with_its_crs() {
-    let city = load(Path::new("data/helsinki/buildings.shp"), None);
+    let city = load_city(Path::new("data/helsinki/buildings.shp"), None);
     let doc = check_city(&city, "Helsinki");
     // ETRS-TM35FIN: the coordinates are that CRS's, written with its EPSG code.
     assert_eq!(
@@ -299,7 +296,7 @@ fn generated_city_is_valid_and_closed() {
     })
     .unwrap();
     write_city(&g, dir.path()).unwrap();
-    let city = load(&dir.path().join("buildings.shp"), None);
+    let city = load_city(&dir.path().join("buildings.shp"), None);
     assert_eq!(city.buildings.len(), 3000);
     let doc = check_city(&city, "generated");
     assert_eq!(
@@ -317,7 +314,7 @@ fn generated_city_is_valid_and_closed() {
 #[test]
 fn cjval_catches_what_we_check_for() {
     // The validator is not vacuous here: a wrong vertex index and a duplicate vertex are found.
-    let city = load(Path::new("data/helsinki/buildings.shp"), None);
+    let city = load_city(Path::new("data/helsinki/buildings.shp"), None);
     let (doc, _) = cityjson_value(&city);
     let mut bad = doc.clone();
     let n = bad["vertices"].as_array().unwrap().len();

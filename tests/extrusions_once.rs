@@ -3,16 +3,17 @@
 //! exactly one extrusion per building to the process's counter. One test in its own binary, so
 //! that no other test extrudes while it counts.
 
-mod data_path;
+mod support;
 
 use blockwalk::blockmap::{CityMapsOptions, Source};
 use blockwalk::city::extrude::extrusions;
 use blockwalk::index::{SceneGraphParams, Structure};
-use blockwalk::route::{RouteChoice, RouteContext};
+use blockwalk::route::RouteChoice;
 use blockwalk::scene::{BuildingsMode, CitySource, Scene, SceneOptions};
 use blockwalk::visibility::CullerOptions;
+use blockwalk::walk::job::route_context;
 use blockwalk::walk::{run_walk_with_far, Drawing, FarSetup, OcclusionMode, WalkParams};
-use data_path::data;
+use support::data::data;
 
 #[test]
 fn a_hybrid_walk_extrudes_every_building_once() {
@@ -44,14 +45,7 @@ fn a_hybrid_walk_extrudes_every_building_once() {
     assert!(!maps.maps.is_empty());
     let prisms = Source::new(&scene.city, &scene.layout, &scene.building_meshes).unwrap();
     let size = (96, 54);
-    let ctx = RouteContext {
-        city: &scene.name,
-        bounds: scene.city_bounds(),
-        street_edges: &scene.layout.street_edges,
-        buildings: &scene.city.buildings,
-        frame: &scene.city.frame,
-        aspect: size.0 as f64 / size.1 as f64,
-    };
+    let ctx = route_context(&scene, size.0 as f64 / size.1 as f64);
     let (route, _) = RouteChoice::Orbit.resolve(&ctx).unwrap();
     let params = WalkParams {
         route,

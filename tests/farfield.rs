@@ -2,7 +2,7 @@
 //! drawn exactly once, monotone in τ, hysteresis against flicker, conservative against the
 //! oracle), and hybrid walks on Helsinki with the CPU fallback.
 
-mod data_path;
+mod support;
 use blockwalk::blockmap::{skeleton_tree, MapTree, SelectOptions, Selection, Selector, Stop};
 use blockwalk::blocks::BlockId;
 use blockwalk::geom::{Camera, Containment};
@@ -181,14 +181,15 @@ fn hysteresis_stops_flicker_on_an_oscillating_camera() {
 
 mod helsinki {
     use blockwalk::blockmap::{CityMapsOptions, MapTree, SelectOptions, Selector};
-    use blockwalk::route::{RouteChoice, RouteContext};
+    use blockwalk::route::RouteChoice;
     use blockwalk::scene::Scene;
     use blockwalk::visibility::{MeshOracle, VisibilityOracle};
+    use blockwalk::walk::job::resolve_route;
     use blockwalk::walk::{run_walk_with_far, Drawing, FarSetup, OcclusionMode, WalkParams};
     use std::collections::HashSet;
 
     fn scene() -> Scene {
-        crate::data_path::helsinki_bqr_occlusion()
+        crate::support::data::helsinki_bqr_occlusion()
     }
 
     fn maps(scene: &Scene) -> MapTree {
@@ -206,15 +207,7 @@ mod helsinki {
     }
 
     fn route(scene: &Scene, choice: RouteChoice, aspect: f64) -> blockwalk::route::CameraRoute {
-        let ctx = RouteContext {
-            city: &scene.name,
-            bounds: scene.city_bounds(),
-            street_edges: &scene.layout.street_edges,
-            buildings: &scene.city.buildings,
-            frame: &scene.city.frame,
-            aspect,
-        };
-        choice.resolve(&ctx).unwrap().0
+        resolve_route(&choice, scene, aspect).unwrap().0
     }
 
     /// One walk over Helsinki's bundled data (building the maps is the slow part): a short

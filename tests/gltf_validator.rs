@@ -11,31 +11,25 @@ use blockwalk::city::export::glb_bytes;
 use blockwalk::city::extrude::try_extrude_city;
 use blockwalk::city::generate::{generate_city, write_city, GenerateParams};
 use blockwalk::city::City;
-use blockwalk::scene::CitySource;
 use serde_json::Value;
+use support::data::load_city;
 
-#[path = "support/node_tools.rs"]
-mod node_tools;
+mod support;
 
 /// `Some(node)` when node and the validator are installed; otherwise prints why and gives
 /// `None`, or panics under `BLOCKWALK_REQUIRE_VALIDATORS=1`.
 fn validator_or_skip(test: &str) -> Option<String> {
-    node_tools::or_skip(test, node_tools::node_with(&["gltf-validator"]))
+    support::node::or_skip(test, support::node::node_with(&["gltf-validator"]))
 }
 
 /// The validator's JSON report on one file.
 fn validate(node: &str, file: &Path) -> Value {
-    node_tools::run_json(node, "validate_gltf.js", file)
+    support::node::run_json(node, "validate_gltf.js", file)
 }
 
 fn counts(report: &Value) -> [u64; 4] {
     let i = &report["issues"];
     ["numErrors", "numWarnings", "numInfos", "numHints"].map(|k| i[k].as_u64().unwrap())
-}
-
-fn load(buildings: &Path, streets: Option<&str>) -> City {
-    let source = CitySource::parse(buildings, streets.map(Into::into), None, &[], 0).unwrap();
-    source.load(&Default::default(), &mut |_| {}).unwrap().city
 }
 
 fn glb_of(city: &City) -> Vec<u8> {
@@ -74,24 +68,24 @@ fn every_bundled_export_is_valid_gltf() {
     let cities = [
         (
             "bubenec",
-            load(
+            load_city(
                 Path::new("data/bubenec/buildings.shp"),
                 Some("data/bubenec/streets.shp"),
             ),
         ),
         (
             "bubenec_utm33n",
-            load(Path::new("data/bubenec_utm33n/buildings.shp"), None),
+            load_city(Path::new("data/bubenec_utm33n/buildings.shp"), None),
         ),
         (
             "helsinki",
-            load(Path::new("data/helsinki/buildings.shp"), None),
+            load_city(Path::new("data/helsinki/buildings.shp"), None),
         ),
         (
             "helsinki_building_parts",
-            load(Path::new("data/helsinki/building_parts.shp"), None),
+            load_city(Path::new("data/helsinki/building_parts.shp"), None),
         ),
-        ("generated", load(&gen_dir.join("buildings.shp"), None)),
+        ("generated", load_city(&gen_dir.join("buildings.shp"), None)),
     ];
     for (name, city) in &cities {
         let file = dir.path().join(format!("{name}.glb"));
@@ -137,7 +131,7 @@ fn the_validator_is_not_vacuous() {
     let Some(node) = validator_or_skip("the_validator_is_not_vacuous") else {
         return;
     };
-    let city = load(Path::new("data/helsinki/buildings.shp"), None);
+    let city = load_city(Path::new("data/helsinki/buildings.shp"), None);
     let glb = glb_of(&city);
     // A POSITION accessor whose declared maximum is not the data's: an error the validator
     // must report (the specification requires exact bounds).

@@ -2,9 +2,9 @@
 //! `blockwalk import` does without `--cityjson`) gives the same buildings and the same meshes
 //! as reading every column, on the bundled data and on a generated city.
 
-mod data_path;
-use data_path::data;
+mod support;
 use std::path::{Path, PathBuf};
+use support::data::data;
 
 use blockwalk::city::build::{footprint_columns, BuildOptions};
 use blockwalk::city::extrude::extrude_city;

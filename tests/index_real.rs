@@ -1,13 +1,13 @@
 //! Block bounds and structures on the bundled real data (Bubeneč, Helsinki): boxes and the
 //! blocks' tight spheres hold the extruded meshes, the triangle formula matches the extrusion, no false culls.
 
-mod data_path;
+mod support;
 use blockwalk::city::extrude::extrude_building;
 use blockwalk::index::bench::{run_cull_bench, CullBenchParams};
 use blockwalk::index::{extruded_triangles, BlockBounds, BqrParams, BqrTree};
 use blockwalk::index::{VamSplitParams, VamSplitTree};
 use blockwalk::scene::{CitySource, Scene, SceneOptions};
-use data_path::data;
+use support::data::data;
 
 /// The scene's bounds hold its block meshes, and the triangle formula matches the extrusion of
 /// every building.

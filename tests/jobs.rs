@@ -3,6 +3,8 @@
 //! compared vertex for vertex with the one-job run's `.glb`); and the errors of a missing tile,
 //! a plan from another city and a tile out of range name their file and tile.
 
+mod support;
+
 use std::collections::{BTreeMap, HashMap};
 use std::path::{Path, PathBuf};
 
@@ -180,7 +182,7 @@ fn generated_city_in_tiles_equals_one_run() {
 fn helsinki_in_tiles_equals_one_run() {
     // Real data: repaired footprints, multipolygons, and 207 buildings in outskirts groups.
     let tmp = tempfile::tempdir().unwrap();
-    let data = Path::new(env!("CARGO_MANIFEST_DIR")).join("data/helsinki");
+    let data = support::data::data("helsinki");
     let (_, read_twice) = tiles_equal_one_job(
         &data.join("buildings.shp"),
         &data.join("streets_blockclass.shp"),
@@ -304,7 +306,7 @@ fn a_tile_out_of_range_is_refused() {
 #[test]
 fn streaming_reader_gives_the_features_of_the_whole_reader() {
     use blockwalk::importers::shp;
-    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("data/helsinki/buildings.shp");
+    let path = support::data::data("helsinki/buildings.shp");
     let whole = shp::read(&path).unwrap();
     // Everything, in chunks of 100: the same features in the same order, the same refusals.
     let mut chunks = Vec::new();

@@ -3,16 +3,16 @@
 //! street layers with nothing usable, every feature refused, implausible heights. Each case
 //! asserts the specific error variant or the documented repair.
 
-mod data_path;
+mod support;
 use blockwalk::blocks::{detect, BlockKind, BlockOptions, BlockSource};
 use blockwalk::city::build::{build_city, BuildError, BuildOptions};
 use blockwalk::city::City;
 use blockwalk::geom::predicates::polygon_area;
 use blockwalk::importers::{read_layer, Crs, Layer, Theme};
-use data_path::data;
 use geo::BooleanOps;
 use geo_types::Polygon;
 use std::path::{Path, PathBuf};
+use support::data::data;
 
 fn layer(p: &Path, theme: Theme) -> Layer {
     read_layer(p, &theme).unwrap()

@@ -1,14 +1,14 @@
 //! Occlusion culling on the bundled Helsinki data (footprints extruded, blocks from the street
 //! layer): no block the oracle sees may be culled.
 
-mod data_path;
+mod support;
 use blockwalk::blocks::{BlockId, BlockOptions};
 use blockwalk::city::Mesh;
 use blockwalk::index::Structure;
 use blockwalk::scene::{CitySource, Scene, SceneOptions};
 use blockwalk::visibility::bench::{run_occlusion_bench, BenchOptions, BenchScene};
 use blockwalk::visibility::views::ViewOptions;
-use data_path::data;
+use support::data::data;
 
 #[test]
 fn helsinki_no_false_culls() {

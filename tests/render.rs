@@ -5,7 +5,7 @@
 //! tests print why and pass, unless `BLOCKWALK_REQUIRE_GPU` is set, in which case they fail.
 #![cfg(feature = "render")]
 
-mod common;
+mod support;
 
 use blockwalk::blocks::BlockId;
 use blockwalk::city::Mesh;
@@ -13,7 +13,7 @@ use blockwalk::geom::{Aabb3, Camera};
 use blockwalk::render::{MeshRenderer, RenderError, RenderOptions, Shading};
 use glam::{DVec3, DVec4, Vec3};
 
-use common::gpu_or_skip;
+use support::gpu::gpu_or_skip;
 
 /// A closed box mesh with outward normals (4 vertices per face, CCW from outside).
 fn box_mesh(b: &Aabb3) -> Mesh {

@@ -14,9 +14,8 @@
 //! unless `BLOCKWALK_REQUIRE_GPU` is set.
 #![cfg(feature = "render")]
 
-mod common;
+mod support;
 
-mod data_path;
 use blockwalk::blocks::BlockId;
 use blockwalk::city::{BuildingId, Mesh};
 use blockwalk::geom::Camera;
@@ -26,11 +25,11 @@ use blockwalk::route::{paper_route, Lens, Obstacles, PaperRouteParams, StreetGra
 use blockwalk::scene::{BuildingsMode, DrawOrder, DrawUnits, Scene};
 use std::collections::HashSet;
 
-use common::gpu_or_skip;
+use support::gpu::gpu_or_skip;
 
 /// Helsinki (bundled) with the BqR-tree, the occlusion culler and building units.
 fn helsinki() -> Scene {
-    let mut scene = data_path::helsinki_bqr_occlusion();
+    let mut scene = support::data::helsinki_bqr_occlusion();
     scene
         .build_units(&Default::default(), BuildingsMode::On)
         .unwrap();

@@ -1,5 +1,7 @@
 //! Camera routes: interpolation, continuity, poles, determinism, files, generated routes.
 
+mod support;
+
 use blockwalk::city::LocalFrame;
 use blockwalk::geom::{Aabb3, Camera};
 use blockwalk::route::file::RouteFile;
@@ -425,16 +427,13 @@ proptest! {
 /// visibility oracle's image.
 #[test]
 fn generated_routes_keep_clear_of_buildings_and_see_the_city() {
-    use blockwalk::route::{RouteChoice, RouteContext, EYE_CLEARANCE_M};
+    use blockwalk::route::{RouteChoice, EYE_CLEARANCE_M};
     use blockwalk::scene::{CitySource, Scene, SceneOptions};
+    use blockwalk::walk::job::route_context;
     use geo::{Distance, Euclidean};
     const FRAMES: usize = 120;
     const SIZE: (u32, u32) = (192, 108);
-    let data = |p: &str| {
-        std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
-            .join("data")
-            .join(p)
-    };
+    use support::data::data;
     let cities = [
         (
             data("bubenec/buildings.shp"),
@@ -469,19 +468,9 @@ fn generated_routes_keep_clear_of_buildings_and_see_the_city() {
                 )
             })
             .collect();
-        let meshes: Vec<(blockwalk::blocks::BlockId, &blockwalk::city::Mesh)> = scene
-            .block_meshes()
-            .iter()
-            .map(|(id, m)| (*id, m))
-            .collect();
-        let ctx = RouteContext {
-            city: &scene.name,
-            bounds: scene.city_bounds(),
-            street_edges: &scene.layout.street_edges,
-            buildings: &scene.city.buildings,
-            frame,
-            aspect: SIZE.0 as f64 / SIZE.1 as f64,
-        };
+        let meshes: Vec<(blockwalk::blocks::BlockId, &blockwalk::city::Mesh)> =
+            scene.block_meshes().iter().map(|(id, m)| (*id, m)).collect();
+        let ctx = route_context(&scene, SIZE.0 as f64 / SIZE.1 as f64);
         for choice in [RouteChoice::Paper, RouteChoice::Orbit, RouteChoice::Street] {
             let (route, _) = choice
                 .resolve(&ctx)

@@ -9,7 +9,7 @@
 //!   ([`blockwalk::visibility::adversarial`]), and it does remove buildings (the figure is
 //!   printed).
 
-mod data_path;
+mod support;
 use blockwalk::blocks::BlockId;
 use blockwalk::city::{BuildingId, Mesh};
 use blockwalk::geom::Camera;
@@ -19,9 +19,9 @@ use blockwalk::visibility::adversarial::{adversarial_views, AdversarialOptions, 
 use blockwalk::visibility::oracle::visible_blocks_supersampled;
 use blockwalk::visibility::views::{random_views, ViewOptions};
 use blockwalk::visibility::CullerOptions;
-use data_path::data;
 use rayon::prelude::*;
 use std::collections::HashSet;
+use support::data::data;
 
 /// The oracle's frame (16:9) and samples per pixel along each axis.
 const ORACLE: (u32, u32, u32) = (96, 54, 4);

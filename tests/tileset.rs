@@ -6,6 +6,8 @@
 //! glTF-Validator on every content file (skipped without node, unless
 //! `BLOCKWALK_REQUIRE_VALIDATORS=1`).
 
+mod support;
+
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Path, PathBuf};
 
@@ -467,14 +469,11 @@ fn same_city_same_bytes() {
     assert!(fa == fb, "two exports of the same city differ");
 }
 
-#[path = "support/node_tools.rs"]
-mod node_tools;
-
 #[test]
 fn every_tile_is_valid_gltf() {
-    let Some(node) = node_tools::or_skip(
+    let Some(node) = support::node::or_skip(
         "every_tile_is_valid_gltf",
-        node_tools::node_with(&["gltf-validator"]),
+        support::node::node_with(&["gltf-validator"]),
     ) else {
         return;
     };
@@ -484,7 +483,7 @@ fn every_tile_is_valid_gltf() {
         for t in &b.set.tiles {
             let Some(uri) = &t.content else { continue };
             let f = b.dir.path().join(uri);
-            let r = node_tools::run_json(&node, "validate_gltf.js", &f);
+            let r = support::node::run_json(&node, "validate_gltf.js", &f);
             let i = &r["issues"];
             let c = ["numErrors", "numWarnings", "numInfos", "numHints"]
                 .map(|k| i[k].as_u64().unwrap());

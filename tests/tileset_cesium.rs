@@ -21,8 +21,7 @@ use blockwalk::visibility::oracle::shade;
 use glam::DVec3;
 use serde_json::{json, Value};
 
-#[path = "support/node_tools.rs"]
-mod node_tools;
+mod support;
 
 const W: u32 = 480;
 const H: u32 = 270;
@@ -41,10 +40,10 @@ fn sky_agreement(a: &image::RgbaImage, b: &image::RgbaImage) -> f64 {
 
 #[test]
 fn cesium_loads_the_helsinki_tileset_and_refines_it() {
-    let Some((node, chromium)) = node_tools::or_skip(
+    let Some((node, chromium)) = support::node::or_skip(
         "cesium_loads_the_helsinki_tileset_and_refines_it",
-        node_tools::node_with(&["cesium", "puppeteer-core"])
-            .and_then(|n| Ok((n, node_tools::chromium()?))),
+        support::node::node_with(&["cesium", "puppeteer-core"])
+            .and_then(|n| Ok((n, support::node::chromium()?))),
     ) else {
         return;
     };
@@ -88,7 +87,7 @@ fn cesium_loads_the_helsinki_tileset_and_refines_it() {
         ("far", centre + DVec3::new(0.0, -2600.0, 1500.0)),
         ("near", centre + DVec3::new(0.0, -220.0, 80.0)),
     ];
-    let out = node_tools::screenshot_dir("tileset-cesium");
+    let out = support::node::screenshot_dir("tileset-cesium");
     let spec = json!({
         "chromium": chromium,
         "tileset_dir": tiles_dir,
@@ -105,7 +104,7 @@ fn cesium_loads_the_helsinki_tileset_and_refines_it() {
     });
     let spec_path = work.path().join("spec.json");
     std::fs::write(&spec_path, serde_json::to_vec_pretty(&spec).unwrap()).unwrap();
-    let report = node_tools::run_json(&node, "cesium_tileset.mjs", &spec_path);
+    let report = support::node::run_json(&node, "cesium_tileset.mjs", &spec_path);
     std::fs::write(
         out.join("cesium_report.json"),
         serde_json::to_vec_pretty(&report).unwrap(),

@@ -1,7 +1,8 @@
 //! `blockwalk blockmaps` end to end: the figures it prints and the lists it writes.
 
-mod data_path;
-use data_path::data;
+#[path = "../../tests/support/mod.rs"]
+mod support;
+use support::data::data;
 
 #[test]
 fn the_blockmaps_command_prints_the_figures_and_writes_the_lists() {

@@ -2,10 +2,11 @@
 //! exit with status 0 (issue 10, item 15); and numeric arguments that must be refused with a
 //! usage error, not a panic.
 
-mod data_path;
-use data_path::data;
+#[path = "../../tests/support/mod.rs"]
+mod support;
 use std::io::Read;
 use std::process::{Command, Output, Stdio};
+use support::data::data;
 
 fn blockwalk() -> Command {
     Command::new(env!("CARGO_BIN_EXE_blockwalk"))

@@ -12,20 +12,20 @@
 use serde_json::{json, Value};
 use std::process::Command;
 
-mod data_path;
-#[path = "../../tests/support/node_tools.rs"]
-mod node_tools;
+#[path = "../../tests/support/mod.rs"]
+mod support;
 
 #[test]
 fn the_helsinki_walk_report_opens_alone_in_chromium() {
     let test = "the_helsinki_walk_report_opens_alone_in_chromium";
-    let Some((node, chromium)) = node_tools::or_skip(
+    let Some((node, chromium)) = support::node::or_skip(
         test,
-        node_tools::node_with(&["puppeteer-core"]).and_then(|n| Ok((n, node_tools::chromium()?))),
+        support::node::node_with(&["puppeteer-core"])
+            .and_then(|n| Ok((n, support::node::chromium()?))),
     ) else {
         return;
     };
-    let data = data_path::data("helsinki");
+    let data = support::data::data("helsinki");
     let out = tempfile::tempdir().unwrap();
     let walk = out.path().join("walk");
     let args: Vec<String> = [
@@ -93,7 +93,7 @@ fn the_helsinki_walk_report_opens_alone_in_chromium() {
         }
     }
     assert!(page.contains(&format!("({} hardware threads)", j["machine"]["cores"])));
-    let shot = node_tools::screenshot_dir("report-html").join("report.png");
+    let shot = support::node::screenshot_dir("report-html").join("report.png");
     let spec = out.path().join("spec.json");
     std::fs::write(
         &spec,
@@ -106,7 +106,7 @@ fn the_helsinki_walk_report_opens_alone_in_chromium() {
         .unwrap(),
     )
     .unwrap();
-    let r = node_tools::run_json(&node, "report_screenshot.mjs", &spec);
+    let r = support::node::run_json(&node, "report_screenshot.mjs", &spec);
     eprintln!("{test}: {r}");
     let errors: Vec<&Value> = r["console"]
         .as_array()

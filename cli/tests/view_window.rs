@@ -7,7 +7,8 @@
 //! `BLOCKWALK_REQUIRE_GPU` is set (CI), in which case they fail.
 #![cfg(feature = "window")]
 
-mod data_path;
+#[path = "../../tests/support/mod.rs"]
+mod support;
 
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -42,7 +43,7 @@ fn view(extra: &[&str], shot: &Path) -> Option<serde_json::Value> {
         eprintln!("skipped: xvfb-run is not installed");
         return None;
     };
-    let city = data_path::data("helsinki");
+    let city = support::data::data("helsinki");
     let out = Command::new(xvfb)
         .args(["-a", "-s", "-screen 0 1280x720x24"])
         .arg(env!("CARGO_BIN_EXE_blockwalk"))
@@ -132,7 +133,7 @@ fn the_window_draws_the_far_field_where_the_walk_would() {
 fn a_bad_tau_is_refused_before_a_window_opens() {
     let out = Command::new(env!("CARGO_BIN_EXE_blockwalk"))
         .arg("view")
-        .arg(data_path::data("helsinki"))
+        .arg(support::data::data("helsinki"))
         .args(["--far", "blockmaps", "--tau", "0"])
         .output()
         .expect("run blockwalk view");

@@ -2,24 +2,14 @@
 //! Debian's `chromium`), shared by the tests that run them: finding them, skipping with the
 //! reason when they are missing (a failure under `BLOCKWALK_REQUIRE_VALIDATORS=1`, which
 //! `.ci/run` sets), and running a script that prints one JSON report.
-#![allow(dead_code)]
 
+use super::repo;
 use serde_json::Value;
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
 /// Set to `1` to turn a skip into a failure.
 pub const REQUIRE: &str = "BLOCKWALK_REQUIRE_VALIDATORS";
-
-/// The repository's root: the including crate's folder (the library's tests) or the first folder
-/// above it that holds `tests/tools` (the command line's tests, in `cli/`).
-pub fn repo() -> PathBuf {
-    let here = Path::new(env!("CARGO_MANIFEST_DIR"));
-    here.ancestors()
-        .find(|d| d.join("tests/tools").is_dir())
-        .unwrap_or(here)
-        .to_path_buf()
-}
 
 /// `tests/tools`.
 pub fn tools() -> PathBuf {

@@ -1,4 +1,4 @@
-//! Helpers shared by the integration tests that need a GPU.
+//! A headless GPU for the tests that draw, or a skip.
 
 use blockwalk::render::{Gpu, RenderError};
 
