@@ -468,8 +468,11 @@ fn generated_routes_keep_clear_of_buildings_and_see_the_city() {
                 )
             })
             .collect();
-        let meshes: Vec<(blockwalk::blocks::BlockId, &blockwalk::city::Mesh)> =
-            scene.block_meshes().iter().map(|(id, m)| (*id, m)).collect();
+        let meshes: Vec<(blockwalk::blocks::BlockId, &blockwalk::city::Mesh)> = scene
+            .block_meshes()
+            .iter()
+            .map(|(id, m)| (*id, m))
+            .collect();
         let ctx = route_context(&scene, SIZE.0 as f64 / SIZE.1 as f64);
         for choice in [RouteChoice::Paper, RouteChoice::Orbit, RouteChoice::Street] {
             let (route, _) = choice

@@ -1,8 +1,9 @@
 //! The city arguments `--name` and `--crs`, and the default name of a city folder.
 
-mod data_path;
-use data_path::data;
+#[path = "../../tests/support/mod.rs"]
+mod support;
 use std::process::Command;
+use support::data::data;
 
 fn import_json(args: &[&std::ffi::OsStr]) -> serde_json::Value {
     let o = Command::new(env!("CARGO_BIN_EXE_blockwalk"))

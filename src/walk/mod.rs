@@ -13,6 +13,7 @@ mod hybrid;
 pub mod job;
 pub mod step;
 mod summary;
+pub mod sweep;
 
 pub use bound::{BoundFigures, BoundGeometry, FrameBound};
 pub use far::{
