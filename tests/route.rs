@@ -527,7 +527,7 @@ fn street_walk_frames_keep_a_walking_pace_on_a_long_street_graph() {
         "{frames} frames"
     );
     assert!(
-        (frames as f64) < 1.25 * 10_000.0 / STREET_FRAME_STEP_M + 2.0,
+        (frames as f64) < 1.5 * 10_000.0 / STREET_FRAME_STEP_M + 2.0,
         "{frames} frames: more than the pace needs"
     );
     let cams = route.sample(frames);
