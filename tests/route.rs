@@ -392,6 +392,161 @@ fn street_walk_and_orbit() {
     }
 }
 
+/// A square building of side `side` metres centred at `(x, y)` (world metres), `h` metres high.
+fn square_building(i: u32, x: f64, y: f64, side: f64, h: f64) -> blockwalk::city::Building {
+    let s = 0.5 * side;
+    blockwalk::city::Building {
+        id: blockwalk::city::BuildingId(i),
+        source_id: format!("t:{i}"),
+        footprint: geo_types::Polygon::new(
+            LineString::from(vec![
+                (x - s, y - s),
+                (x + s, y - s),
+                (x + s, y + s),
+                (x - s, y + s),
+                (x - s, y - s),
+            ]),
+            Vec::new(),
+        ),
+        height_m: h,
+        min_height_m: 0.0,
+        height_source: blockwalk::city::HeightSource::Height,
+        attributes: Default::default(),
+    }
+}
+
+/// A sparse city: a dense 12 × 12 cluster of 20 m buildings 40 m apart around world (1000,
+/// 1000), and four small outliers kilometres away, so that the box's centre (about (4500,
+/// 4000)) has nothing near it.
+fn sparse_city() -> Vec<blockwalk::city::Building> {
+    let mut b = Vec::new();
+    for i in 0..12 {
+        for j in 0..12 {
+            let (x, y) = (780.0 + 40.0 * i as f64, 780.0 + 40.0 * j as f64);
+            b.push(square_building(
+                b.len() as u32,
+                x,
+                y,
+                20.0,
+                12.0 + (i + j) as f64,
+            ));
+        }
+    }
+    for (x, y) in [
+        (9000.0, 1000.0),
+        (9000.0, 7000.0),
+        (1000.0, 7000.0),
+        (6000.0, 4000.0),
+    ] {
+        b.push(square_building(b.len() as u32, x, y, 8.0, 6.0));
+    }
+    b
+}
+
+#[test]
+fn orbit_frames_the_buildings_of_a_sparse_city_not_its_box() {
+    use blockwalk::route::{RouteChoice, RouteContext};
+    let buildings = sparse_city();
+    let frame = LocalFrame {
+        origin: DVec3::new(1000.0, 1000.0, 0.0),
+    };
+    let obstacles = Obstacles::from_buildings(&buildings, &frame);
+    let boxes = obstacles.boxes();
+    assert_eq!(boxes.len(), buildings.len());
+    let mut bounds = Aabb3::EMPTY;
+    for b in &boxes {
+        bounds = bounds.union(*b);
+    }
+    let ctx = RouteContext {
+        city: "sparse",
+        bounds,
+        street_edges: &[],
+        buildings: &buildings,
+        frame: &frame,
+        aspect: 16.0 / 9.0,
+    };
+    let (route, frames) = RouteChoice::Orbit.resolve(&ctx).unwrap();
+    assert_eq!(frames, None);
+    // The cluster spans local -220..220: the orbit circles it, not the 9 km box.
+    let cams = route.sample(60);
+    for c in &cams {
+        let r = c.position.truncate().length();
+        assert!(r > 220.0 && r < 600.0, "radius {r} at {c:?}");
+    }
+    for (f, c) in cams.iter().enumerate() {
+        let frustum = c.frustum();
+        let seen = boxes
+            .iter()
+            .filter(|b| frustum.intersects_aabb_exact(b))
+            .count();
+        assert!(seen > 0, "frame {f}: no building in view from {c:?}");
+        // And the cluster's middle is in view, not only a corner of it.
+        assert!(frustum.contains_point(DVec3::ZERO), "frame {f}: {c:?}");
+    }
+    // Deterministic.
+    assert_eq!(cams, RouteChoice::Orbit.resolve(&ctx).unwrap().0.sample(60));
+}
+
+/// A long street grid: 21 × 21 streets 250 m apart over [0, 5000]² world metres.
+fn long_grid() -> (Vec<LineString<f64>>, LocalFrame) {
+    let mut lines = Vec::new();
+    for i in 0..21 {
+        let v = 250.0 * i as f64;
+        lines.push(LineString::from(
+            (0..21).map(|j| (v, 250.0 * j as f64)).collect::<Vec<_>>(),
+        ));
+        lines.push(LineString::from(
+            (0..21).map(|j| (250.0 * j as f64, v)).collect::<Vec<_>>(),
+        ));
+    }
+    let frame = LocalFrame {
+        origin: DVec3::new(2500.0, 2500.0, 0.0),
+    };
+    (lines, frame)
+}
+
+#[test]
+fn street_walk_frames_keep_a_walking_pace_on_a_long_street_graph() {
+    use blockwalk::route::{RouteChoice, RouteContext, STREET_FRAME_STEP_M};
+    let (lines, frame) = long_grid();
+    let ctx = RouteContext {
+        city: "long",
+        bounds: Aabb3::new(
+            DVec3::new(-2500.0, -2500.0, 0.0),
+            DVec3::new(2500.0, 2500.0, 20.0),
+        ),
+        street_edges: &lines,
+        buildings: &[],
+        frame: &frame,
+        aspect: 16.0 / 9.0,
+    };
+    let (route, frames) = RouteChoice::Street.resolve(&ctx).unwrap();
+    let frames = frames.expect("the street walk reports its frame count");
+    // Corner to corner: 10 km of streets.
+    assert!((route.duration() * 1.4 - 10_000.0).abs() < 1e-6);
+    assert!(
+        frames as f64 >= 10_000.0 / STREET_FRAME_STEP_M,
+        "{frames} frames"
+    );
+    assert!(
+        (frames as f64) < 1.5 * 10_000.0 / STREET_FRAME_STEP_M + 2.0,
+        "{frames} frames: more than the pace needs"
+    );
+    let cams = route.sample(frames);
+    for w in cams.windows(2) {
+        let step = w[0].position.distance(w[1].position);
+        assert!(
+            step <= STREET_FRAME_STEP_M,
+            "{step:.2} m between frames at {:?}",
+            w[0].position
+        );
+    }
+    assert_eq!(
+        frames,
+        RouteChoice::Street.resolve(&ctx).unwrap().1.unwrap()
+    );
+}
+
 proptest! {
     #![proptest_config(ProptestConfig::with_cases(64))]
 

@@ -10,7 +10,9 @@ use geo_types::LineString;
 use std::path::PathBuf;
 use std::str::FromStr;
 
-/// Orbit radius as a multiple of the city's half-diagonal.
+/// Orbit radius as a multiple of the buildings' spread (the distance from their centre holding
+/// 90 % of their footprint area, see [`super::orbit_route`]; without buildings, the box's larger
+/// half-side).
 pub const ORBIT_RADIUS_FACTOR: f64 = 1.3;
 /// Orbit eye height above the ground, metres.
 pub const ORBIT_HEIGHT_M: f64 = 80.0;
@@ -20,11 +22,16 @@ pub const ORBIT_DURATION_S: f64 = 60.0;
 pub const STREET_EYE_HEIGHT_M: f64 = 1.7;
 /// Walking speed of the street walk, metres per second.
 pub const STREET_SPEED_M_S: f64 = 1.4;
+/// The street walk's pace in frames: its default frame count (what [`RouteChoice::resolve`]
+/// reports when the caller gives none) puts consecutive frames at most this many metres apart,
+/// 15 m, whatever the walk's length ([`CameraRoute::frames_for_step`]). This is a step per
+/// frame, not a frame rate: the walk's own time runs at [`STREET_SPEED_M_S`].
+pub const STREET_FRAME_STEP_M: f64 = 15.0;
 
 /// A route by name or file.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub enum RouteChoice {
-    /// The paper's route (seed 003 §5): along the streets, rise, look down, fly down.
+    /// The paper's route (Pina, Serón and Cerezo, §5): along the streets, rise, look down, fly down.
     Paper,
     /// A circle around the city, looking at its centre.
     Orbit,
@@ -112,8 +119,9 @@ pub struct RouteContext<'a> {
 }
 
 impl RouteChoice {
-    /// The route for `ctx`, and the frame count a route file asks for (generated routes leave
-    /// it to the caller).
+    /// The route for `ctx`, and its default frame count: the one a route file asks for, or for
+    /// the street walk the count that keeps its frames [`STREET_FRAME_STEP_M`] apart at most
+    /// (the other generated routes leave it to the caller).
     ///
     /// # Errors
     /// A route that cannot be made (no street graph for `street`, a bad file, …).
@@ -160,18 +168,17 @@ impl RouteChoice {
                 }
                 let from = ctx.bounds.min.truncate();
                 let to = ctx.bounds.max.truncate();
-                (
-                    street_walk(
-                        &g,
-                        &obstacles(),
-                        from,
-                        to,
-                        STREET_EYE_HEIGHT_M,
-                        STREET_SPEED_M_S,
-                        lens,
-                    )?,
-                    None,
-                )
+                let route = street_walk(
+                    &g,
+                    &obstacles(),
+                    from,
+                    to,
+                    STREET_EYE_HEIGHT_M,
+                    STREET_SPEED_M_S,
+                    lens,
+                )?;
+                let frames = route.frames_for_step(STREET_FRAME_STEP_M);
+                (route, Some(frames))
             }
             RouteChoice::Flyover => (super::flyover_route(ctx.bounds, ctx.aspect)?, None),
             RouteChoice::File(path) => {

@@ -583,31 +583,127 @@ pub fn street_walk(
     keep_clear("street", keys, lens, obstacles, EYE_CLEARANCE_M)
 }
 
-/// An orbit around the centre of `bounds` at `radius_factor` × the box's larger half-side, at
-/// `height` metres above the highest roof (of `bounds` and of `obstacles`), looking at the centre
-/// of the ground; one turn in
-/// `duration` seconds, counter-clockwise, starting south.
+/// Share of the buildings' footprint area that the orbit's spread covers: the radius the
+/// orbit scales is the distance from the buildings' centre within which this share of the area
+/// lies (the 90th percentile), so that a few outlying buildings far away neither move the centre
+/// nor widen the circle.
+pub const ORBIT_SPREAD_QUANTILE: f64 = 0.9;
+
+/// Rounds of trimming in [`buildings_centre_and_spread`]: each recentres on the buildings within
+/// the last spread.
+const ORBIT_CENTRE_ROUNDS: usize = 4;
+
+/// The area-weighted `q`-quantile of `values` (`(value, weight)`; weights not positive count as
+/// none, all of them none as equal): the least value with at least `q` of the weight at or
+/// below it. `None` for no values.
+fn weighted_quantile(mut values: Vec<(f64, f64)>, q: f64) -> Option<f64> {
+    if values.is_empty() {
+        return None;
+    }
+    values.sort_by(|a, b| a.0.total_cmp(&b.0));
+    let weighted: f64 = values.iter().map(|v| v.1.max(0.0)).sum();
+    let equal = !(weighted > 0.0 && weighted.is_finite());
+    let weight = |w: f64| if equal { 1.0 } else { w.max(0.0) };
+    let total = if equal { values.len() as f64 } else { weighted };
+    let need = q.clamp(0.0, 1.0) * total;
+    let mut acc = 0.0;
+    for &(v, w) in &values {
+        acc += weight(w);
+        if acc >= need * (1.0 - 1e-12) {
+            return Some(v);
+        }
+    }
+    values.last().map(|v| v.0)
+}
+
+/// The buildings' centre and spread in plan (local frame): the centroid of their footprints
+/// weighted by footprint area, recentred a few times on the buildings within the spread (which
+/// moves it onto the densest part when outliers lie far away), and the area-weighted
+/// [`ORBIT_SPREAD_QUANTILE`] distance of the footprint centroids from it. `None` without
+/// buildings.
+fn buildings_centre_and_spread(obstacles: &Obstacles) -> Option<(DVec2, f64)> {
+    let pts = obstacles.plan_centroids();
+    if pts.is_empty() {
+        return None;
+    }
+    let mean = |keep: &dyn Fn(DVec2) -> bool| -> Option<DVec2> {
+        let (mut sum, mut total, mut plain, mut n) = (DVec2::ZERO, 0.0, DVec2::ZERO, 0usize);
+        for &(c, a) in pts.iter().filter(|(c, _)| keep(*c)) {
+            sum += c * a;
+            total += a;
+            plain += c;
+            n += 1;
+        }
+        if total > 0.0 {
+            Some(sum / total)
+        } else if n > 0 {
+            Some(plain / n as f64)
+        } else {
+            None
+        }
+    };
+    let spread = |centre: DVec2| {
+        weighted_quantile(
+            pts.iter().map(|&(c, a)| (c.distance(centre), a)).collect(),
+            ORBIT_SPREAD_QUANTILE,
+        )
+        .unwrap_or(0.0)
+    };
+    let mut centre = mean(&|_| true)?;
+    for _ in 0..ORBIT_CENTRE_ROUNDS {
+        let r = spread(centre);
+        match mean(&|c| c.distance(centre) <= r) {
+            Some(c) => centre = c,
+            None => break,
+        }
+    }
+    Some((centre, spread(centre)))
+}
+
+/// An orbit around the buildings: one turn in `duration` seconds, counter-clockwise, starting
+/// south, at `height` metres above the highest roof (of `bounds` and of `obstacles`), looking
+/// down at the centre of the buildings on the ground.
+///
+/// With buildings, the centre is their footprint centroid weighted by footprint area, trimmed
+/// to the densest part ([`ORBIT_SPREAD_QUANTILE`]: the buildings within the distance holding 90 %
+/// of the area), and the radius is `radius_factor` × that distance (at least 1 m): a sparse city
+/// with outliers kilometres away is framed by its buildings, not by its box, and every frame
+/// looks at them. Without buildings, the centre of `bounds` and `radius_factor` × the box's
+/// larger half-side. The pitch aims at the centre on the ground, and the lens's far plane is
+/// raised, where needed, to reach past the far side of the spread.
 pub fn orbit_route(
     bounds: &Aabb3,
     obstacles: &Obstacles,
     radius_factor: f64,
     height: f64,
     duration: f64,
-    lens: Lens,
+    mut lens: Lens,
 ) -> Result<CameraRoute, RouteError> {
     let positive = |v: f64| v > 0.0; // false for NaN
-    if bounds.is_empty() || !positive(duration) || !positive(radius_factor) {
+    let framed =
+        buildings_centre_and_spread(obstacles).filter(|(c, s)| c.is_finite() && s.is_finite());
+    if (bounds.is_empty() && framed.is_none()) || !positive(duration) || !positive(radius_factor) {
         return Err(RouteError::Bad {
             route: "orbit".into(),
             problem: "needs a non-empty city, positive radius and duration".into(),
         });
     }
-    let c = bounds.center();
-    let ext = bounds.extent();
-    let r = radius_factor * 0.5 * ext.x.max(ext.y).max(1.0);
+    let (c, spread) = match framed {
+        Some((c, s)) => (c, s.max(1.0)),
+        None => {
+            let ext = bounds.extent();
+            (bounds.center().truncate(), 0.5 * ext.x.max(ext.y).max(1.0))
+        }
+    };
+    let r = radius_factor * spread;
     // Above every roof (of the box and of any building outside it), so the eye is always clear.
-    let z = bounds.max.z.max(obstacles.max_height()).max(0.0) + height.max(EYE_CLEARANCE_M);
+    let top = if bounds.is_empty() { 0.0 } else { bounds.max.z };
+    let z = top.max(obstacles.max_height()).max(0.0) + height.max(EYE_CLEARANCE_M);
     let target = DVec3::new(c.x, c.y, 0.0);
+    let reach = (r + spread).hypot(z) * 1.05;
+    if reach.is_finite() && reach > lens.far {
+        lens.far = reach;
+    }
     let n = 24;
     let keys = (0..=n)
         .map(|i| {

@@ -1,4 +1,4 @@
-//! Scripted camera routes (seed 003 §5): key frames, interpolation, sampling into cameras.
+//! Scripted camera routes (Pina, Serón and Cerezo, §5): key frames, interpolation, sampling into cameras.
 //!
 //! - [`CameraRoute`]: timed key frames (local frame, metres) interpolated with centripetal
 //!   Catmull–Rom (positions) and squad (orientations), sampled into [`Camera`]s.
@@ -16,10 +16,12 @@ pub mod generate;
 pub mod obstacles;
 pub mod spline;
 
-pub use choice::{RouteChoice, RouteContext};
+pub use choice::{RouteChoice, RouteContext, STREET_FRAME_STEP_M};
 pub use file::RouteFile;
 pub use flyover::{flyover_route, flyover_route_with_near, FLYOVER_NEAR_SHARE};
-pub use generate::{orbit_route, paper_route, street_walk, PaperRouteParams, StreetGraph};
+pub use generate::{
+    orbit_route, paper_route, street_walk, PaperRouteParams, StreetGraph, ORBIT_SPREAD_QUANTILE,
+};
 pub use obstacles::{Obstacles, EYE_CLEARANCE_M};
 
 /// Most frames a walk may sample (a route file or a caller's count): 100,000, about an hour at
@@ -212,7 +214,7 @@ impl Default for Lens {
     }
 }
 
-/// A camera route: timed key frames and how to interpolate them (seed 003 §5).
+/// A camera route: timed key frames and how to interpolate them (Pina, Serón and Cerezo, §5).
 #[derive(Clone, Debug, PartialEq)]
 pub struct CameraRoute {
     /// Name (shown in reports).
@@ -378,6 +380,36 @@ impl CameraRoute {
         (0..n)
             .map(|f| self.camera_at(self.start() + f as f64 / fps))
             .collect()
+    }
+
+    /// The fewest frames, found deterministically, for which [`CameraRoute::sample`] puts
+    /// consecutive eye positions at most `max_step_m` metres apart: it starts from the keys'
+    /// chord length over the step and grows the count until the sampled steps fit. At least 2,
+    /// at most [`MAX_FRAMES`] (where a route too long for that many frames stops, with longer
+    /// steps). A step that is not positive and finite gives 2.
+    pub fn frames_for_step(&self, max_step_m: f64) -> usize {
+        if !(max_step_m > 0.0 && max_step_m.is_finite()) {
+            return 2;
+        }
+        let chords: f64 = self
+            .keys
+            .windows(2)
+            .map(|w| w[0].position.distance(w[1].position))
+            .sum();
+        let mut n = ((chords / max_step_m).ceil() as usize)
+            .saturating_add(1)
+            .clamp(2, MAX_FRAMES);
+        loop {
+            let longest = self
+                .sample(n)
+                .windows(2)
+                .map(|w| w[0].position.distance(w[1].position))
+                .fold(0.0, f64::max);
+            if longest <= max_step_m || n == MAX_FRAMES {
+                return n;
+            }
+            n = n.saturating_add(n.div_ceil(8)).min(MAX_FRAMES);
+        }
     }
 
     /// Axis-aligned box of the key positions (for reports).

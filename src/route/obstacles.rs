@@ -3,7 +3,7 @@
 
 use crate::city::{Building, LocalFrame};
 use crate::geom::{Aabb3, Frustum};
-use geo::{Distance, Euclidean};
+use geo::{Area, Centroid, Distance, Euclidean};
 use geo_types::{Line, Point, Polygon};
 use glam::{DVec2, DVec3};
 use rstar::primitives::{GeomWithData, Rectangle};
@@ -84,6 +84,45 @@ impl Obstacles {
     /// The highest roof, metres above the ground (0 without buildings).
     pub fn max_height(&self) -> f64 {
         self.max_height
+    }
+
+    /// Each building's plan centroid (local frame) and footprint area, square metres, in the
+    /// order they were given (footprints left out by [`Obstacles::from_buildings`] excepted).
+    /// A degenerate footprint (no area) gives the centre of its box and area 0.
+    pub fn plan_centroids(&self) -> Vec<(DVec2, f64)> {
+        self.plan_boxes()
+            .map(|(prism, min, max)| {
+                let area = prism.footprint.unsigned_area();
+                let c = prism
+                    .footprint
+                    .centroid()
+                    .map(|p| DVec2::new(p.x(), p.y()))
+                    .filter(|c| c.is_finite() && area > 0.0)
+                    .unwrap_or(0.5 * (min + max));
+                (c, if area.is_finite() { area } else { 0.0 })
+            })
+            .collect()
+    }
+
+    /// Each building's box (footprint box × its heights), local frame, in the order of
+    /// [`Obstacles::plan_centroids`].
+    pub fn boxes(&self) -> Vec<Aabb3> {
+        self.plan_boxes()
+            .map(|(p, min, max)| Aabb3::new(min.extend(p.lo), max.extend(p.hi)))
+            .collect()
+    }
+
+    /// The prisms with their plan boxes, in input order.
+    fn plan_boxes(&self) -> impl Iterator<Item = (&Prism, DVec2, DVec2)> {
+        self.prisms.iter().map(|p| {
+            let mut min = DVec2::splat(f64::INFINITY);
+            let mut max = DVec2::splat(f64::NEG_INFINITY);
+            for c in p.footprint.exterior().coords() {
+                min = min.min(DVec2::new(c.x, c.y));
+                max = max.max(DVec2::new(c.x, c.y));
+            }
+            (p, min, max)
+        })
     }
 
     /// Distance from `p` to the nearest building (0 inside one), looking no farther than
