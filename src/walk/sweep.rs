@@ -376,28 +376,14 @@ pub fn run_sweep(
                         frames: diagnose(scene, &source, &maps, route, opts, &rec, far.select)?,
                     });
                 }
-                sweep.rows.push(SweepRow {
-                    city: scene.name.clone(),
-                    route: rname.clone(),
-                    k,
-                    tau_px: tau,
-                    maps: maps.maps.len(),
-                    frames: opts.frames,
-                    far_nodes: s.far_nodes.unwrap_or(0.0),
-                    mesh_triangles: s.mesh_triangles.unwrap_or(0.0),
-                    coverage_error_max: s.coverage_error_max,
-                    coverage_error_mean: s.coverage_error_mean,
-                    psnr_min: s.psnr_min,
-                    silhouette_px_max: s.silhouette_px_max,
-                    silhouette_ratio_max: s.silhouette_ratio_max,
-                    silhouette_bound_violations: s.silhouette_bound_violations,
-                    silhouette_subpixel: s.silhouette_subpixel,
-                    silhouette_thin: s.silhouette_thin,
-                    popping_px_max: s.popping_px_max,
-                    hybrid_ms: s.frame_s.map(|s| s * 1e3),
-                    mesh_ms: s.mesh_frame_s.map(|s| s * 1e3),
-                    frame_time_ratio_vs_mesh: s.frame_time_ratio_vs_mesh,
-                });
+                sweep.rows.push(SweepRow::new(
+                    &scene.name,
+                    rname,
+                    (k, tau),
+                    maps.maps.len(),
+                    opts.frames,
+                    &s,
+                ));
                 if k == show_k && tau == show_t {
                     sweep.walks.push(SweepWalk {
                         route: rname.clone(),
@@ -410,6 +396,42 @@ pub fn run_sweep(
         }
     }
     Ok(sweep)
+}
+
+impl SweepRow {
+    /// The row of configuration `(k, tau)` on route `route` of `city`, with `maps` maps and
+    /// `frames` frames, from the walk's far-field figures `s`.
+    fn new(
+        city: &str,
+        route: &str,
+        (k, tau_px): (u32, f64),
+        maps: usize,
+        frames: usize,
+        s: &FarSummary,
+    ) -> Self {
+        Self {
+            city: city.to_string(),
+            route: route.to_string(),
+            k,
+            tau_px,
+            maps,
+            frames,
+            far_nodes: s.far_nodes.unwrap_or(0.0),
+            mesh_triangles: s.mesh_triangles.unwrap_or(0.0),
+            coverage_error_max: s.coverage_error_max,
+            coverage_error_mean: s.coverage_error_mean,
+            psnr_min: s.psnr_min,
+            silhouette_px_max: s.silhouette_px_max,
+            silhouette_ratio_max: s.silhouette_ratio_max,
+            silhouette_bound_violations: s.silhouette_bound_violations,
+            silhouette_subpixel: s.silhouette_subpixel,
+            silhouette_thin: s.silhouette_thin,
+            popping_px_max: s.popping_px_max,
+            hybrid_ms: s.frame_s.map(|s| s * 1e3),
+            mesh_ms: s.mesh_frame_s.map(|s| s * 1e3),
+            frame_time_ratio_vs_mesh: s.frame_time_ratio_vs_mesh,
+        }
+    }
 }
 
 /// The maps of `scene` built with `build`, kept as a [`MapTree`] (the diagnosis reads the maps
