@@ -1,5 +1,5 @@
 //! The command line on a closed standard output (`blockwalk … | head -c 10`): no panic, a quiet
-//! exit with status 0 (issue 10, item 15); and numeric arguments that must be refused with a
+//! exit with status 0; and numeric arguments that must be refused with a
 //! usage error, not a panic.
 
 #[path = "../../tests/support/mod.rs"]

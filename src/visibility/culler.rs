@@ -413,7 +413,7 @@ impl OcclusionCuller {
 /// view axis, `|tx| ≤ tan(fov_x / 2) = aspect · tan(fov_y / 2)`, `|ty| ≤ tan(fov_y / 2)`) meets
 /// the depth `z` at distance `z · sqrt(1 + tx² + ty²)`. The near plane clips depths below `near`,
 /// so on every ray through the image the clipped points lie within `near · sqrt(1 + Tx² + Ty²)`
-/// of the eye, the distance to the near plane's corners (the brief's `near / (cos hx · cos hy)`
+/// of the eye, the distance to the near plane's corners (the simpler `near / (cos hx · cos hy)`
 /// is the same bound for small angles and larger than it otherwise). Conversely any point of
 /// the frustum at least this far from the eye has depth ≥ `near` and is drawn. Plan-view
 /// distance is at most the 3D distance, so a wall whose plan distance from the eye is at least
