@@ -34,8 +34,9 @@ pub struct Culled {
 pub struct CullStep {
     /// Triangles per block id.
     triangles: Vec<u64>,
-    /// The renderer's layout of the draw units, to count calls.
-    order: DrawOrder,
+    /// The renderer's layout of the block meshes, to count calls (the draw units keep their
+    /// own when the scene has them).
+    order: Option<DrawOrder>,
     /// The per-building modes' own cull map (the block culling's is the culler's).
     building_map: Option<CullMap>,
     visible: Vec<BlockId>,
@@ -48,7 +49,10 @@ impl CullStep {
     pub fn new(scene: &Scene) -> Self {
         Self {
             triangles: scene.triangles_by_block(),
-            order: DrawOrder::new(scene.draw_meshes()),
+            order: scene
+                .units
+                .is_none()
+                .then(|| DrawOrder::new(scene.draw_meshes())),
             building_map: scene.occlusion.as_ref().map(|c| c.new_map()),
             visible: Vec::new(),
             kept_buildings: Vec::new(),
@@ -138,7 +142,11 @@ impl CullStep {
             blocks: self.visible.len(),
             buildings,
             triangles,
-            draws: self.order.calls(&self.draw_ids),
+            draws: match (units, &self.order) {
+                (Some(u), _) => u.draw_calls(&self.draw_ids),
+                (None, Some(o)) => o.calls(&self.draw_ids),
+                (None, None) => DrawOrder::new(scene.draw_meshes()).calls(&self.draw_ids),
+            },
         }
     }
 
