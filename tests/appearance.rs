@@ -9,8 +9,8 @@
 //! compared one by one (there rasterisation and ray casting may disagree by a pixel); every other
 //! pixel must be within 1/255 per channel (rounding of the lit colour to 8 bits).
 //!
-//! The GPU test needs an adapter (lavapipe will do); without one it prints why and passes, unless
-//! `BLOCKWALK_REQUIRE_GPU` is set.
+//! The GPU test needs an adapter (lavapipe will do); without one it skips loudly, unless the
+//! GPU is required (`BLOCKWALK_REQUIRE=gpu`).
 
 mod support;
 

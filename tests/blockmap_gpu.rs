@@ -4,8 +4,8 @@
 //! grazing angles; a control that must fail (the map shifted by one texel); and the depth
 //! composite with meshes.
 //!
-//! Needs an adapter (lavapipe in CI). Without one the tests print why and pass, unless
-//! `BLOCKWALK_REQUIRE_GPU` is set, in which case they fail.
+//! Needs an adapter (lavapipe in CI). Without one the tests skip loudly, unless the GPU
+//! is required (`BLOCKWALK_REQUIRE=gpu`), in which case they fail.
 #![cfg(feature = "render")]
 
 mod support;

@@ -5,7 +5,8 @@
 //! A test fails when a listed mismatch no longer happens, when one that is not listed appears, or
 //! when a listed IoU moves; the failure message prints the TOML entries to add. Astana is not in the
 //! repository: it is read from `../shared/data/astana` (or `$BLOCKWALK_ASTANA`); without it the test
-//! prints `SKIPPED` on the terminal and passes, unless `BLOCKWALK_REQUIRE_ASTANA=1`.
+//! skips loudly (see `tests/support/skip.rs`), unless Astana is required
+//! (`BLOCKWALK_REQUIRE=astana`, as `.ci/run` sets).
 
 mod support;
 
@@ -15,7 +16,6 @@ use blockwalk::blocks::conformance::{
 use blockwalk::blocks::{detect_geometry, BlockKind, BlockOptions, BlockSource};
 use blockwalk::geom::predicates::robust_interior_point;
 use geo_types::{LineString, MultiLineString, MultiPolygon, Polygon};
-use std::io::Write;
 use std::path::Path;
 use std::time::Instant;
 use support::data::{astana_dir, data};
@@ -203,19 +203,12 @@ fn helsinki_conforms_to_polygonize() {
 
 #[test]
 fn astana_conforms_to_snapped_polygonize() {
-    let dir = match astana_dir() {
-        Ok(d) => d,
-        Err(why) => {
-            if std::env::var("BLOCKWALK_REQUIRE_ASTANA").is_ok_and(|v| v == "1") {
-                panic!("BLOCKWALK_REQUIRE_ASTANA=1 but {why}");
-            }
-            // Straight to the terminal: the test harness would swallow println!.
-            let _ = writeln!(
-                std::io::stderr(),
-                "SKIPPED: astana_conforms_to_snapped_polygonize: {why}"
-            );
-            return;
-        }
+    let Some(dir) = support::skip::or_skip(
+        support::skip::Need::Astana,
+        "astana_conforms_to_snapped_polygonize",
+        astana_dir(),
+    ) else {
+        return;
     };
     let (ours, reference, matched) = conformance(
         "astana",

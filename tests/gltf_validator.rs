@@ -2,8 +2,8 @@
 //! `gltf-validator`, run by `tests/tools/validate_gltf.js` under Node): 0 errors and 0 warnings.
 //!
 //! Needs `node` and `npm ci --prefix tests/tools` (what `.ci/run` does). Without them the tests
-//! print why and pass, unless `BLOCKWALK_REQUIRE_VALIDATORS=1` (set by `.ci/run`), where they
-//! fail.
+//! skip loudly, unless the validators are required (`BLOCKWALK_REQUIRE=validators`, as `.ci/run`
+//! sets), where they fail.
 
 use std::path::Path;
 
@@ -16,8 +16,8 @@ use support::data::load_city;
 
 mod support;
 
-/// `Some(node)` when node and the validator are installed; otherwise prints why and gives
-/// `None`, or panics under `BLOCKWALK_REQUIRE_VALIDATORS=1`.
+/// `Some(node)` when node and the validator are installed; otherwise a loud skip and
+/// `None`, or a failure when the validators are required.
 fn validator_or_skip(test: &str) -> Option<String> {
     support::node::or_skip(test, support::node::node_with(&["gltf-validator"]))
 }

@@ -2,7 +2,7 @@
 //! by pixel, with exact ray casting of the same boxes on the CPU.
 //!
 //! Needs an adapter (a GPU or a software rasteriser such as Mesa's lavapipe). Without one the
-//! tests print why and pass, unless `BLOCKWALK_REQUIRE_GPU` is set, in which case they fail.
+//! tests skip loudly, unless the GPU is required (`BLOCKWALK_REQUIRE=gpu`), when they fail.
 #![cfg(feature = "render")]
 
 mod support;

@@ -10,8 +10,8 @@
 //!   frame drawn with one call per building, lit and in the id pass; the id pass still names
 //!   the building at each pixel.
 //!
-//! The GPU tests need an adapter (lavapipe will do) and pass with a SKIPPED line without one,
-//! unless `BLOCKWALK_REQUIRE_GPU` is set.
+//! The GPU tests need an adapter (lavapipe will do) and skip loudly without one, unless the
+//! GPU is required (`BLOCKWALK_REQUIRE=gpu`).
 #![cfg(feature = "render")]
 
 mod support;

@@ -3,8 +3,8 @@
 //! `.glb`, geometric errors, boxes), the feature ids and property tables read back from the
 //! binary, the root transform against an independent geodetic implementation (proj4rs) and
 //! against the projection of the buildings' own corners, determinism, and the Khronos
-//! glTF-Validator on every content file (skipped without node, unless
-//! `BLOCKWALK_REQUIRE_VALIDATORS=1`).
+//! glTF-Validator on every content file (skipped loudly without node, unless
+//! the validators are required: `BLOCKWALK_REQUIRE=validators`).
 
 mod support;
 

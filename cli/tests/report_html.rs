@@ -7,7 +7,7 @@
 //! screenshot is saved as `target/report-html/report.png` (or under `BLOCKWALK_SCREENSHOT_DIR`).
 //!
 //! Needs `node`, `chromium` and `npm ci --prefix tests/tools` (what `.ci/run` does). Without them
-//! the test prints why and passes, unless `BLOCKWALK_REQUIRE_VALIDATORS=1`, where it fails.
+//! the test skips loudly, unless the validators are required (`BLOCKWALK_REQUIRE=validators`).
 
 use serde_json::{json, Value};
 use std::process::Command;

@@ -3,8 +3,8 @@
 //! window draws the hybrid frame (near meshes, far BlockMaps ray-cast into the same targets), as
 //! `blockwalk walk --far blockmaps` does.
 //!
-//! Without `xvfb-run` or a Vulkan driver the tests print why and pass, unless
-//! `BLOCKWALK_REQUIRE_GPU` is set (CI), in which case they fail.
+//! Without `xvfb-run` or a Vulkan driver the tests skip loudly, unless the display and the GPU
+//! are required (`BLOCKWALK_REQUIRE=display,gpu`, as `.ci/run` sets), in which case they fail.
 #![cfg(feature = "window")]
 
 #[path = "../../tests/support/mod.rs"]
@@ -13,9 +13,7 @@ mod support;
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
-fn required() -> bool {
-    std::env::var("BLOCKWALK_REQUIRE_GPU").is_ok_and(|v| v == "1")
-}
+use support::skip::{or_skip, Need};
 
 fn xvfb_run() -> Option<PathBuf> {
     std::env::var_os("PATH").and_then(|paths| {
@@ -34,15 +32,12 @@ fn out_dir() -> PathBuf {
 /// Runs `blockwalk view` on Helsinki under Xvfb with `extra` arguments, saving the last of three
 /// orbit frames to `shot`; returns its JSON summary, or `None` (skip) without a display server or
 /// a GPU.
-fn view(extra: &[&str], shot: &Path) -> Option<serde_json::Value> {
-    let Some(xvfb) = xvfb_run() else {
-        assert!(
-            !required(),
-            "xvfb-run is not installed (apt-get install xvfb)"
-        );
-        eprintln!("skipped: xvfb-run is not installed");
-        return None;
-    };
+fn view(test: &str, extra: &[&str], shot: &Path) -> Option<serde_json::Value> {
+    let xvfb = or_skip(
+        Need::Display,
+        test,
+        xvfb_run().ok_or_else(|| "xvfb-run is not installed (apt-get install xvfb xauth)".into()),
+    )?;
     let city = support::data::data("helsinki");
     let out = Command::new(xvfb)
         .args(["-a", "-s", "-screen 0 1280x720x24"])
@@ -62,12 +57,11 @@ fn view(extra: &[&str], shot: &Path) -> Option<serde_json::Value> {
     if !out.status.success() {
         let no_gpu = stderr.contains("adapter") || stderr.contains("surface");
         assert!(
-            no_gpu && !required(),
+            no_gpu,
             "blockwalk view {extra:?} failed: {}\n{stderr}",
             out.status
         );
-        eprintln!("skipped: no GPU surface: {stderr}");
-        return None;
+        return or_skip(Need::Gpu, test, Err(format!("no GPU surface: {stderr}")));
     }
     let stdout = String::from_utf8_lossy(&out.stdout);
     let line = stdout.lines().last().unwrap_or_default();
@@ -82,12 +76,17 @@ fn load(p: &Path) -> image::RgbaImage {
 
 #[test]
 fn the_window_draws_the_far_field_where_the_walk_would() {
+    let test = "the_window_draws_the_far_field_where_the_walk_would";
     let dir = out_dir();
     let (mesh_png, far_png) = (dir.join("meshes.png"), dir.join("blockmaps.png"));
-    let Some(mesh) = view(&["--far", "none"], &mesh_png) else {
+    let Some(mesh) = view(test, &["--far", "none"], &mesh_png) else {
         return;
     };
-    let Some(far) = view(&["--far", "blockmaps", "--tau", "4", "--k", "64"], &far_png) else {
+    let Some(far) = view(
+        test,
+        &["--far", "blockmaps", "--tau", "4", "--k", "64"],
+        &far_png,
+    ) else {
         return;
     };
     assert_eq!(mesh["frames"], 3);

@@ -1,21 +1,17 @@
-//! A headless GPU for the tests that draw, or a skip.
+//! A headless GPU for the tests that draw, or a loud skip.
 
+use super::skip::{or_skip, Need};
 use blockwalk::render::{Gpu, RenderError};
 
-/// A headless device, or `None` (with a SKIPPED line) when there is no adapter and
-/// `BLOCKWALK_REQUIRE_GPU` is unset; with it set (as `.ci/run` does), no adapter fails the test.
+/// A headless device, or `None` after a loud skip when there is no adapter; when the GPU is
+/// required (`BLOCKWALK_REQUIRE=gpu`, as `.ci/run` sets), no adapter fails the test.
 pub fn gpu_or_skip(test: &str) -> Option<Gpu> {
-    match Gpu::new_headless() {
-        Ok(g) => {
-            eprintln!("{test}: adapter {}", g.adapter_name());
-            Some(g)
-        }
-        Err(RenderError::NoAdapter { source })
-            if std::env::var_os("BLOCKWALK_REQUIRE_GPU").is_none() =>
-        {
-            eprintln!("{test}: SKIPPED, no GPU adapter ({source}); set BLOCKWALK_REQUIRE_GPU=1 to fail instead");
-            None
-        }
+    let found = match Gpu::new_headless() {
+        Ok(g) => Ok(g),
+        Err(RenderError::NoAdapter { source }) => Err(format!("no GPU adapter ({source})")),
         Err(e) => panic!("{test}: no usable GPU: {e}"),
-    }
+    };
+    let gpu = or_skip(Need::Gpu, test, found)?;
+    eprintln!("{test}: adapter {}", gpu.adapter_name());
+    Some(gpu)
 }

@@ -1,6 +1,6 @@
 //! Helpers shared by the integration tests: the bundled data and the scenes built from it
 //! ([`data`]), a headless GPU or a skip ([`gpu`], with the `render` feature) and the Node tools of
-//! `tests/tools` ([`node`]).
+//! `tests/tools` ([`node`]), and the loud skips of tests whose needs are missing ([`skip`]).
 //!
 //! A test file of the library includes it as `mod support;`, one of the command line (`cli/tests`)
 //! as `#[path = "../../tests/support/mod.rs"] mod support;`.
@@ -12,6 +12,7 @@ pub mod data;
 #[cfg(feature = "render")]
 pub mod gpu;
 pub mod node;
+pub mod skip;
 
 use std::path::{Path, PathBuf};
 

@@ -1,15 +1,12 @@
 //! The Node tools of `tests/tools` (the glTF validator, CesiumJS and puppeteer-core driving
 //! Debian's `chromium`), shared by the tests that run them: finding them, skipping with the
-//! reason when they are missing (a failure under `BLOCKWALK_REQUIRE_VALIDATORS=1`, which
-//! `.ci/run` sets), and running a script that prints one JSON report.
+//! reason when they are missing (a failure when the validators are required, as `.ci/run`
+//! requires them; see [`super::skip`]), and running a script that prints one JSON report.
 
 use super::repo;
 use serde_json::Value;
 use std::path::{Path, PathBuf};
 use std::process::Command;
-
-/// Set to `1` to turn a skip into a failure.
-pub const REQUIRE: &str = "BLOCKWALK_REQUIRE_VALIDATORS";
 
 /// `tests/tools`.
 pub fn tools() -> PathBuf {
@@ -64,19 +61,10 @@ pub fn chromium() -> Result<String, String> {
         .unwrap_or(chromium))
 }
 
-/// `found`'s tool, or `None` after printing why `test` is skipped; panics instead when
-/// [`REQUIRE`] is `1`.
+/// `found`'s tool, or `None` after a loud skip of `test`; a failure when the validators are
+/// required.
 pub fn or_skip<T>(test: &str, found: Result<T, String>) -> Option<T> {
-    match found {
-        Ok(t) => Some(t),
-        Err(why) if std::env::var(REQUIRE).is_ok_and(|v| v == "1") => {
-            panic!("{test}: {why}, and {REQUIRE}=1")
-        }
-        Err(why) => {
-            eprintln!("{test}: skipped: {why} ({REQUIRE}=1 makes this a failure)");
-            None
-        }
-    }
+    super::skip::or_skip(super::skip::Need::Validators, test, found)
 }
 
 /// Runs `tests/tools/<script> <arg>` with `node`, asserts it succeeded, and parses the one JSON
