@@ -317,7 +317,11 @@ mod helsinki {
             .filter_map(|r| r.image.map(|i| (i.coverage_error * frame_px).round()))
             .sum();
         eprintln!("bound checked at {checked} mismatched pixels (both culling modes)");
-        assert!(checked > 0.0, "no mismatched pixel was checked: {}", j["far"]);
+        assert!(
+            checked > 0.0,
+            "no mismatched pixel was checked: {}",
+            j["far"]
+        );
         // No violation on any frame of either mode (the summary sums the last mode's).
         assert!(
             rec.far
