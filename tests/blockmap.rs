@@ -100,9 +100,10 @@ fn ray(m: &BlockMap, o: DVec3, d: DVec3) -> TexRay<f64> {
 }
 
 proptest! {
-    // 256 compared cases each; ties (a margin under 1e-4 anywhere on the walk) are rejected, and
-    // on the sparse maps of the leap test about four rays in five are ties, so the default limit
-    // of 1,024 rejects was reached by chance.
+    // 256 compared cases each; ties (a margin under 1e-4 anywhere on the walk) are rejected. On
+    // the sparse maps of the leap test about three rays in four are ties (a leap lands D − 1
+    // texels on, often on a grid line): counted and bounded in
+    // `leap_ties_are_counted_and_bounded`, and the reason for the larger reject limit.
     #![proptest_config(ProptestConfig { cases: 256, max_global_rejects: 16_384, ..ProptestConfig::default() })]
 
     #[test]
@@ -227,6 +228,58 @@ fn ties_are_rare_and_every_non_tie_agrees() {
     eprintln!("{ties} ties, {hits} hits in {n} rays");
     assert!(hits > n / 4, "{hits} hits of {n}");
     assert!((ties as f64) < 0.02 * n as f64, "{ties} ties of {n}");
+}
+
+/// The leap test's rays (sparse maps, the eye outside the box or inside it), counted: ties of
+/// the plain or the leaping walk apart, every other ray giving the same hit both ways. The
+/// proptest above compares only non-ties; this bounds how many rays that leaves out.
+#[test]
+fn leap_ties_are_counted_and_bounded() {
+    use rand::{Rng, SeedableRng};
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(11);
+    let (mut n, mut ties, mut hits, mut leaps) = (0usize, 0usize, 0usize, 0usize);
+    for seed in 0..30 {
+        let k = [32u32, 64, 128][seed % 3];
+        let fill: f64 = rng.random_range(0.0..0.3);
+        let m = random_map(k, seed as u64, fill * fill, 1);
+        let dm = m.distance_map();
+        let b = m.aabb();
+        for _ in 0..400 {
+            let u = DVec3::new(rng.random(), rng.random(), rng.random());
+            let target = b.min + (b.max - b.min) * u;
+            let o = if rng.random_bool(0.5) {
+                b.min + (b.max - b.min) * DVec3::new(u.y, u.z, u.x)
+            } else {
+                DVec3::new(
+                    rng.random_range(-300.0..500.0),
+                    rng.random_range(-300.0..500.0),
+                    rng.random_range(1.0..400.0),
+                )
+            };
+            if (target - o).length() <= 1e-3 {
+                continue;
+            }
+            let r = ray(&m, o, target - o);
+            let plain = cast_f64(&m, &r, &CastOptions::default());
+            let leap = cast_f64(&m, &r, &CastOptions { leap: Some(&dm) });
+            n += 1;
+            leaps += usize::from(leap.steps < plain.steps);
+            if plain.is_tie(1e-4) || leap.is_tie(1e-4) {
+                ties += 1;
+                continue;
+            }
+            hits += usize::from(plain.hit != Hit::Miss);
+            assert_eq!(plain.hit.texel(), leap.hit.texel(), "{r:?}");
+            let l32 = cast_f32(&m, &r.to_f32(), &CastOptions { leap: Some(&dm) });
+            assert_eq!(l32.hit.texel(), leap.hit.texel(), "{r:?}");
+        }
+    }
+    eprintln!("{ties} ties, {leaps} rays that leap, {hits} hits among the non-ties, {n} rays");
+    assert!(leaps * 2 > n, "{leaps} of {n} rays leap");
+    assert!(hits * 20 > n, "{hits} hits of {n}");
+    // Measured: 8,918 ties in 12,000 rays (74.3 %), most of them leap landings on a grid line;
+    // bound 76 %. The non-ties (3,082 rays, 914 hits) are compared above.
+    assert!(ties * 100 <= 76 * n, "{ties} ties of {n}");
 }
 
 #[test]

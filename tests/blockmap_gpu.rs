@@ -226,8 +226,8 @@ fn gpu_ray_caster_equals_the_cpu_reference() {
         let a = compare(&r, &refs, &camera, &far);
         eprintln!("{what}: {a:?}");
         assert!(a.hits_cpu > 0, "{what}: the view shows no map");
-        // Per view: the hit mask at least 99.9 % identical outside ties.
-        assert!(a.mask * 1000 <= a.pixels, "{what}: {a:?}");
+        // Per view: the hit mask identical, ties included (docs/farfield.md: mask 100 %).
+        assert_eq!(a.mask + a.tie, 0, "{what}: {a:?}");
         total.pixels += a.pixels;
         total.hits_cpu += a.hits_cpu;
         total.mask += a.mask;
@@ -243,13 +243,13 @@ fn gpu_ray_caster_equals_the_cpu_reference() {
         100.0 * (1.0 - total.mask as f64 / total.pixels as f64),
         100.0 * total.tie as f64 / total.pixels as f64
     );
-    assert!(total.mask * 1000 <= total.pixels, "{total:?}");
-    assert!(total.tie * 100 <= total.pixels, "{total:?}");
-    assert!(total.ground * 100 <= total.hits_cpu, "{total:?}");
-    // Depth within 1e-6 and colour within 1/255 on the common hits, but for at most 0.1 % of
-    // them (a wall-colour row or normal decided by one rounding apart).
-    assert!(total.depth * 1000 <= total.hits_cpu, "{total:?}");
-    assert!(total.color * 1000 <= total.hits_cpu, "{total:?}");
+    // The figures docs/farfield.md quotes, measured on lavapipe (the adapter `.ci/run` uses):
+    // mask 100 % with no tie and no hit lost to the ground, depth ≤ 2.4e-7 (measured
+    // 2.384e-7), colour ≤ 1/255 on every common hit.
+    assert_eq!(total.mask + total.tie + total.ground, 0, "{total:?}");
+    assert!(total.depth_max <= 2.4e-7, "{total:?}");
+    assert!(total.color_max <= 1, "{total:?}");
+    assert_eq!((total.depth, total.color), (0, 0), "{total:?}");
 }
 
 #[test]

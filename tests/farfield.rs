@@ -308,6 +308,28 @@ mod helsinki {
             .far
             .iter()
             .all(|r| r.image.is_some_and(|i| i.silhouette_ratio_max.is_some())));
+        // The check measured something: the bound is checked at every coverage-mismatched
+        // pixel, and there were some (a zero would hold on frames that differ nowhere).
+        let frame_px = (size.0 * size.1) as f64;
+        let checked: f64 = rec
+            .far
+            .iter()
+            .filter_map(|r| r.image.map(|i| (i.coverage_error * frame_px).round()))
+            .sum();
+        eprintln!("bound checked at {checked} mismatched pixels (both culling modes)");
+        assert!(
+            checked > 0.0,
+            "no mismatched pixel was checked: {}",
+            j["far"]
+        );
+        // No violation on any frame of either mode (the summary sums the last mode's).
+        assert!(
+            rec.far
+                .iter()
+                .all(|r| r.image.is_some_and(|i| i.beyond_bound == Some(0))),
+            "{}",
+            j["far"]
+        );
         assert_eq!(j["far_used"], true);
         assert!(j["far_nodes"].as_f64().unwrap() > 0.0, "no far node drawn");
         assert!(j["frame_time_ratio_vs_mesh"].as_f64().unwrap() > 0.0);

@@ -429,7 +429,8 @@ fn root_transform_places_the_buildings_where_the_crs_says() {
         }
         println!("{name}: {n} roof vertices: horizontal error ≤ {worst_h:.4} m, vertical ≤ {worst_v:.4} m");
         assert!(n > 100, "{name}");
-        assert!(worst_h < 0.02, "{name}: horizontal {worst_h} m");
+        // The README and docs/tiles.md quote this bound (6 mm; measured 5.5 mm on Helsinki).
+        assert!(worst_h < 0.006, "{name}: horizontal {worst_h} m");
         assert!(worst_v < 0.01, "{name}: vertical {worst_v} m");
     }
 }
