@@ -5,6 +5,7 @@
 //! | stage | module | seed |
 //! |---|---|---|
 //! | read files into layers | crate `blockwalk_importers` | |
+//! | crash-safe writing: temporary names renamed when complete, staged folders | [`output`] | |
 //! | geometric primitives, robust predicates, ring repair, frustum | [`geom`] | |
 //! | city model, local frame, extrusion, glTF/GeoJSON export, generator | [`city`] | 003 §3 |
 //! | street graph, urban blocks, building assignment | [`blocks`] | 003 §3 |
@@ -32,6 +33,7 @@ pub mod city;
 pub mod geom;
 pub mod index;
 pub mod jobs;
+pub mod output;
 #[cfg(feature = "render")]
 pub mod render;
 pub mod report;

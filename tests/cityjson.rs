@@ -15,6 +15,7 @@ use blockwalk::city::export::cityjson::{
 use blockwalk::city::generate::{generate_city, write_city, GenerateParams};
 use blockwalk::city::City;
 use blockwalk::geom::predicates::polygon_area;
+use geo::MapCoords;
 use serde_json::Value;
 use support::data::load_city;
 
@@ -176,6 +177,36 @@ fn perimeter(p: &geo_types::Polygon<f64>) -> f64 {
 
 /// Writes both forms, validates both with cjval and checks every building of both; returns the
 /// CityJSON document.
+/// The footprint in the CRS the CityJSON is written in: the city's own, or, for a city in a
+/// local transverse Mercator (Web Mercator or lon/lat input), the UTM zone the export chose,
+/// reprojected here by proj4rs alone (local tmerc → UTM), independently of the exporter's path.
+fn written_footprint(
+    city: &City,
+    rs: Option<&str>,
+    p: &geo_types::Polygon<f64>,
+) -> geo_types::Polygon<f64> {
+    let (Some([lon, lat]), Some(rs)) = (city.transform.center_lonlat, rs) else {
+        return p.clone();
+    };
+    use proj4rs::proj::Proj;
+    let code: u32 = rs.rsplit('/').next().unwrap().parse().unwrap();
+    let (zone, south) = (code % 100, code / 100 == 327);
+    let from = Proj::from_proj_string(&format!(
+        "+proj=tmerc +lat_0={lat} +lon_0={lon} +k=1 +x_0=0 +y_0=0 +datum=WGS84 +units=m +no_defs"
+    ))
+    .unwrap();
+    let to = Proj::from_proj_string(&format!(
+        "+proj=utm +zone={zone} {}+datum=WGS84 +units=m +no_defs",
+        if south { "+south " } else { "" }
+    ))
+    .unwrap();
+    p.map_coords(|c| {
+        let mut q = (c.x, c.y, 0.0);
+        proj4rs::transform::transform(&from, &to, &mut q).unwrap();
+        geo_types::Coord { x: q.0, y: q.1 }
+    })
+}
+
 fn check_city(city: &City, label: &str) -> Value {
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("city.city.json");
@@ -203,13 +234,16 @@ fn check_city(city: &City, label: &str) -> Value {
         .iter()
         .map(|b| (b.source_id.as_str(), b))
         .collect();
+    let rs = doc["metadata"]["referenceSystem"].as_str();
+    assert_eq!(rs.map(str::to_string), stats.reference_system);
     for (id, o) in objects {
         let b = by_source[o["attributes"]["source_id"].as_str().unwrap()];
         assert_eq!(o["attributes"]["height_m"].as_f64(), Some(b.height_m));
+        let fp = written_footprint(city, rs, &b.footprint);
         let prism = (
-            polygon_area(&b.footprint),
+            polygon_area(&fp),
             b.height_m - b.min_height_m,
-            perimeter(&b.footprint),
+            perimeter(&fp),
             scale,
         );
         check_building(id, o, &vs, Some(prism));
@@ -248,12 +282,88 @@ fn bubenec_is_valid_closed_and_has_no_wrong_epsg() {
         Some("data/bubenec/streets.shp"),
     );
     let doc = check_city(&city, "Bubeneč");
-    // Web Mercator input is imported into a local transverse Mercator: no EPSG code exists for
-    // it, so none is claimed; the projection is written out instead.
-    assert_eq!(reference_system(&city.transform), None);
-    assert!(doc["metadata"].get("referenceSystem").is_none());
-    let proj = doc["metadata"]["+proj"].as_str().unwrap();
-    assert!(proj.starts_with("+proj=tmerc"), "{proj}");
+    // Web Mercator input is imported into a local transverse Mercator, which has no EPSG code:
+    // the export is written in the UTM zone of Prague (33 N), every vertex reprojected (the
+    // volumes above are checked against footprints reprojected by proj4rs alone), and neither
+    // EPSG:3857 nor the local projection is claimed.
+    assert_eq!(
+        reference_system(&city.transform).as_deref(),
+        Some("https://www.opengis.net/def/crs/EPSG/0/32633")
+    );
+    assert_eq!(
+        doc["metadata"]["referenceSystem"],
+        "https://www.opengis.net/def/crs/EPSG/0/32633"
+    );
+    assert!(doc["metadata"].get("+proj").is_none());
+    // Placed where Bubeneč is: UTM 33 N easting ≈ 457 km, northing ≈ 5 551 km.
+    let ext = doc["metadata"]["geographicalExtent"].as_array().unwrap();
+    let (x, y) = (ext[0].as_f64().unwrap(), ext[1].as_f64().unwrap());
+    assert!(
+        (440_000.0..470_000.0).contains(&x) && (5_540_000.0..5_560_000.0).contains(&y),
+        "{x} {y}"
+    );
+}
+
+#[test]
+fn utm_zones_and_their_limits() {
+    use blockwalk::city::export::cityjson::utm_epsg;
+    assert_eq!(utm_epsg(14.39, 50.10), Some(32633));
+    assert_eq!(utm_epsg(24.94, 60.17), Some(32635));
+    assert_eq!(utm_epsg(-58.38, -34.60), Some(32721));
+    assert_eq!(utm_epsg(-180.0, 0.0), Some(32601));
+    assert_eq!(utm_epsg(179.99, 0.0), Some(32660));
+    assert_eq!(utm_epsg(180.0, 1.0), Some(32601), "180° is -180°");
+    assert_eq!(utm_epsg(0.0, 84.5), None, "no UTM beyond 84°");
+    assert_eq!(utm_epsg(f64::NAN, 0.0), None);
+}
+
+#[test]
+fn the_streamed_document_is_the_document() {
+    // `write_cityjson` streams; `cityjson_value` builds the whole tree. Both must be the same
+    // JSON (objects compare by member, not by order).
+    for (fp, st) in [
+        (
+            "data/bubenec/buildings.shp",
+            Some("data/bubenec/streets.shp"),
+        ),
+        ("data/helsinki/buildings.shp", None),
+    ] {
+        let city = load_city(Path::new(fp), st);
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("c.city.json");
+        let stats = write_cityjson(&city, &path).unwrap();
+        let streamed: Value = serde_json::from_slice(&std::fs::read(&path).unwrap()).unwrap();
+        let (doc, vstats) = cityjson_value(&city);
+        if streamed != doc {
+            std::fs::write(
+                "/tmp/a.json",
+                serde_json::to_string_pretty(&streamed).unwrap(),
+            )
+            .unwrap();
+            std::fs::write("/tmp/b.json", serde_json::to_string_pretty(&doc).unwrap()).unwrap();
+        }
+        assert!(streamed == doc, "{fp}: the streamed document differs");
+        assert_eq!(stats.bytes, std::fs::metadata(&path).unwrap().len());
+        assert_eq!(
+            CityJsonStatsNoBytes::from(&stats),
+            CityJsonStatsNoBytes::from(&vstats)
+        );
+        let names: Vec<_> = std::fs::read_dir(dir.path()).unwrap().collect();
+        assert_eq!(names.len(), 1, "no temporary left beside the file");
+    }
+}
+
+#[derive(Debug, PartialEq)]
+struct CityJsonStatsNoBytes(usize, usize, Option<String>, Option<String>);
+impl From<&blockwalk::city::export::cityjson::CityJsonStats> for CityJsonStatsNoBytes {
+    fn from(s: &blockwalk::city::export::cityjson::CityJsonStats) -> Self {
+        Self(
+            s.buildings,
+            s.vertices,
+            s.reference_system.clone(),
+            s.crs_note.clone(),
+        )
+    }
 }
 
 #[test]

@@ -2,7 +2,6 @@
 //! ch. 4), their measured error, written as PNG + JSON.
 
 use super::common::{load_scene, CityArgs};
-use anyhow::Context;
 use blockwalk::blockmap::{BuildOptions, CityMapsOptions, Stop, TreeOptions};
 use blockwalk::scene::SceneOptions;
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
@@ -103,15 +102,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         bar.set_position(done as u64);
     })?;
     bar.finish_and_clear();
-    std::fs::create_dir_all(&args.out)
-        .with_context(|| format!("creating {}", args.out.display()))?;
-    if args.png {
-        maps.write(&args.out)?;
-    }
+    let path = maps.write(&args.out, args.png)?;
     let summary = maps.summary();
-    let path = args.out.join("blockmaps.json");
-    std::fs::write(&path, serde_json::to_string_pretty(&summary)?)
-        .with_context(|| format!("writing {}", path.display()))?;
     if args.json {
         // The per-feature and per-check lists (148,098 thin features on Astana) stay in the
         // file; stdout gets the figures and where the lists are.

@@ -2,7 +2,6 @@
 //! fields inside, building meshes at the leaves), for CesiumJS and other 3D Tiles viewers.
 
 use super::common::{load_scene, CityArgs};
-use anyhow::Context;
 use blockwalk::blockmap::Stop;
 use blockwalk::scene::SceneOptions;
 use blockwalk::tiles::{build_tileset, TilesetOptions};
@@ -55,8 +54,6 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             .unwrap_or_else(|_| ProgressStyle::default_bar())
             .progress_chars("=> "),
     );
-    std::fs::create_dir_all(&args.out)
-        .with_context(|| format!("creating {}", args.out.display()))?;
     let opts = TilesetOptions {
         k: args.k,
         stop: args.levels.map_or(Stop::Competitive, Stop::Levels),

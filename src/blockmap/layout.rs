@@ -440,20 +440,21 @@ impl BlockMap {
     pub fn write(&self, dir: &Path, name: &str) -> Result<(PathBuf, PathBuf), BlockMapError> {
         let png = dir.join(format!("{name}.png"));
         let json = dir.join(format!("{name}.json"));
-        self.to_image()
-            .save_with_format(&png, image::ImageFormat::Png)
-            .map_err(|e| BlockMapError::Io {
-                path: png.clone(),
-                what: e.to_string(),
-            })?;
+        crate::output::write_png(&png, &self.to_image()).map_err(|e| BlockMapError::Io {
+            path: png.clone(),
+            what: e.to_string(),
+        })?;
         let text = serde_json::to_string_pretty(&self.meta).map_err(|e| BlockMapError::Io {
             path: json.clone(),
             what: e.to_string(),
         })?;
-        std::fs::write(&json, text).map_err(|e| BlockMapError::Io {
-            path: json.clone(),
-            what: e.to_string(),
-        })?;
+        crate::output::write_bytes(&json, text)
+            .map(drop)
+            .map_err(crate::output::OutputError::into_io)
+            .map_err(|e| BlockMapError::Io {
+                path: json.clone(),
+                what: e.to_string(),
+            })?;
         Ok((png, json))
     }
 

@@ -51,8 +51,8 @@ pub use select::{
 };
 pub use source::{Source, SourceBuilding};
 pub use tree::{
-    build_city_maps, build_city_maps_from, build_tree, skeleton_tree, CityMaps, CityMapsOptions,
-    MapTree, NodeMap, Stop, TreeOptions, TreeViolation,
+    build_city_maps, build_city_maps_from, build_tree, is_maps_entry, skeleton_tree, CityMaps,
+    CityMapsOptions, MapTree, NodeMap, Stop, TreeOptions, TreeViolation,
 };
 
 use std::path::PathBuf;

@@ -784,6 +784,14 @@ pub fn build_city_maps_from(
     })
 }
 
+/// True for the entries a folder of BlockMaps holds (`blockmaps.json`, `node_*.png`,
+/// `node_*.json`).
+pub fn is_maps_entry(name: &std::ffi::OsStr) -> bool {
+    let n = name.to_string_lossy();
+    n == "blockmaps.json"
+        || (n.starts_with("node_") && (n.ends_with(".png") || n.ends_with(".json")))
+}
+
 impl CityMaps {
     /// Pixels beyond the screen-space bound plus hit points beyond ε, over all checks.
     pub fn bound_violations(&self) -> usize {
@@ -793,19 +801,48 @@ impl CityMaps {
             .sum()
     }
 
-    /// Writes every map as `DIR/node_KEY.png` + `.json`.
+    /// Writes the folder `dir`: the summary as `blockmaps.json` ([`Self::summary`]) and, with
+    /// `maps`, every map as `node_KEY.png` + `.json`; returns the summary's path. The folder is
+    /// written under a temporary name beside `dir` and swapped in when complete, so a previous
+    /// set of maps there is replaced whole (never mixed with maps of another run); a folder
+    /// holding anything else is refused.
     ///
     /// # Errors
-    /// [`BlockMapError::Io`] naming the file.
-    pub fn write(&self, dir: &std::path::Path) -> Result<(), BlockMapError> {
-        std::fs::create_dir_all(dir).map_err(|e| BlockMapError::Io {
-            path: dir.to_path_buf(),
+    /// [`BlockMapError::Io`] naming the file or folder.
+    pub fn write(
+        &self,
+        dir: &std::path::Path,
+        maps: bool,
+    ) -> Result<std::path::PathBuf, BlockMapError> {
+        let out = |e: crate::output::OutputError| BlockMapError::Io {
+            path: e.path().to_path_buf(),
             what: e.to_string(),
-        })?;
-        for m in &self.maps.maps {
-            m.map.write(dir, &format!("node_{:x}", m.key))?;
+        };
+        let staged = crate::output::StagedDir::create(
+            dir,
+            "set of BlockMaps (blockmaps.json, node_*.png, node_*.json)",
+            is_maps_entry,
+        )
+        .map_err(out)?;
+        if maps {
+            for m in &self.maps.maps {
+                m.map.write(staged.path(), &format!("node_{:x}", m.key))?;
+            }
         }
-        Ok(())
+        let path = dir.join("blockmaps.json");
+        let text =
+            serde_json::to_string_pretty(&self.summary()).map_err(|e| BlockMapError::Io {
+                path: path.clone(),
+                what: e.to_string(),
+            })?;
+        std::fs::write(staged.path().join("blockmaps.json"), text).map_err(|e| {
+            BlockMapError::Io {
+                path: path.clone(),
+                what: e.to_string(),
+            }
+        })?;
+        staged.commit().map_err(out)?;
+        Ok(path)
     }
 
     /// The figures as one JSON object: `maps`, `bytes`, `build_s`, `eps_declared_max`,

@@ -13,6 +13,9 @@ use std::path::{Path, PathBuf};
 /// Why an output could not be written. Every variant names the file and keeps the cause.
 #[derive(Debug, thiserror::Error)]
 pub enum ExportError {
+    /// The output could not be written, renamed or placed (see [`crate::output`]).
+    #[error(transparent)]
+    Output(#[from] crate::output::OutputError),
     /// The file could not be written.
     #[error("{file}: {source}")]
     Io {
@@ -188,10 +191,13 @@ pub fn write_geojson(
             source,
         }
     })?;
-    std::fs::write(path, text).map_err(|source| ExportError::Io {
-        file: path.to_path_buf(),
-        source,
-    })
+    crate::output::write_bytes(path, text)
+        .map(drop)
+        .map_err(crate::output::OutputError::into_io)
+        .map_err(|source| ExportError::Io {
+            file: path.to_path_buf(),
+            source,
+        })
 }
 
 /// A fixed, colour-blind-friendly palette for blocks.
@@ -325,8 +331,14 @@ pub fn write_map(
         .map(|e| e.to_ascii_lowercase());
     match ext.as_deref() {
         Some("svg") => {
-            let root = SVGBackend::new(path, (w, h)).into_drawing_area();
-            draw(&root, (w, h), layout, buildings).map_err(|e| fail(e.into()))
+            let mut text = String::new();
+            {
+                let root = SVGBackend::with_string(&mut text, (w, h)).into_drawing_area();
+                draw(&root, (w, h), layout, buildings).map_err(|e| fail(e.into()))?;
+            }
+            crate::output::write_bytes(path, text)
+                .map(drop)
+                .map_err(ExportError::Output)
         }
         Some("png") => {
             let mut buf = vec![255u8; (w * h * 3) as usize];
@@ -334,12 +346,14 @@ pub fn write_map(
                 let root = BitMapBackend::with_buffer(&mut buf, (w, h)).into_drawing_area();
                 draw(&root, (w, h), layout, buildings).map_err(|e| fail(e.into()))?;
             }
-            image::save_buffer(path, &buf, w, h, image::ExtendedColorType::Rgb8).map_err(|source| {
-                ExportError::Image {
+            let img = image::RgbImage::from_raw(w, h, buf)
+                .expect("the buffer was allocated as width × height × 3");
+            crate::output::write_png(path, &img)
+                .map(drop)
+                .map_err(|source| ExportError::Image {
                     file: path.to_path_buf(),
                     source,
-                }
-            })
+                })
         }
         _ => Err(ExportError::Format {
             file: path.to_path_buf(),

@@ -175,9 +175,12 @@ pub fn merge(dir: &Path) -> Result<(TileIndex, PathBuf), JobsError> {
         file: ipath.clone(),
         source,
     })?;
-    std::fs::write(&ipath, text).map_err(|source| JobsError::Io {
-        file: ipath.clone(),
-        source,
-    })?;
+    crate::output::write_bytes(&ipath, text)
+        .map(drop)
+        .map_err(crate::output::OutputError::into_io)
+        .map_err(|source| JobsError::Io {
+            file: ipath.clone(),
+            source,
+        })?;
     Ok((index, ipath))
 }

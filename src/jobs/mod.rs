@@ -14,8 +14,10 @@
 //!    buildings (a single block, or blocks at the depth limit, is never split: a tile can hold
 //!    more then). A tile is a set of whole blocks, so no building is ever cut. `plan.json`
 //!    holds the blocks (outlines with exact coordinates), the tiles, the metric transform's
-//!    centre and the local frame's origin of the whole city, and stamps (size, CRC-32) of the
-//!    input files.
+//!    centre and the local frame's origin of the whole city, and stamps (size, CRC-32) of every
+//!    input file (each layer with its `.shx`, `.dbf`, `.prj`, `.cpg`). Its `plan_id` is the
+//!    CRC-32 of the rest of the plan, checked whenever the plan is read: an edited plan is
+//!    refused.
 //! 2. [`run_tile`]: one tile. It reads only the footprints whose box meets the tile's box
 //!    (streaming filter while reading: memory is bounded by the tile), builds them in the whole
 //!    city's metric frame and local frame (so its f32 meshes are bit for bit the one-job run's),
@@ -40,7 +42,7 @@ mod tile;
 pub use cut::cut_tiles;
 pub use input::city_files;
 pub use merge::{merge, IndexTile, TileIndex};
-pub use plan::{plan, write_plan, Plan, PlanBlock, PlanOptions, PlanTile};
+pub use plan::{layer_files, plan, write_plan, Plan, PlanBlock, PlanOptions, PlanTile};
 pub use tile::{manifest_path, run_tile, tiles_dir, TileBlock, TileFile, TileManifest, TileRun};
 
 use std::io::Read;
@@ -54,7 +56,7 @@ use crate::city::build::BuildError;
 use crate::city::export::ExportError;
 
 /// The format tag of `plan.json`.
-pub const PLAN_FORMAT: &str = "blockwalk-jobs-plan/1";
+pub const PLAN_FORMAT: &str = "blockwalk-jobs-plan/2";
 /// The format tag of a tile's manifest.
 pub const TILE_FORMAT: &str = "blockwalk-jobs-tile/1";
 /// The format tag of `index.json`.

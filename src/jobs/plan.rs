@@ -81,7 +81,9 @@ pub struct PlanTile {
 pub struct Plan {
     /// [`PLAN_FORMAT`].
     pub format: String,
-    /// The plan's id: CRC-32 of the inputs' stamps, the options and the tiles.
+    /// The plan's id: CRC-32 of the rest of the plan as written (inputs' stamps, options,
+    /// frame, blocks, tiles; [`Plan::content_id`]), checked when the plan is read, so an edited
+    /// plan is refused rather than merged.
     pub plan_id: String,
     /// The city's name (the footprint layer's).
     pub city: String,
@@ -89,6 +91,9 @@ pub struct Plan {
     pub footprints: FileStamp,
     /// The street file.
     pub streets: FileStamp,
+    /// Every file the plan read, the two layers with the files beside them (`.shx`, `.dbf`,
+    /// `.prj`, `.cpg`): a tile checks them all before it reads.
+    pub inputs: Vec<FileStamp>,
     /// The cut's limit of buildings per tile.
     pub max_buildings: usize,
     /// The footprints' metric transform's centre, in the file's CRS.
@@ -129,10 +134,30 @@ impl Plan {
                 why: format!("not a jobs plan (expected \"format\": \"{PLAN_FORMAT}\")"),
             });
         }
-        serde_json::from_value(v).map_err(|source| JobsError::Json {
+        let plan: Plan = serde_json::from_value(v).map_err(|source| JobsError::Json {
             file: path.to_path_buf(),
             source,
-        })
+        })?;
+        let id = plan.content_id();
+        if id != plan.plan_id {
+            return Err(JobsError::Format {
+                file: path.to_path_buf(),
+                why: format!(
+                    "the plan was changed after it was written (plan_id {} but its content \
+                     hashes to {id}); make a new plan with `blockwalk jobs plan`",
+                    plan.plan_id
+                ),
+            });
+        }
+        Ok(plan)
+    }
+
+    /// CRC-32 of the plan's JSON with `plan_id` left empty, 8 hex digits.
+    pub fn content_id(&self) -> String {
+        let mut p = self.clone();
+        p.plan_id.clear();
+        let text = serde_json::to_vec(&p).expect("a plan serialises");
+        format!("{:08x}", crc32fast::hash(&text))
     }
 
     /// The local frame of the whole city.
@@ -182,6 +207,12 @@ pub fn plan(
     progress("stamping the inputs");
     let fp_stamp = FileStamp::of(footprints)?;
     let st_stamp = FileStamp::of(streets)?;
+    let mut inputs = Vec::new();
+    for layer in [footprints, streets] {
+        for f in layer_files(layer) {
+            inputs.push(FileStamp::of(&f)?);
+        }
+    }
     let crs = shp::read_crs(footprints).map_err(read_err(footprints))?;
 
     // Pass 1: the metric transform's centre, the median of the footprint polygons' box centres
@@ -362,24 +393,13 @@ pub fn plan(
 
     progress("cutting the block quadtree");
     let tiles = cut_tiles(&blocks, opts.max_buildings);
-    let mut h = crc32fast::Hasher::new();
-    for part in [
-        &fp_stamp.crc32,
-        &st_stamp.crc32,
-        &opts.max_buildings.to_string(),
-        &tiles.len().to_string(),
-        &blocks.len().to_string(),
-        &buildings.to_string(),
-    ] {
-        h.update(part.as_bytes());
-        h.update(b"/");
-    }
-    Ok(Plan {
+    let mut plan = Plan {
         format: PLAN_FORMAT.into(),
-        plan_id: format!("{:08x}", h.finalize()),
+        plan_id: String::new(),
         city: name,
         footprints: fp_stamp,
         streets: st_stamp,
+        inputs,
         max_buildings: opts.max_buildings,
         transform_centre: [ExactF64(tcentre[0]), ExactF64(tcentre[1])],
         frame_origin: [ExactF64(origin[0]), ExactF64(origin[1])],
@@ -388,7 +408,30 @@ pub fn plan(
         outskirts_buildings,
         blocks,
         tiles,
-    })
+    };
+    plan.plan_id = plan.content_id();
+    Ok(plan)
+}
+
+/// A layer's file and the files read with it: for a Shapefile its `.shx`, `.dbf`, `.prj` and
+/// `.cpg` when they exist (either case of extension).
+pub fn layer_files(path: &Path) -> Vec<PathBuf> {
+    let mut out = vec![path.to_path_buf()];
+    let is_shp = path
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("shp"));
+    if is_shp {
+        for ext in ["shx", "dbf", "prj", "cpg"] {
+            let lower = path.with_extension(ext);
+            let upper = path.with_extension(ext.to_ascii_uppercase());
+            if lower.is_file() {
+                out.push(lower);
+            } else if upper.is_file() {
+                out.push(upper);
+            }
+        }
+    }
+    out
 }
 
 /// Writes `plan` as `dir/plan.json` (creating `dir`), returning the path.
@@ -405,9 +448,12 @@ pub fn write_plan(plan: &Plan, dir: &Path) -> Result<PathBuf, JobsError> {
         file: path.clone(),
         source,
     })?;
-    std::fs::write(&path, text).map_err(|source| JobsError::Io {
-        file: path.clone(),
-        source,
-    })?;
+    crate::output::write_bytes(&path, text)
+        .map(drop)
+        .map_err(crate::output::OutputError::into_io)
+        .map_err(|source| JobsError::Io {
+            file: path.clone(),
+            source,
+        })?;
     Ok(path)
 }

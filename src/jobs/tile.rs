@@ -113,6 +113,49 @@ fn peak_rss_bytes() -> Option<u64> {
     Some(kb * 1024)
 }
 
+/// Before a tile runs: its manifest goes first (the tile is unfinished until the new one is
+/// written), then what an earlier run of it left: the temporaries of a killed run (hidden
+/// `.tile_NNNNN*` entries) and its BlockMaps folder (rewritten whole when maps are asked for,
+/// and stale otherwise). Nothing else in the folder is touched.
+fn clear_tile(dir: &Path, tile: usize) -> Result<(), JobsError> {
+    let io = |file: &Path| {
+        let file = file.to_path_buf();
+        move |source| JobsError::Io { file, source }
+    };
+    let manifest = dir.join(format!("tile_{tile:05}.json"));
+    match std::fs::remove_file(&manifest) {
+        Err(e) if e.kind() != std::io::ErrorKind::NotFound => return Err(io(&manifest)(e)),
+        _ => {}
+    }
+    let mine = format!(".tile_{tile:05}");
+    for e in std::fs::read_dir(dir).map_err(io(dir))? {
+        let e = e.map_err(io(dir))?;
+        let name = e.file_name().to_string_lossy().into_owned();
+        // `.tile_00001.glb.XXXX.part`, `.tile_00001_maps.new-XXXX`, `.tile_00001_maps.old-XXXX`.
+        let rest = name.strip_prefix(&mine);
+        if !rest.is_some_and(|r| r.starts_with('.') || r.starts_with("_maps.")) {
+            continue;
+        }
+        let p = e.path();
+        let r = if e.file_type().map_err(io(&p))?.is_dir() {
+            std::fs::remove_dir_all(&p)
+        } else {
+            std::fs::remove_file(&p)
+        };
+        r.map_err(io(&p))?;
+    }
+    let maps = dir.join(format!("tile_{tile:05}_maps"));
+    if maps.is_dir() {
+        let only_maps = std::fs::read_dir(&maps)
+            .map_err(io(&maps))?
+            .all(|e| e.is_ok_and(|e| crate::blockmap::is_maps_entry(&e.file_name())));
+        if only_maps {
+            std::fs::remove_dir_all(&maps).map_err(io(&maps))?;
+        }
+    }
+    Ok(())
+}
+
 fn check_stamp(plan_path: &Path, want: &FileStamp) -> Result<(), JobsError> {
     let changed = |why: String| JobsError::InputChanged {
         plan: plan_path.to_path_buf(),
@@ -163,7 +206,9 @@ pub fn run_tile(
             tiles: plan.tiles.len(),
         });
     };
-    check_stamp(plan_path, &plan.footprints)?;
+    for input in &plan.inputs {
+        check_stamp(plan_path, input)?;
+    }
     let fp = plan.footprints.path.as_path();
     let crs = shp::read_crs(fp).map_err(read_err(fp))?;
     let centre = [plan.transform_centre[0].0, plan.transform_centre[1].0];
@@ -317,6 +362,7 @@ pub fn run_tile(
         file: dir.clone(),
         source,
     })?;
+    clear_tile(&dir, tile)?;
     let mut files = Vec::new();
     if !city.buildings.is_empty() {
         let name = format!("tile_{tile:05}.glb");
@@ -353,11 +399,7 @@ pub fn run_tile(
             }
         })?;
         let mdir = dir.join(format!("tile_{tile:05}_maps"));
-        std::fs::create_dir_all(&mdir).map_err(|source| JobsError::Io {
-            file: mdir.clone(),
-            source,
-        })?;
-        cm.write(&mdir).map_err(|e| JobsError::TileMismatch {
+        cm.write(&mdir, true).map_err(|e| JobsError::TileMismatch {
             tile,
             file: mdir.clone(),
             why: format!("writing BlockMaps: {e}"),
@@ -426,15 +468,13 @@ pub fn run_tile(
         source,
     })?;
     // Written under a temporary name and renamed: a manifest that exists is a finished tile.
-    let tmp = mpath.with_extension("json.part");
-    std::fs::write(&tmp, text).map_err(|source| JobsError::Io {
-        file: tmp.clone(),
-        source,
-    })?;
-    std::fs::rename(&tmp, &mpath).map_err(|source| JobsError::Io {
-        file: mpath.clone(),
-        source,
-    })?;
+    crate::output::write_bytes(&mpath, text)
+        .map(drop)
+        .map_err(crate::output::OutputError::into_io)
+        .map_err(|source| JobsError::Io {
+            file: mpath.clone(),
+            source,
+        })?;
     Ok(TileRun {
         manifest,
         manifest_path: mpath,

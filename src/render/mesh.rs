@@ -126,10 +126,12 @@ impl Frame {
             height: self.height,
             bytes: self.rgba.len(),
         })?;
-        img.save(path).map_err(|source| RenderError::Image {
-            file: path.to_path_buf(),
-            source,
-        })
+        crate::output::write_png(path, &img)
+            .map(drop)
+            .map_err(|source| RenderError::Image {
+                file: path.to_path_buf(),
+                source,
+            })
     }
 }
 

@@ -100,8 +100,18 @@ pub fn write_plot(
     register_font();
     match ext.as_deref() {
         Some("svg") => {
-            let backend = SVGBackend::new(path, PLOT_SIZE);
-            draw(backend, title, x_label, y_label, series, kind).map_err(|e| draw_err(e.into()))
+            let mut text = String::new();
+            {
+                let backend = SVGBackend::with_string(&mut text, PLOT_SIZE);
+                draw(backend, title, x_label, y_label, series, kind)
+                    .map_err(|e| draw_err(e.into()))?;
+            }
+            crate::output::write_bytes(path, text)
+                .map(drop)
+                .map_err(|e| PlotError::Image {
+                    file: path.to_path_buf(),
+                    source: image::ImageError::IoError(e.into_io()),
+                })
         }
         Some("png") => {
             let (w, h) = PLOT_SIZE;
@@ -113,10 +123,12 @@ pub fn write_plot(
             }
             let img = image::RgbImage::from_raw(w, h, buf)
                 .expect("the buffer was allocated as width × height × 3");
-            img.save(path).map_err(|source| PlotError::Image {
-                file: path.to_path_buf(),
-                source,
-            })
+            crate::output::write_png(path, &img)
+                .map(drop)
+                .map_err(|source| PlotError::Image {
+                    file: path.to_path_buf(),
+                    source,
+                })
         }
         _ => Err(PlotError::Format {
             file: path.to_path_buf(),

@@ -71,10 +71,13 @@ pub fn diagnosis_markdown(d: &SweepDiagnosis) -> String {
 }
 
 fn put(path: PathBuf, text: String) -> Result<PathBuf, ReportError> {
-    std::fs::write(&path, text).map_err(|source| ReportError::Write {
-        file: path.clone(),
-        source,
-    })?;
+    crate::output::write_bytes(&path, text)
+        .map(drop)
+        .map_err(crate::output::OutputError::into_io)
+        .map_err(|source| ReportError::Write {
+            file: path.clone(),
+            source,
+        })?;
     Ok(path)
 }
 

@@ -46,6 +46,9 @@ use std::path::{Path, PathBuf};
 /// What went wrong while exporting a tileset.
 #[derive(Debug, thiserror::Error)]
 pub enum TilesError {
+    /// The output folder could not be placed or swapped in (see [`crate::output`]).
+    #[error(transparent)]
+    Output(#[from] crate::output::OutputError),
     /// A file or directory could not be written.
     #[error("{path}: {source}")]
     Io {
@@ -415,10 +418,18 @@ fn plan(tree: &BqrTree, maps: &MapTree, layout: &BlockLayout, meshes: &[Mesh]) -
     tiles
 }
 
+/// True for the entries a tileset folder holds (`tileset.json`, `tiles`): a folder of only
+/// these may be replaced by a new tileset.
+pub fn is_tileset_entry(name: &std::ffi::OsStr) -> bool {
+    name == "tileset.json" || name == "tiles"
+}
+
 /// Builds the tileset of a city and writes it to `dir`: `tileset.json` and `tiles/*.glb` (see
 /// the module documentation). `meshes` are the buildings' meshes (`city::extrude::extrude_city`);
 /// `bounds` the blocks' bounds (`index::block_bounds`). `progress(done, total)` is called as
-/// maps are built, then as contents are written.
+/// maps are built, then as contents are written. The folder is written under a temporary name
+/// beside `dir` and swapped in when complete: a killed run or a full disk leaves `dir` as it
+/// was, and a previous tileset there is replaced whole, never mixed with the new one.
 ///
 /// # Errors
 /// [`TilesError`] naming the file, node or city.
@@ -432,6 +443,12 @@ pub fn build_tileset(
     progress: &(dyn Fn(usize, usize) + Sync),
 ) -> Result<(Tileset, TilesetSummary), TilesError> {
     let t0 = std::time::Instant::now();
+    // Checked before any work: a folder holding anything but a previous tileset is refused.
+    let staged = crate::output::StagedDir::create(
+        dir,
+        "tileset (tileset.json and tiles/)",
+        is_tileset_entry,
+    )?;
     let tree = BqrTree::build(bounds, &BqrParams::default()).map_err(|e| TilesError::Quadtree {
         city: city.name.clone(),
         what: e.to_string(),
@@ -475,8 +492,9 @@ pub fn build_tileset(
         let path = path.to_path_buf();
         move |source| TilesError::Io { path, source }
     };
-    let tiles_dir = dir.join("tiles");
-    std::fs::create_dir_all(&tiles_dir).map_err(io(&tiles_dir))?;
+    // Written into the staging folder; errors name the final paths.
+    let tiles_dir = staged.path().join("tiles");
+    std::fs::create_dir_all(&tiles_dir).map_err(io(&dir.join("tiles")))?;
     let block_aabb: std::collections::HashMap<BlockId, Aabb3> =
         bounds.iter().map(|b| (b.id, b.aabb)).collect();
 
@@ -515,13 +533,13 @@ pub fn build_tileset(
                 return Ok((None, 0, aabb));
             }
             aabb = aabb.union(mesh_aabb(&mesh));
-            let path = tiles_dir.join(&name);
+            let path = dir.join("tiles").join(&name);
             let bytes =
                 tile_glb_bytes(&name, &mesh, extras).map_err(|source| TilesError::Content {
                     path: path.clone(),
                     source,
                 })?;
-            std::fs::write(&path, &bytes).map_err(io(&path))?;
+            std::fs::write(tiles_dir.join(&name), &bytes).map_err(io(&path))?;
             Ok((Some(format!("tiles/{name}")), bytes.len(), aabb))
         })
         .collect();
@@ -552,7 +570,8 @@ pub fn build_tileset(
     let doc = set.to_json();
     let path = dir.join("tileset.json");
     let text = serde_json::to_vec_pretty(&doc).expect("a JSON value serialises");
-    std::fs::write(&path, &text).map_err(io(&path))?;
+    std::fs::write(staged.path().join("tileset.json"), &text).map_err(io(&path))?;
+    staged.commit()?;
 
     let depth = {
         let mut d = vec![0u32; set.tiles.len()];

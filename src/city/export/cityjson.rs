@@ -18,13 +18,19 @@
 //!   the scale a power of ten chosen from the data ([`choose_scale`]: 1 mm, finer when the
 //!   footprints have shorter edges, as long as the extent fits in 32-bit integers). Vertices are shared between surfaces and buildings; none is
 //!   repeated or unused.
-//! - CRS: `metadata.referenceSystem` is `https://www.opengis.net/def/crs/EPSG/0/<code>` when the
-//!   city's metric frame is a projected CRS with an EPSG code (coordinates are then that CRS's,
-//!   unchanged). Footprints in Web Mercator or longitude/latitude are imported into a local
-//!   transverse Mercator on WGS84 centred on the data, which has no EPSG code: then no
-//!   `referenceSystem` is written (claiming EPSG:3857 or 4326 for these metres would be wrong);
-//!   the local projection is written as a PROJ string in `metadata["+proj"]`, a property the
-//!   CityJSON schema allows and readers ignore.
+//! - CRS: `metadata.referenceSystem` is always an EPSG code
+//!   (`https://www.opengis.net/def/crs/EPSG/0/<code>`) when the city has a place on the globe,
+//!   so that readers can place it. A city whose metric frame is a projected CRS with an EPSG code
+//!   is written in that CRS, coordinates unchanged. Footprints in Web Mercator or
+//!   longitude/latitude are imported into a local transverse Mercator centred on the data, which
+//!   has no EPSG code; such a city (and one in a projected CRS known only by its definition) is
+//!   written in the WGS 84 UTM zone of its centre (EPSG 326zz north, 327zz south), each vertex
+//!   reprojected through longitude/latitude ([`ExportFrame`]). Beyond 84° of latitude, where UTM
+//!   is not defined, and for a city in an unnamed local frame, no `referenceSystem` is written
+//!   and [`CityJsonStats::crs_note`] says why; the local projection is then written as a PROJ
+//!   string in `metadata["+proj"]`, a property the CityJSON schema allows and readers ignore.
+//! - `write_cityjson` streams the document: objects are written as they are made; only the
+//!   shared vertex list is held until the end.
 
 use std::collections::HashMap;
 use std::io::Write;
@@ -33,6 +39,7 @@ use std::path::Path;
 use blockwalk_importers::{AttrValue, Crs, MetricTransform};
 use geo_types::{Coord, LineString};
 use serde_json::{json, Map, Value};
+use std::borrow::Cow;
 
 use super::ExportError;
 use crate::city::build::{source_name, HeightFields};
@@ -52,6 +59,9 @@ pub struct CityJsonStats {
     pub scale_m: f64,
     /// `metadata.referenceSystem`, when written.
     pub reference_system: Option<String>,
+    /// Why the coordinates are not those of the city's own frame (reprojected into a UTM zone),
+    /// or why no `referenceSystem` is written; `None` when the frame is written as it is.
+    pub crs_note: Option<String>,
     /// Footprint rings left out because they collapsed at the quantisation step (a courtyard
     /// smaller than a step), with the building's source id; a building whose outer ring
     /// collapses is left out whole and named here too.
@@ -60,27 +70,116 @@ pub struct CityJsonStats {
     pub bytes: u64,
 }
 
-/// `metadata.referenceSystem` for a city's transform: an OGC EPSG URL when the metric frame is a
-/// projected CRS with an EPSG code, `None` for the local transverse Mercator (no EPSG code) and
-/// for unknown CRS.
-pub fn reference_system(t: &MetricTransform) -> Option<String> {
-    let frame = t.frame_crs.as_ref().unwrap_or(&t.crs);
-    match frame {
-        Crs::Projected { epsg: Some(e), .. } => {
-            Some(format!("https://www.opengis.net/def/crs/EPSG/0/{e}"))
-        }
-        _ => None,
+/// The CRS a CityJSON export is written in, and the map into it from the city's metric frame.
+pub struct ExportFrame {
+    /// `metadata.referenceSystem`: an OGC EPSG URL, `None` when no EPSG CRS can be given.
+    pub reference_system: Option<String>,
+    /// The PROJ string of the coordinates written when there is no `referenceSystem`.
+    pub local_projection: Option<String>,
+    /// Why the coordinates were reprojected, or why there is no `referenceSystem`.
+    pub note: Option<String>,
+    /// World (metric frame) → UTM, for a frame without EPSG code.
+    to_utm: Option<(MetricTransform, MetricTransform)>,
+}
+
+impl ExportFrame {
+    /// Maps a world plan position into the written CRS; `None` when the projection refuses it.
+    fn map(&self, p: Coord<f64>) -> Option<Coord<f64>> {
+        let Some((world, utm)) = &self.to_utm else {
+            return Some(p);
+        };
+        let ll = world.to_wgs84_lonlat([p.x, p.y])?;
+        let [x, y] = utm.to_metric(ll);
+        (x.is_finite() && y.is_finite()).then_some(Coord { x, y })
     }
 }
 
-/// The PROJ string of the metric frame when it has no EPSG code: the local transverse Mercator
-/// of Web Mercator or geographic input, or a projected CRS known only by its definition; `None`
-/// when [`reference_system`] names it or the CRS is unknown.
-pub fn local_projection(t: &MetricTransform) -> Option<String> {
-    if reference_system(t).is_some() {
+fn epsg_url(code: u32) -> String {
+    format!("https://www.opengis.net/def/crs/EPSG/0/{code}")
+}
+
+/// The WGS 84 UTM zone's EPSG code for a longitude and latitude (degrees): 32601–32660 north,
+/// 32701–32760 south; `None` beyond ±84°, where UTM is not defined.
+pub fn utm_epsg(lon: f64, lat: f64) -> Option<u32> {
+    if !(lon.is_finite() && lat.is_finite()) || lat.abs() > 84.0 {
         return None;
     }
+    let lon = (lon + 180.0).rem_euclid(360.0) - 180.0;
+    let zone = (((lon + 180.0) / 6.0).floor() as u32 + 1).clamp(1, 60);
+    Some(if lat >= 0.0 { 32600 } else { 32700 } + zone)
+}
+
+/// The frame a city's CityJSON is written in (see the module documentation).
+pub fn export_frame(t: &MetricTransform) -> ExportFrame {
     let frame = t.frame_crs.as_ref().unwrap_or(&t.crs);
+    let local = local_projection_of(t, frame);
+    let none = |note: String| ExportFrame {
+        reference_system: None,
+        local_projection: local.clone(),
+        note: Some(note),
+        to_utm: None,
+    };
+    match frame {
+        Crs::Projected { epsg: Some(e), .. } => {
+            return ExportFrame {
+                reference_system: Some(epsg_url(*e)),
+                local_projection: None,
+                note: None,
+                to_utm: None,
+            }
+        }
+        Crs::Unknown => {
+            return none(
+                "the city is in an unnamed local frame (no CRS was given or found): no \
+                 referenceSystem can be written"
+                    .into(),
+            )
+        }
+        _ => {}
+    }
+    let centre = t.center_lonlat.or_else(|| t.to_wgs84_lonlat([0.0, 0.0]));
+    let Some([lon, lat]) = centre else {
+        return none("the city's frame has no known place on the globe".into());
+    };
+    let Some(code) = utm_epsg(lon, lat) else {
+        return none(format!(
+            "the city lies at latitude {lat:.2}°, beyond the 84° where UTM zones are defined: \
+             written in its local transverse Mercator, without referenceSystem"
+        ));
+    };
+    let utm = Crs::from_epsg(code)
+        .and_then(|c| c.try_metric_transform([0.0, 0.0]))
+        .and_then(|f| Crs::from_epsg(4326).and_then(|ll| f.for_layer(&ll)));
+    match utm {
+        Ok(utm) => ExportFrame {
+            reference_system: Some(epsg_url(code)),
+            local_projection: None,
+            note: Some(format!(
+                "the city's metric frame ({}) has no EPSG code: written in UTM (EPSG:{code}), \
+                 every vertex reprojected",
+                frame_name(frame)
+            )),
+            to_utm: Some((t.clone(), utm)),
+        },
+        Err(e) => none(format!("UTM (EPSG:{code}) could not be set up: {e}")),
+    }
+}
+
+fn frame_name(c: &Crs) -> &'static str {
+    match c {
+        Crs::WebMercator | Crs::Geographic { .. } => {
+            "a local transverse Mercator made for Web Mercator or longitude/latitude input"
+        }
+        _ => "a projected CRS known only by its definition",
+    }
+}
+
+/// `metadata.referenceSystem` for a city's transform (see [`export_frame`]).
+pub fn reference_system(t: &MetricTransform) -> Option<String> {
+    export_frame(t).reference_system
+}
+
+fn local_projection_of(t: &MetricTransform, frame: &Crs) -> Option<String> {
     match (frame, t.center_lonlat) {
         (Crs::WebMercator | Crs::Geographic { .. }, Some([lon, lat])) => Some(format!(
             "+proj=tmerc +lat_0={lat} +lon_0={lon} +k=1 +x_0=0 +y_0=0 +datum=WGS84 +units=m +no_defs"
@@ -88,6 +187,37 @@ pub fn local_projection(t: &MetricTransform) -> Option<String> {
         (Crs::Projected { proj4, .. }, _) => Some(proj4.clone()),
         _ => None,
     }
+}
+
+/// The buildings with their footprints in the written CRS (borrowed when it is the city's own);
+/// a building whose footprint the projection refuses is named in the error.
+fn in_frame<'a>(city: &'a City, f: &ExportFrame) -> Result<Cow<'a, [Building]>, String> {
+    if f.to_utm.is_none() {
+        return Ok(Cow::Borrowed(&city.buildings));
+    }
+    let ring = |r: &LineString<f64>, id: &str| -> Result<LineString<f64>, String> {
+        r.0.iter()
+            .map(|&c| {
+                f.map(c)
+                    .ok_or_else(|| format!("building {id}: a vertex could not be reprojected"))
+            })
+            .collect::<Result<Vec<_>, _>>()
+            .map(LineString)
+    };
+    let mut out = Vec::with_capacity(city.buildings.len());
+    for b in &city.buildings {
+        let mut b2 = b.clone();
+        b2.footprint = geo_types::Polygon::new(
+            ring(b.footprint.exterior(), &b.source_id)?,
+            b.footprint
+                .interiors()
+                .iter()
+                .map(|r| ring(r, &b.source_id))
+                .collect::<Result<_, _>>()?,
+        );
+        out.push(b2);
+    }
+    Ok(Cow::Owned(out))
 }
 
 /// The quantisation step for these buildings: the coarsest of 1 mm, 0.1 mm, 10 µm and 1 µm at
@@ -298,10 +428,10 @@ fn attr_json(a: &AttrValue) -> Value {
 }
 
 /// The model's minimum and maximum corners (x, y over the footprints, z over the prisms).
-fn bounds(city: &City) -> ([f64; 3], [f64; 3]) {
+fn bounds(buildings: &[Building]) -> ([f64; 3], [f64; 3]) {
     let mut lo = [f64::INFINITY; 3];
     let mut hi = [f64::NEG_INFINITY; 3];
-    for b in &city.buildings {
+    for b in buildings {
         for r in rings(b) {
             for c in &r.0 {
                 lo[0] = lo[0].min(c.x);
@@ -320,9 +450,9 @@ fn bounds(city: &City) -> ([f64; 3], [f64; 3]) {
 }
 
 /// Unique city-object ids: the source id, with `#2`, `#3`, … for repeats.
-fn object_ids(city: &City) -> Vec<String> {
+fn object_ids(buildings: &[Building]) -> Vec<String> {
     let mut seen: HashMap<&str, usize> = HashMap::new();
-    city.buildings
+    buildings
         .iter()
         .map(|b| {
             let n = seen.entry(b.source_id.as_str()).or_insert(0);
@@ -336,53 +466,109 @@ fn object_ids(city: &City) -> Vec<String> {
         .collect()
 }
 
-/// The header shared by both forms: `type`, `version`, `transform`, `metadata`.
-fn header(city: &City, scale: f64, lo: [f64; 3], hi: [f64; 3]) -> Value {
-    let mut metadata = json!({
-        "title": city.name,
-        "geographicalExtent": [lo[0], lo[1], lo[2], hi[0], hi[1], hi[2]],
-    });
-    if let Some(rs) = reference_system(&city.transform) {
-        metadata["referenceSystem"] = json!(rs);
-    } else if let Some(p) = local_projection(&city.transform) {
-        metadata["+proj"] = json!(p);
+/// What both forms share: the buildings in the written CRS, the frame, the quantisation.
+struct Prepared<'a> {
+    buildings: Cow<'a, [Building]>,
+    reference_system: Option<String>,
+    local_projection: Option<String>,
+    note: Option<String>,
+    scale: f64,
+    lo: [f64; 3],
+    hi: [f64; 3],
+}
+
+fn prepare(city: &City) -> Prepared<'_> {
+    let frame = export_frame(&city.transform);
+    let (buildings, reference_system, local_projection, note) = match in_frame(city, &frame) {
+        Ok(b) => (
+            b,
+            frame.reference_system,
+            frame.local_projection,
+            frame.note,
+        ),
+        Err(why) => (
+            Cow::Borrowed(&city.buildings[..]),
+            None,
+            local_projection_of(
+                &city.transform,
+                city.transform
+                    .frame_crs
+                    .as_ref()
+                    .unwrap_or(&city.transform.crs),
+            ),
+            Some(format!(
+                "{why}: written in the city's own frame, without referenceSystem"
+            )),
+        ),
+    };
+    let scale = choose_scale(&buildings);
+    let (lo, hi) = bounds(&buildings);
+    Prepared {
+        buildings,
+        reference_system,
+        local_projection,
+        note,
+        scale,
+        lo,
+        hi,
     }
-    json!({
-        "type": "CityJSON",
-        "version": "2.0",
-        "transform": { "scale": [scale, scale, scale], "translate": lo },
-        "metadata": metadata,
-        "CityObjects": {},
-        "vertices": [],
-    })
+}
+
+impl Prepared<'_> {
+    fn stats(&self, buildings: usize, vertices: usize, dropped: Vec<String>) -> CityJsonStats {
+        CityJsonStats {
+            buildings,
+            vertices,
+            scale_m: self.scale,
+            reference_system: self.reference_system.clone(),
+            crs_note: self.note.clone(),
+            dropped_rings: dropped,
+            bytes: 0,
+        }
+    }
+
+    /// The header shared by both forms: `type`, `version`, `transform`, `metadata`.
+    fn header(&self, name: &str) -> Value {
+        let (lo, hi) = (self.lo, self.hi);
+        let mut metadata = json!({
+            "title": name,
+            "geographicalExtent": [lo[0], lo[1], lo[2], hi[0], hi[1], hi[2]],
+        });
+        if let Some(rs) = &self.reference_system {
+            metadata["referenceSystem"] = json!(rs);
+        } else if let Some(p) = &self.local_projection {
+            metadata["+proj"] = json!(p);
+        }
+        json!({
+            "type": "CityJSON",
+            "version": "2.0",
+            "transform": { "scale": [self.scale, self.scale, self.scale], "translate": lo },
+            "metadata": metadata,
+            "CityObjects": {},
+            "vertices": [],
+        })
+    }
 }
 
 fn quantised_json(v: &Vertices) -> Value {
     Value::Array(v.list.iter().map(|q| json!(q)).collect())
 }
 
-/// The city as one CityJSON 2.0 document, with what was written (`bytes` is 0).
+/// The city as one CityJSON 2.0 document, with what was written (`bytes` is 0). Holds the whole
+/// document; [`write_cityjson`] streams the same document instead.
 pub fn cityjson_value(city: &City) -> (Value, CityJsonStats) {
-    let scale = choose_scale(&city.buildings);
-    let (lo, hi) = bounds(city);
-    let mut doc = header(city, scale, lo, hi);
-    let mut v = Vertices::new(scale, lo);
+    let p = prepare(city);
+    let mut doc = p.header(&city.name);
+    let mut v = Vertices::new(p.scale, p.lo);
     let levels = HeightFields::default().levels;
     let mut dropped = Vec::new();
     let mut objects = Map::new();
-    for (b, id) in city.buildings.iter().zip(object_ids(city)) {
+    for (b, id) in p.buildings.iter().zip(object_ids(&p.buildings)) {
         if let Some(o) = building_object(b, &mut v, &levels, &mut dropped) {
             objects.insert(id, o);
         }
     }
-    let stats = CityJsonStats {
-        buildings: objects.len(),
-        vertices: v.list.len(),
-        scale_m: scale,
-        reference_system: reference_system(&city.transform),
-        dropped_rings: dropped,
-        bytes: 0,
-    };
+    let stats = p.stats(objects.len(), v.list.len(), dropped);
     doc["CityObjects"] = Value::Object(objects);
     doc["vertices"] = quantised_json(&v);
     (doc, stats)
@@ -402,38 +588,78 @@ fn json_err(path: &Path) -> impl Fn(serde_json::Error) -> ExportError + '_ {
     }
 }
 
-/// Writes the city as one CityJSON 2.0 file.
+/// Writes the city as one CityJSON 2.0 file, streamed: each city object is written as it is
+/// made, and only the shared vertex list is held until it is written at the end. The file is
+/// written under a temporary name and renamed when complete.
 ///
 /// # Errors
 /// [`ExportError`] naming the file.
 pub fn write_cityjson(city: &City, path: &Path) -> Result<CityJsonStats, ExportError> {
-    let (doc, mut stats) = cityjson_value(city);
-    let f = std::fs::File::create(path).map_err(io_err(path))?;
-    let mut w = std::io::BufWriter::new(f);
-    serde_json::to_writer(&mut w, &doc).map_err(json_err(path))?;
-    w.flush().map_err(io_err(path))?;
-    stats.bytes = std::fs::metadata(path).map_err(io_err(path))?.len();
+    let p = prepare(city);
+    let mut head = p.header(&city.name);
+    let head = head.as_object_mut().expect("the header is an object");
+    head.remove("CityObjects");
+    head.remove("vertices");
+    let io = io_err(path);
+    let js = json_err(path);
+    let mut w = crate::output::AtomicFile::create(path)?;
+    // The header's members, then `CityObjects` one by one, then `vertices`.
+    w.write_all(b"{").map_err(&io)?;
+    for (k, val) in head.iter() {
+        serde_json::to_writer(&mut w, k).map_err(&js)?;
+        w.write_all(b":").map_err(&io)?;
+        serde_json::to_writer(&mut w, val).map_err(&js)?;
+        w.write_all(b",").map_err(&io)?;
+    }
+    w.write_all(b"\"CityObjects\":{").map_err(&io)?;
+    let mut v = Vertices::new(p.scale, p.lo);
+    let levels = HeightFields::default().levels;
+    let mut dropped = Vec::new();
+    let mut buildings = 0;
+    for (b, id) in p.buildings.iter().zip(object_ids(&p.buildings)) {
+        let Some(o) = building_object(b, &mut v, &levels, &mut dropped) else {
+            continue;
+        };
+        if buildings > 0 {
+            w.write_all(b",").map_err(&io)?;
+        }
+        serde_json::to_writer(&mut w, &id).map_err(&js)?;
+        w.write_all(b":").map_err(&io)?;
+        serde_json::to_writer(&mut w, &o).map_err(&js)?;
+        buildings += 1;
+    }
+    w.write_all(b"},\"vertices\":[").map_err(&io)?;
+    for (i, q) in v.list.iter().enumerate() {
+        if i > 0 {
+            w.write_all(b",").map_err(&io)?;
+        }
+        write!(w, "[{},{},{}]", q[0], q[1], q[2]).map_err(&io)?;
+    }
+    w.write_all(b"]}").map_err(&io)?;
+    let mut stats = p.stats(buildings, v.list.len(), dropped);
+    stats.bytes = w.commit()?;
     Ok(stats)
 }
 
 /// Writes the city as CityJSONSeq (CityJSON text sequence): the header (a `CityJSON` object with
 /// the transform and metadata, no objects) on the first line, then one `CityJSONFeature` per
-/// building with its own vertex list, all quantised with the header's transform.
+/// building with its own vertex list, all quantised with the header's transform. The file is
+/// written under a temporary name and renamed when complete.
 ///
 /// # Errors
 /// [`ExportError`] naming the file.
 pub fn write_cityjson_seq(city: &City, path: &Path) -> Result<CityJsonStats, ExportError> {
-    let scale = choose_scale(&city.buildings);
-    let (lo, hi) = bounds(city);
-    let f = std::fs::File::create(path).map_err(io_err(path))?;
-    let mut w = std::io::BufWriter::new(f);
-    serde_json::to_writer(&mut w, &header(city, scale, lo, hi)).map_err(json_err(path))?;
-    w.write_all(b"\n").map_err(io_err(path))?;
-    let mut v = Vertices::new(scale, lo);
+    let p = prepare(city);
+    let io = io_err(path);
+    let js = json_err(path);
+    let mut w = crate::output::AtomicFile::create(path)?;
+    serde_json::to_writer(&mut w, &p.header(&city.name)).map_err(&js)?;
+    w.write_all(b"\n").map_err(&io)?;
+    let mut v = Vertices::new(p.scale, p.lo);
     let levels = HeightFields::default().levels;
     let mut dropped = Vec::new();
     let (mut buildings, mut vertices) = (0, 0);
-    for (b, id) in city.buildings.iter().zip(object_ids(city)) {
+    for (b, id) in p.buildings.iter().zip(object_ids(&p.buildings)) {
         v.clear();
         let Some(o) = building_object(b, &mut v, &levels, &mut dropped) else {
             continue;
@@ -446,20 +672,14 @@ pub fn write_cityjson_seq(city: &City, path: &Path) -> Result<CityJsonStats, Exp
             "CityObjects": objects,
             "vertices": quantised_json(&v),
         });
-        serde_json::to_writer(&mut w, &feature).map_err(json_err(path))?;
-        w.write_all(b"\n").map_err(io_err(path))?;
+        serde_json::to_writer(&mut w, &feature).map_err(&js)?;
+        w.write_all(b"\n").map_err(&io)?;
         buildings += 1;
         vertices += v.list.len();
     }
-    w.flush().map_err(io_err(path))?;
-    Ok(CityJsonStats {
-        buildings,
-        vertices,
-        scale_m: scale,
-        reference_system: reference_system(&city.transform),
-        dropped_rings: dropped,
-        bytes: std::fs::metadata(path).map_err(io_err(path))?.len(),
-    })
+    let mut stats = p.stats(buildings, vertices, dropped);
+    stats.bytes = w.commit()?;
+    Ok(stats)
 }
 
 /// True when `path` names a CityJSONSeq file (`.jsonl`, e.g. `city.city.jsonl`).

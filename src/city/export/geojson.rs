@@ -62,23 +62,16 @@ pub fn geojson_value(city: &City) -> Value {
     v
 }
 
-/// Writes [`geojson_value`] to a file.
+/// Writes [`geojson_value`] to a file (under a temporary name, renamed when complete).
 ///
 /// # Errors
 /// [`ExportError`] naming the file.
 pub fn write_geojson(city: &City, path: &Path) -> Result<(), ExportError> {
-    let f = std::fs::File::create(path).map_err(|source| ExportError::Io {
-        file: path.to_path_buf(),
-        source,
-    })?;
-    let mut w = std::io::BufWriter::new(f);
+    let mut w = crate::output::AtomicFile::create(path)?;
     serde_json::to_writer(&mut w, &geojson_value(city)).map_err(|source| ExportError::Json {
         file: path.to_path_buf(),
         source,
     })?;
-    use std::io::Write;
-    w.flush().map_err(|source| ExportError::Io {
-        file: path.to_path_buf(),
-        source,
-    })
+    w.commit()?;
+    Ok(())
 }

@@ -19,6 +19,9 @@ pub use self::gltf::{
 /// Why an export failed. Every variant names the file.
 #[derive(Debug, thiserror::Error)]
 pub enum ExportError {
+    /// The output could not be written, renamed or placed (see [`crate::output`]).
+    #[error(transparent)]
+    Output(#[from] crate::output::OutputError),
     /// The file could not be written.
     #[error("{file}: {source}")]
     Io {
@@ -80,6 +83,7 @@ impl ExportError {
     /// The same error naming `file` instead (for errors made before the file was known).
     fn for_file(self, file: &std::path::Path) -> Self {
         match self {
+            ExportError::Output(e) => ExportError::Output(e),
             ExportError::Io { source, .. } => ExportError::Io {
                 file: file.to_path_buf(),
                 source,

@@ -107,6 +107,9 @@ pub struct GeneratedCity {
 /// Why generation failed.
 #[derive(Debug, thiserror::Error)]
 pub enum GenerateError {
+    /// The output folder could not be placed or swapped in (see [`crate::output`]).
+    #[error(transparent)]
+    Output(#[from] crate::output::OutputError),
     /// A range parameter is not a finite range `lo..hi` with `0 < lo < hi`.
     #[error("invalid parameter {name} = ({lo}, {hi}): need finite 0 < lo < hi (metres)")]
     BadRange {
@@ -494,15 +497,28 @@ mod tests {
         })
         .unwrap();
         let e = write_city(&city, &blocker).unwrap_err();
-        match &e {
-            GenerateError::Io { file, source } => {
-                assert_eq!(file, &blocker);
-                assert_eq!(source.kind(), std::io::ErrorKind::AlreadyExists);
-            }
-            other => panic!("{other:?}"),
-        }
-        assert!(std::error::Error::source(&e).is_some());
+        assert!(
+            matches!(&e, GenerateError::Output(crate::output::OutputError::WrongKind { path, .. }) if path == &blocker),
+            "{e:?}"
+        );
         assert!(e.to_string().contains("not_a_dir"), "{e}");
+        assert_eq!(std::fs::read(&blocker).unwrap(), b"x", "the file is kept");
+        // A folder of other files is refused, and kept whole.
+        let other = dir.path().join("mine");
+        std::fs::create_dir(&other).unwrap();
+        std::fs::write(other.join("notes.txt"), b"keep").unwrap();
+        let e = write_city(&city, &other).unwrap_err();
+        assert!(e.to_string().contains("notes.txt"), "{e}");
+        assert_eq!(std::fs::read(other.join("notes.txt")).unwrap(), b"keep");
+        // A previous city is replaced whole.
+        let out = dir.path().join("city");
+        let w = write_city(&city, &out).unwrap();
+        assert!(
+            w.files.iter().all(|f| f.starts_with(&out) && f.exists()),
+            "{:?}",
+            w.files
+        );
+        write_city(&city, &out).unwrap();
     }
 
     #[test]

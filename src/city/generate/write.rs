@@ -56,74 +56,133 @@ fn field(name: &str) -> shapefile::dbase::FieldName {
     shapefile::dbase::FieldName::try_from(name).expect("field names here are valid")
 }
 
+/// True for the names [`write_city`] writes (`buildings`, `streets`, `parcels` with the
+/// `.shp`, `.shx`, `.dbf`, `.prj` and `.cpg` extensions): a folder holding only these may be
+/// replaced by a new city.
+pub fn is_city_file(name: &std::ffi::OsStr) -> bool {
+    let p = Path::new(name);
+    let stem = p.file_stem().and_then(|s| s.to_str());
+    let ext = p.extension().and_then(|s| s.to_str());
+    matches!(stem, Some("buildings" | "streets" | "parcels"))
+        && matches!(ext, Some("shp" | "shx" | "dbf" | "prj" | "cpg"))
+}
+
+/// One layer as `.shp` + `.shx` + `.dbf`, every write checked (the finishing writes too, which a
+/// writer dropped without finishing would leave unchecked).
+fn write_layer<S: shapefile::record::EsriShape>(
+    path: &Path,
+    table: shapefile::dbase::TableWriterBuilder,
+    items: impl Iterator<Item = (S, shapefile::dbase::Record)>,
+) -> Result<(), GenerateError> {
+    use std::io::BufWriter;
+    let create = |p: &Path| {
+        std::fs::File::create(p)
+            .map(BufWriter::new)
+            .map_err(|source| GenerateError::Io {
+                file: p.to_path_buf(),
+                source,
+            })
+    };
+    let shp = create(path)?;
+    let shx = create(&path.with_extension("shx"))?;
+    let dbf_path = path.with_extension("dbf");
+    let dbf = create(&dbf_path)?;
+    let mut shapes = shapefile::ShapeWriter::with_shx(shp, shx);
+    let mut records = table.build_with_dest(dbf);
+    for (shape, record) in items {
+        shapes.write_shape(&shape).map_err(shp_err(path))?;
+        records
+            .write_record(&record)
+            .map_err(|e| shp_err(&dbf_path)(e.into()))?;
+    }
+    shapes.finalize().map_err(shp_err(path))?;
+    records
+        .finalize()
+        .map_err(|e| shp_err(&dbf_path)(e.into()))?;
+    Ok(())
+}
+
 /// Writes a generated city to `dir` as `buildings.shp` (fields `id`, `height`, `levels`),
 /// `streets.shp` (`id`, `width`) and, when it has parcels, `parcels.shp` (`id`), each with a
-/// `.prj` (EPSG:32633) and a `.cpg`.
+/// `.prj` (EPSG:32633) and a `.cpg`. The folder is written under a temporary name beside `dir`
+/// and swapped in when complete ([`crate::output::StagedDir`]); an existing `dir` is replaced
+/// only if it holds nothing but such files.
 ///
 /// # Errors
-/// [`GenerateError::Io`] or [`GenerateError::Shapefile`] naming the file.
+/// [`GenerateError::Io`], [`GenerateError::Shapefile`] or [`GenerateError::Output`] naming the
+/// file or folder.
 pub fn write_city(city: &GeneratedCity, dir: &Path) -> Result<WrittenCity, GenerateError> {
     use shapefile::dbase::{FieldValue, Record, TableWriterBuilder};
-    std::fs::create_dir_all(dir).map_err(io_err(dir))?;
+    let staged = crate::output::StagedDir::create(
+        dir,
+        "city written by `blockwalk generate`",
+        is_city_file,
+    )?;
+    let stage = staged.path().to_path_buf();
     let mut files = Vec::new();
 
-    let path = dir.join("buildings.shp");
+    let path = stage.join("buildings.shp");
     let table = TableWriterBuilder::new()
         .add_numeric_field(field("id"), 10, 0)
         .add_numeric_field(field("height"), 8, 2)
         .add_numeric_field(field("levels"), 4, 0);
-    let mut w = shapefile::Writer::from_path(&path, table).map_err(shp_err(&path))?;
-    for (i, b) in city.buildings.iter().enumerate() {
-        let shape = shapefile::Polygon::from(b.footprint.clone());
-        let mut r = Record::default();
-        r.insert("id".into(), FieldValue::Numeric(Some(i as f64)));
-        r.insert("height".into(), FieldValue::Numeric(Some(b.height_m)));
-        r.insert("levels".into(), FieldValue::Numeric(Some(b.levels as f64)));
-        w.write_shape_and_record(&shape, &r)
-            .map_err(shp_err(&path))?;
-    }
-    drop(w);
+    write_layer(
+        &path,
+        table,
+        city.buildings.iter().enumerate().map(|(i, b)| {
+            let mut r = Record::default();
+            r.insert("id".into(), FieldValue::Numeric(Some(i as f64)));
+            r.insert("height".into(), FieldValue::Numeric(Some(b.height_m)));
+            r.insert("levels".into(), FieldValue::Numeric(Some(b.levels as f64)));
+            (shapefile::Polygon::from(b.footprint.clone()), r)
+        }),
+    )?;
     write_prj(&path, &mut files)?;
 
-    let path = dir.join("streets.shp");
+    let path = stage.join("streets.shp");
     let table = TableWriterBuilder::new()
         .add_numeric_field(field("id"), 10, 0)
         .add_numeric_field(field("width"), 6, 2);
-    let mut w = shapefile::Writer::from_path(&path, table).map_err(shp_err(&path))?;
-    for (i, s) in city.streets.iter().enumerate() {
-        let pts: Vec<shapefile::Point> = s
-            .line
-            .0
-            .iter()
-            .map(|c| shapefile::Point::new(c.x, c.y))
-            .collect();
-        let shape = shapefile::Polyline::new(pts);
-        let mut r = Record::default();
-        r.insert("id".into(), FieldValue::Numeric(Some(i as f64)));
-        r.insert(
-            "width".into(),
-            FieldValue::Numeric(Some(round_cm(s.width_m))),
-        );
-        w.write_shape_and_record(&shape, &r)
-            .map_err(shp_err(&path))?;
-    }
-    drop(w);
+    write_layer(
+        &path,
+        table,
+        city.streets.iter().enumerate().map(|(i, s)| {
+            let pts: Vec<shapefile::Point> = s
+                .line
+                .0
+                .iter()
+                .map(|c| shapefile::Point::new(c.x, c.y))
+                .collect();
+            let mut r = Record::default();
+            r.insert("id".into(), FieldValue::Numeric(Some(i as f64)));
+            r.insert(
+                "width".into(),
+                FieldValue::Numeric(Some(round_cm(s.width_m))),
+            );
+            (shapefile::Polyline::new(pts), r)
+        }),
+    )?;
     write_prj(&path, &mut files)?;
 
     if !city.parcels.is_empty() {
-        let path = dir.join("parcels.shp");
+        let path = stage.join("parcels.shp");
         let table = TableWriterBuilder::new().add_numeric_field(field("id"), 10, 0);
-        let mut w = shapefile::Writer::from_path(&path, table).map_err(shp_err(&path))?;
-        for (i, p) in city.parcels.iter().enumerate() {
-            let shape = shapefile::Polygon::from(p.clone());
-            let mut r = Record::default();
-            r.insert("id".into(), FieldValue::Numeric(Some(i as f64)));
-            w.write_shape_and_record(&shape, &r)
-                .map_err(shp_err(&path))?;
-        }
-        drop(w);
+        write_layer(
+            &path,
+            table,
+            city.parcels.iter().enumerate().map(|(i, p)| {
+                let mut r = Record::default();
+                r.insert("id".into(), FieldValue::Numeric(Some(i as f64)));
+                (shapefile::Polygon::from(p.clone()), r)
+            }),
+        )?;
         write_prj(&path, &mut files)?;
     }
+    staged.commit()?;
+    let files = files
+        .into_iter()
+        .map(|f| dir.join(f.strip_prefix(&stage).unwrap_or(&f)))
+        .collect();
     Ok(WrittenCity {
         files,
         buildings: city.buildings.len(),

@@ -259,7 +259,10 @@ pub fn write_with(
     let mut written = Vec::new();
     let mut put = |name: &str, text: String| -> Result<(), ReportError> {
         let p = dir.join(name);
-        std::fs::write(&p, text).map_err(werr(&p))?;
+        crate::output::write_bytes(&p, text)
+            .map(drop)
+            .map_err(crate::output::OutputError::into_io)
+            .map_err(werr(&p))?;
         written.push(p);
         Ok(())
     };
@@ -350,7 +353,7 @@ pub fn write_with(
         std::fs::create_dir_all(&fdir).map_err(werr(&fdir))?;
         for (f, img) in &record.images {
             let p = fdir.join(format!("frame_{f:04}.png"));
-            img.save(&p).map_err(|source| ReportError::Image {
+            crate::output::write_png(&p, img).map_err(|source| ReportError::Image {
                 file: p.clone(),
                 source,
             })?;
@@ -395,7 +398,10 @@ pub fn write_with(
     };
     let page = html::page(record, ctx, &embedded);
     let p = dir.join("report.html");
-    std::fs::write(&p, page).map_err(werr(&p))?;
+    crate::output::write_bytes(&p, page)
+        .map(drop)
+        .map_err(crate::output::OutputError::into_io)
+        .map_err(werr(&p))?;
     written.push(p);
     Ok(written)
 }

@@ -320,7 +320,8 @@ pub fn glb_bytes(city: &City, meshes: &[Mesh]) -> Result<(Vec<u8>, GlbStats), Ex
 ///
 /// # Errors
 /// [`ExportError`] naming the file; a file over [`GLB_MAX_BYTES`] is refused before it is
-/// created, and a file whose writing failed is removed.
+/// created. The file is written under a temporary name and renamed when complete: a failed or
+/// killed write leaves whatever was at `path` as it was.
 pub fn write_glb(city: &City, meshes: &[Mesh], path: &Path) -> Result<GlbStats, ExportError> {
     write_glb_limited(city, meshes, path, GLB_MAX_BYTES)
 }
@@ -336,13 +337,8 @@ pub(super) fn write_glb_limited(
         file: path.to_path_buf(),
         source,
     };
-    let file = std::fs::File::create(path).map_err(io)?;
-    let mut w = std::io::BufWriter::with_capacity(1 << 20, file);
-    let written = emit(&p, meshes, &mut w).and_then(|()| w.flush());
-    if let Err(source) = written {
-        drop(w);
-        let _ = std::fs::remove_file(path);
-        return Err(io(source));
-    }
+    let mut f = crate::output::AtomicFile::create(path)?;
+    emit(&p, meshes, &mut f).map_err(io)?;
+    f.commit()?;
     Ok(p.stats)
 }
