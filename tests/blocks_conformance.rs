@@ -289,7 +289,10 @@ fn astana_conforms_to_snapped_polygonize() {
 }
 
 /// The Astana streets by OSM id: (highway class, each part's vertices).
-struct Ways(std::collections::HashMap<u64, (String, Vec<Vec<[f64; 2]>>)>);
+/// A way's highway class and its parts' vertices.
+type Way = (String, Vec<Vec<[f64; 2]>>);
+
+struct Ways(std::collections::HashMap<u64, Way>);
 
 impl Ways {
     fn read(path: &Path) -> Ways {
@@ -317,7 +320,7 @@ impl Ways {
         Ways(m)
     }
 
-    fn get(&self, id: u64) -> Result<&(String, Vec<Vec<[f64; 2]>>), String> {
+    fn get(&self, id: u64) -> Result<&Way, String> {
         self.0.get(&id).ok_or(format!("no way {id} in the streets"))
     }
 
