@@ -386,17 +386,18 @@ fn export_errors_name_the_file_and_keep_the_cause() {
     let missing = dir.path().join("no such dir").join("c.glb");
     let e = write_glb(&city, &meshes, &missing).unwrap_err();
     match &e {
-        ExportError::Io { file, source } => {
-            assert_eq!(file, &missing);
+        ExportError::Output(blockwalk::output::OutputError::Io { path, source }) => {
+            assert_eq!(path, &missing);
             assert_eq!(source.kind(), std::io::ErrorKind::NotFound);
         }
         other => panic!("{other:?}"),
     }
     assert!(e.source().is_some());
+    assert!(e.to_string().contains("c.glb"), "{e}");
     let missing = dir.path().join("no such dir").join("c.geojson");
     let e = write_geojson(&city, &missing).unwrap_err();
     assert!(
-        matches!(&e, ExportError::Io { file, .. } if file == &missing),
+        matches!(&e, ExportError::Output(o) if o.path() == missing),
         "{e:?}"
     );
 }

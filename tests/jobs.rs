@@ -366,8 +366,14 @@ fn a_tile_with_blockmaps_lists_and_merges_its_maps() {
     let maps = r.manifest.blockmaps.as_ref().expect("map figures");
     let n = maps["maps"].as_u64().unwrap() as usize;
     assert!(n >= 1);
-    // The .glb, then a PNG and a JSON per map, each listed with its size and hash.
-    assert_eq!(r.manifest.files.len(), 1 + 2 * n);
+    // The .glb, then the maps' summary (blockmaps.json) and a PNG and a JSON per map, each
+    // listed with its size and hash.
+    assert_eq!(r.manifest.files.len(), 2 + 2 * n);
+    assert!(r
+        .manifest
+        .files
+        .iter()
+        .any(|f| f.path.ends_with("_maps/blockmaps.json")));
     for f in &r.manifest.files {
         let bytes = std::fs::read(tmp.path().join("jobs").join(&f.path)).unwrap();
         assert_eq!(bytes.len() as u64, f.bytes, "{}", f.path);
@@ -376,5 +382,5 @@ fn a_tile_with_blockmaps_lists_and_merges_its_maps() {
         run_tile(&plan_path, t, None).unwrap();
     }
     let (index, _) = merge(&tmp.path().join("jobs")).unwrap();
-    assert_eq!(index.tiles[0].files.len(), 1 + 2 * n);
+    assert_eq!(index.tiles[0].files.len(), 2 + 2 * n);
 }

@@ -34,7 +34,10 @@ pub enum PlotError {
         /// The output file.
         file: PathBuf,
     },
-    /// plotters failed to draw (for SVG this includes writing the file).
+    /// The file could not be written (see [`crate::output`]).
+    #[error(transparent)]
+    Write(#[from] crate::output::OutputError),
+    /// plotters failed to draw.
     #[error("{file}: drawing the plot failed: {source}")]
     Draw {
         /// The output file.
@@ -106,12 +109,8 @@ pub fn write_plot(
                 draw(backend, title, x_label, y_label, series, kind)
                     .map_err(|e| draw_err(e.into()))?;
             }
-            crate::output::write_bytes(path, text)
-                .map(drop)
-                .map_err(|e| PlotError::Image {
-                    file: path.to_path_buf(),
-                    source: image::ImageError::IoError(e.into_io()),
-                })
+            crate::output::write_bytes(path, text)?;
+            Ok(())
         }
         Some("png") => {
             let (w, h) = PLOT_SIZE;
@@ -288,13 +287,14 @@ mod tests {
             "{e:?}"
         );
         assert!(e.to_string().contains("t.gif"), "{e}");
-        // An SVG into a missing directory: plotters' I/O error is kept as the source.
+        // An SVG into a missing directory: the write error names the file and keeps the cause.
         let missing = dir.path().join("no such dir").join("t.svg");
         let e = write_plot(&missing, "", "", "", &demo(), PlotKind::Lines).unwrap_err();
         assert!(
-            matches!(&e, PlotError::Draw { file, .. } if file == &missing),
+            matches!(&e, PlotError::Write(o) if o.path() == missing),
             "{e:?}"
         );
+        assert!(e.to_string().contains("t.svg"), "{e}");
         assert!(std::error::Error::source(&e).is_some());
         // A PNG into a missing directory: the image crate's error is kept.
         let missing = dir.path().join("no such dir").join("t.png");
