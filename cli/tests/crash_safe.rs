@@ -4,8 +4,8 @@
 //! city's. Each time the final names hold either the previous file or the complete new one, the
 //! error names the path and the exit status is non-zero.
 //!
-//! The tmpfs tests mount file systems and so need root (need `mounts`: they skip loudly
-//! without it, and fail where `BLOCKWALK_REQUIRE` asks for mounts, as `.ci/run` does).
+//! The tmpfs tests mount file systems and so need root or `sudo -n` (need `mounts`: they skip
+//! loudly without it, and fail where `BLOCKWALK_REQUIRE` asks for mounts, as `.ci/run` does).
 
 #[path = "../../tests/support/mod.rs"]
 mod support;
@@ -137,18 +137,26 @@ struct Mount {
 impl Mount {
     fn tmpfs(test: &str, size: &str) -> Option<Mount> {
         let dir = tempfile::tempdir().unwrap();
-        let found = if unsafe_free_is_root() {
-            let o = Command::new("mount")
-                .args(["-t", "tmpfs", "-o", &format!("size={size}"), "tmpfs"])
-                .arg(dir.path())
-                .output();
-            match o {
-                Ok(o) if o.status.success() => Ok(()),
-                Ok(o) => Err(format!("mount -t tmpfs failed: {}", stderr(&o).trim())),
-                Err(e) => Err(format!("cannot run mount: {e}")),
-            }
-        } else {
-            Err("not root: cannot mount a tmpfs".to_string())
+        // Owned by the user running the tests, so that a non-root run (through `sudo -n`) can
+        // write into it.
+        let (uid, gid) = ids();
+        let o = privileged("mount")
+            .args([
+                "-t",
+                "tmpfs",
+                "-o",
+                &format!("size={size},uid={uid},gid={gid}"),
+                "tmpfs",
+            ])
+            .arg(dir.path())
+            .output();
+        let found = match o {
+            Ok(o) if o.status.success() => Ok(()),
+            Ok(o) => Err(format!(
+                "mounting a tmpfs failed (root, or sudo -n, is needed): {}",
+                stderr(&o).trim()
+            )),
+            Err(e) => Err(format!("cannot run mount: {e}")),
         };
         or_skip(Need::Mounts, test, found)?;
         Some(Mount { dir })
@@ -159,7 +167,7 @@ impl Mount {
     }
 
     fn remount_read_only(&self) {
-        let o = run(Command::new("mount")
+        let o = run(privileged("mount")
             .args(["-o", "remount,ro"])
             .arg(self.path()));
         assert!(o.status.success(), "{}", stderr(&o));
@@ -186,20 +194,32 @@ impl Mount {
 
 impl Drop for Mount {
     fn drop(&mut self) {
-        let _ = Command::new("umount").arg(self.dir.path()).output();
+        let _ = privileged("umount").arg(self.dir.path()).output();
     }
 }
 
-/// Root (uid 0), read from `/proc/self/status` (no `unsafe` call to `getuid`).
-fn unsafe_free_is_root() -> bool {
-    std::fs::read_to_string("/proc/self/status")
-        .ok()
-        .and_then(|s| {
-            s.lines()
-                .find(|l| l.starts_with("Uid:"))
-                .and_then(|l| l.split_whitespace().nth(1).map(|u| u == "0"))
-        })
-        .unwrap_or(false)
+/// The real user and group ids, read from `/proc/self/status` (no `unsafe` call to `getuid`).
+fn ids() -> (String, String) {
+    let s = std::fs::read_to_string("/proc/self/status").unwrap_or_default();
+    let field = |key: &str| {
+        s.lines()
+            .find(|l| l.starts_with(key))
+            .and_then(|l| l.split_whitespace().nth(1))
+            .unwrap_or("0")
+            .to_string()
+    };
+    (field("Uid:"), field("Gid:"))
+}
+
+/// `program` as root: itself when the tests run as root, else through `sudo -n`.
+fn privileged(program: &str) -> Command {
+    if ids().0 == "0" {
+        Command::new(program)
+    } else {
+        let mut c = Command::new("sudo");
+        c.args(["-n", program]);
+        c
+    }
 }
 
 /// Every output kind into a full file system: each fails naming its path and saying the disk is
