@@ -54,6 +54,15 @@ pub enum RenderError {
         #[source]
         source: wgpu::RequestAdapterError,
     },
+    /// The only adapters found lack what the renderer needs (an OpenGL fallback without depth
+    /// copies or compute, say): drawing falls back to the CPU as with no adapter.
+    #[error("no usable GPU adapter: {adapter} lacks {missing:?}")]
+    Unsupported {
+        /// Adapter name and backend.
+        adapter: String,
+        /// The downlevel capabilities it lacks.
+        missing: wgpu::DownlevelFlags,
+    },
     /// The adapter refused to create a device.
     #[error("GPU device request on {adapter} failed: {source}")]
     Device {
@@ -271,9 +280,20 @@ impl std::fmt::Debug for Gpu {
     }
 }
 
+/// The downlevel capabilities the renderer uses: compute shaders (the ray caster's probes) and
+/// copies out of depth textures (the depth read-back).
+pub const REQUIRED_DOWNLEVEL: wgpu::DownlevelFlags = wgpu::DownlevelFlags::COMPUTE_SHADERS
+    .union(wgpu::DownlevelFlags::DEPTH_TEXTURE_AND_BUFFER_COPIES);
+
+/// What of [`REQUIRED_DOWNLEVEL`] an adapter lacks (empty when it has all).
+pub fn missing_capabilities(adapter: &wgpu::Adapter) -> wgpu::DownlevelFlags {
+    REQUIRED_DOWNLEVEL.difference(adapter.get_downlevel_capabilities().flags)
+}
+
 impl Gpu {
     /// A headless device on the best available adapter (backends from `WGPU_BACKEND`, else all);
-    /// takes a software adapter (e.g. lavapipe) when there is no hardware one. Requests
+    /// takes a software adapter (e.g. lavapipe) when there is no hardware one, and refuses one
+    /// that lacks [`REQUIRED_DOWNLEVEL`] ([`RenderError::Unsupported`]). Requests
     /// `TIMESTAMP_QUERY` when the adapter offers it.
     pub fn new_headless() -> Result<Gpu, RenderError> {
         let instance =
@@ -293,6 +313,26 @@ impl Gpu {
             }))
         })
         .map_err(|source| RenderError::NoAdapter { source })?;
+        let adapter = match missing_capabilities(&adapter) {
+            m if m.is_empty() => adapter,
+            missing => {
+                // A fallback (software) adapter that has them, else the first one's refusal.
+                let info = adapter.get_info();
+                let fallback =
+                    pollster::block_on(instance.request_adapter(&wgpu::RequestAdapterOptions {
+                        power_preference: wgpu::PowerPreference::None,
+                        force_fallback_adapter: true,
+                        compatible_surface: None,
+                        apply_limit_buckets: false,
+                    }))
+                    .ok()
+                    .filter(|a| missing_capabilities(a).is_empty());
+                fallback.ok_or(RenderError::Unsupported {
+                    adapter: format!("{} ({:?})", info.name, info.backend),
+                    missing,
+                })?
+            }
+        };
         Self::from_adapter(adapter)
     }
 

@@ -9,6 +9,7 @@ pub fn gpu_or_skip(test: &str) -> Option<Gpu> {
     let found = match Gpu::new_headless() {
         Ok(g) => Ok(g),
         Err(RenderError::NoAdapter { source }) => Err(format!("no GPU adapter ({source})")),
+        Err(e @ RenderError::Unsupported { .. }) => Err(e.to_string()),
         Err(e) => panic!("{test}: no usable GPU: {e}"),
     };
     let gpu = or_skip(Need::Gpu, test, found)?;
