@@ -175,13 +175,14 @@ pub struct ProofTally {
     pub false_building_culls: u64,
     /// False culls (blocks and buildings) on vacuous frames (must be 0 too).
     pub false_culls_vacuous: u64,
-    /// Blocks kept by frustum culling alone, summed over frames.
+    /// Blocks in the frustum (the flat list's exact test), summed over frames: the same for
+    /// every structure.
     pub blocks_in_frustum: u64,
-    /// Of those, blocks the cull map removed.
+    /// Of those, blocks this structure with the cull map did not keep.
     pub blocks_culled: u64,
-    /// Buildings of the frustum's blocks kept by the per-building frustum test alone, summed.
+    /// Buildings of those blocks that the per-building frustum test keeps, summed over frames.
     pub buildings_in_frustum: u64,
-    /// Of those, buildings removed with occlusion on (blocks and buildings).
+    /// Of those, buildings not kept with occlusion on (block and per-building tests).
     pub buildings_culled: u64,
     /// Frames where the cull map was used.
     pub frames_occlusion: u64,
@@ -329,18 +330,16 @@ fn beyond_clip_plane(clip: &DMat4, b: &Aabb3) -> bool {
     out.iter().any(|&o| o)
 }
 
-/// Per frame and key: (false block culls, false building culls, first block, first building,
-/// blocks in frustum, blocks kept, buildings in frustum, buildings kept, map used).
+/// One frame through one structure at one resolution: the false culls (and the first of
+/// each), what of the frustum's blocks and buildings it culled, whether the map was used.
 #[derive(Clone, Copy, Debug, Default)]
 struct Cell {
     missed_blocks: u32,
     missed_buildings: u32,
     first_block: Option<BlockId>,
     first_building: Option<BuildingId>,
-    in_frustum: u32,
-    kept: u32,
-    buildings_in_frustum: u32,
-    buildings_kept: u32,
+    culled: u32,
+    buildings_culled: u32,
     used: bool,
 }
 
@@ -353,6 +352,8 @@ enum Vacuous {
 
 struct FrameRow {
     vacuous: Option<Vacuous>,
+    in_frustum: u32,
+    in_frustum_buildings: u32,
     visible_blocks: u32,
     visible_buildings: u32,
     /// Index `r * n_indexes + i`: resolution `r`, structure `i`.
@@ -470,24 +471,29 @@ pub fn prove_routes(
             None
         };
         let frustum = cam.frustum();
-        // Frustum culling alone, per structure: blocks, and their buildings in the frustum.
+        // What the frustum holds: the flat list's exact test of every block (or the first
+        // structure's, without a flat list), and the buildings of those blocks that the
+        // per-building frustum test keeps; the shares culled are of these, for every structure.
         let no_map = OcclusionStats {
             skipped: Some(SkipReason::NoOccluders),
             ..Default::default()
         };
-        let mut frustum_blocks: Vec<(u32, u32)> = Vec::with_capacity(n_idx);
-        for index in scene.indexes {
-            let mut out = Vec::new();
-            cullers[0].traverse(*index, cam, &maps.maps[0], no_map, &mut out);
-            let mut kept_b = Vec::new();
-            buildings.refine(&frustum, None, &out, &mut kept_b);
-            frustum_blocks.push((out.len() as u32, kept_b.len() as u32));
+        let reference = scene
+            .indexes
+            .iter()
+            .find(|i| i.structure() == Structure::Flat)
+            .or(scene.indexes.first());
+        let mut in_frustum = Vec::new();
+        if let Some(index) = reference {
+            cullers[0].traverse(*index, cam, &maps.maps[0], no_map, &mut in_frustum);
         }
+        let mut in_frustum_b = Vec::new();
+        buildings.refine(&frustum, None, &in_frustum, &mut in_frustum_b);
         let mut cells = Vec::with_capacity(cullers.len() * n_idx);
         for (c, map) in cullers.iter().zip(maps.maps.iter_mut()) {
             let st = c.build(cam, map);
             let used = st.skipped.is_none() && st.cells_covered > 0;
-            for (i, index) in scene.indexes.iter().enumerate() {
+            for index in scene.indexes {
                 let mut kept = Vec::new();
                 c.traverse(*index, cam, map, st, &mut kept);
                 if opts.sabotage == Some(Sabotage::DropVisibleBlock) {
@@ -509,22 +515,22 @@ pub fn prove_routes(
                     .filter(|b| !kept_b.contains(b))
                     .copied()
                     .collect();
-                let (fb, fbb) = frustum_blocks[i];
                 cells.push(Cell {
                     missed_blocks: missed.len() as u32,
                     missed_buildings: missed_b.len() as u32,
                     first_block: missed.first().copied(),
                     first_building: missed_b.first().copied(),
-                    in_frustum: fb,
-                    kept: kept_set.len() as u32,
-                    buildings_in_frustum: fbb,
-                    buildings_kept: kept_b.len() as u32,
+                    culled: in_frustum.iter().filter(|b| !kept_set.contains(b)).count() as u32,
+                    buildings_culled: in_frustum_b.iter().filter(|b| !kept_b.contains(b)).count()
+                        as u32,
                     used,
                 });
             }
         }
         FrameRow {
             vacuous,
+            in_frustum: in_frustum.len() as u32,
+            in_frustum_buildings: in_frustum_b.len() as u32,
             visible_blocks: seen_blocks.len() as u32,
             visible_buildings: seen.len() as u32,
             cells,
@@ -587,11 +593,10 @@ pub fn prove_routes(
                         t.false_block_culls += u64::from(c.missed_blocks);
                         t.false_building_culls += u64::from(c.missed_buildings);
                     }
-                    t.blocks_in_frustum += u64::from(c.in_frustum);
-                    t.blocks_culled += u64::from(c.in_frustum.saturating_sub(c.kept));
-                    t.buildings_in_frustum += u64::from(c.buildings_in_frustum);
-                    t.buildings_culled +=
-                        u64::from(c.buildings_in_frustum.saturating_sub(c.buildings_kept));
+                    t.blocks_in_frustum += u64::from(row.in_frustum);
+                    t.blocks_culled += u64::from(c.culled);
+                    t.buildings_in_frustum += u64::from(row.in_frustum_buildings);
+                    t.buildings_culled += u64::from(c.buildings_culled);
                     t.frames_occlusion += u64::from(c.used);
                     let dropped = c
                         .first_block
