@@ -37,6 +37,7 @@ mod blockmaps;
 mod blocks;
 mod common;
 mod cull_bench;
+mod cull_proof;
 mod demo;
 mod farfield_sweep;
 mod generate;
@@ -69,6 +70,8 @@ enum Command {
     Tileset(tileset::Args),
     /// Compare spatial structures on frustum culling.
     CullBench(cull_bench::Args),
+    /// Check culling against the oracle on every frame of every route over the cities.
+    CullProof(cull_proof::Args),
     /// A city in tiles: plan, run one tile (a batch job), merge.
     Jobs(jobs::Args),
     /// Occlusion culling with the cull map, checked against the visibility oracle.
@@ -177,6 +180,7 @@ fn dispatch(command: Command) -> anyhow::Result<()> {
         Command::Blockmaps(a) => blockmaps::run(a),
         Command::Tileset(a) => tileset::run(a),
         Command::CullBench(a) => cull_bench::run(a),
+        Command::CullProof(a) => cull_proof::run(a),
         Command::Jobs(a) => jobs::run(a),
         Command::OcclusionBench(a) => occlusion_bench::run(a),
         Command::Walk(a) => walk::run(a),

@@ -27,7 +27,8 @@ The title shows frames per second, blocks and triangles drawn, and the structure
 pub struct Args {
     #[command(flatten)]
     pub city: CityArgs,
-    /// The route P plays: `paper`, `orbit`, `street`, `flyover`, or a route file (.toml / .json).
+    /// The route P plays: `paper`, `orbit`, `street`, `flyover`, `corners`, or a route file
+    /// (.toml / .json).
     #[arg(long, default_value = "paper")]
     pub route: RouteChoice,
     /// The spatial structure that culls each frame.

@@ -20,8 +20,8 @@ pub struct Args {
     #[command(flatten)]
     pub city: CityArgs,
     /// The route: `paper` (Pina, Serón and Cerezo, §5), `orbit`, `street` (a walk across the street graph),
-    /// `flyover` (high, most of the city in view), or a route file (.toml / .json, see
-    /// examples/routes/).
+    /// `flyover` (high, most of the city in view), `corners` (a street walk rounding building
+    /// corners 0.3–1 m from their walls), or a route file (.toml / .json, see examples/routes/).
     #[arg(long, default_value = "paper")]
     pub route: RouteChoice,
     /// Frames along the route (default: the file's setting, else 300).

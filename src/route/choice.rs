@@ -1,8 +1,8 @@
 //! The route a command plays: a named generated route or a route file.
 
 use super::{
-    orbit_route, paper_route, street_walk, CameraRoute, FrameSpec, Lens, Obstacles,
-    PaperRouteParams, RouteError, RouteFile, StreetGraph,
+    corner_walk, orbit_route, paper_route, street_walk, CameraRoute, CornerWalkParams, FrameSpec,
+    Lens, Obstacles, PaperRouteParams, RouteError, RouteFile, StreetGraph,
 };
 use crate::city::{Building, LocalFrame};
 use crate::geom::Aabb3;
@@ -27,6 +27,9 @@ pub const STREET_SPEED_M_S: f64 = 1.4;
 /// 15 m, whatever the walk's length ([`CameraRoute::frames_for_step`]). This is a step per
 /// frame, not a frame rate: the walk's own time runs at [`STREET_SPEED_M_S`].
 pub const STREET_FRAME_STEP_M: f64 = 15.0;
+/// The corner walk's pace in frames: its default frame count puts consecutive frames at most
+/// this many metres apart, so that every corner's arc gets frames.
+pub const CORNERS_FRAME_STEP_M: f64 = 0.5;
 
 /// A route by name or file.
 #[derive(Clone, Debug, PartialEq, Eq)]
@@ -39,13 +42,25 @@ pub enum RouteChoice {
     Street,
     /// A high fly-over with the whole city in view ([`super::flyover_route`]).
     Flyover,
+    /// A street-level walk that rounds building corners at 0.3–1 m from their walls
+    /// ([`super::corner_walk`]).
+    Corners,
     /// A route file (`.toml` / `.json`, see [`RouteFile`]).
     File(PathBuf),
 }
 
 impl RouteChoice {
     /// The generated routes' names, in the order they are listed.
-    pub const NAMES: [&'static str; 4] = ["paper", "orbit", "street", "flyover"];
+    pub const NAMES: [&'static str; 5] = ["paper", "orbit", "street", "flyover", "corners"];
+
+    /// Every generated route, in the order of [`RouteChoice::NAMES`].
+    pub const GENERATED: [RouteChoice; 5] = [
+        RouteChoice::Paper,
+        RouteChoice::Orbit,
+        RouteChoice::Street,
+        RouteChoice::Flyover,
+        RouteChoice::Corners,
+    ];
 
     /// The generated route called `name`.
     pub fn named(name: &str) -> Option<Self> {
@@ -54,6 +69,7 @@ impl RouteChoice {
             "orbit" => RouteChoice::Orbit,
             "street" => RouteChoice::Street,
             "flyover" => RouteChoice::Flyover,
+            "corners" => RouteChoice::Corners,
             _ => return None,
         })
     }
@@ -95,6 +111,7 @@ impl std::fmt::Display for RouteChoice {
             RouteChoice::Orbit => f.write_str("orbit"),
             RouteChoice::Street => f.write_str("street"),
             RouteChoice::Flyover => f.write_str("flyover"),
+            RouteChoice::Corners => f.write_str("corners"),
             RouteChoice::File(p) => write!(f, "{}", p.display()),
         }
     }
@@ -181,6 +198,31 @@ impl RouteChoice {
                 (route, Some(frames))
             }
             RouteChoice::Flyover => (super::flyover_route(ctx.bounds, ctx.aspect)?, None),
+            RouteChoice::Corners => {
+                let g = graph();
+                if g.is_empty() {
+                    return Err(RouteError::Bad {
+                        route: "corners".into(),
+                        problem: format!("{} has no street graph to walk", ctx.city),
+                    });
+                }
+                let (lo, hi) = (ctx.bounds.min.truncate(), ctx.bounds.max.truncate());
+                let waypoints = [
+                    lo,
+                    hi,
+                    glam::DVec2::new(hi.x, lo.y),
+                    glam::DVec2::new(lo.x, hi.y),
+                ];
+                let route = corner_walk(
+                    &g,
+                    &obstacles(),
+                    &waypoints,
+                    &CornerWalkParams::default(),
+                    lens,
+                )?;
+                let frames = route.frames_for_step(CORNERS_FRAME_STEP_M);
+                (route, Some(frames))
+            }
             RouteChoice::File(path) => {
                 let f = RouteFile::read(path)?;
                 let mut r = f.to_route(Some(ctx.frame))?;
@@ -219,7 +261,11 @@ mod tests {
             name.parse::<RouteChoice>().unwrap(),
             RouteChoice::File(file.clone())
         );
-        for c in ["paper", "orbit", "street", "flyover", name] {
+        assert_eq!(
+            "corners".parse::<RouteChoice>().unwrap(),
+            RouteChoice::Corners
+        );
+        for c in ["paper", "orbit", "street", "flyover", "corners", name] {
             assert_eq!(c.parse::<RouteChoice>().unwrap().to_string(), c);
         }
     }
@@ -228,7 +274,9 @@ mod tests {
     fn an_unknown_name_lists_the_routes_and_says_there_is_no_such_file() {
         let e = "streets".parse::<RouteChoice>().unwrap_err().to_string();
         assert!(
-            e.starts_with("route 'streets': not a route name (paper, orbit, street, flyover)"),
+            e.starts_with(
+                "route 'streets': not a route name (paper, orbit, street, flyover, corners)"
+            ),
             "{e}"
         );
         assert!(e.contains("(os error 2)"), "{e}");

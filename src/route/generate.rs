@@ -1,7 +1,7 @@
 //! Routes for any city: the paper's route (Pina, Serón and Cerezo, §5), a street-level walk, an orbit; and the
 //! street graph they walk on.
 
-use super::obstacles::{Obstacles, EYE_CLEARANCE_M};
+use super::obstacles::{FootprintCorner, Obstacles, EYE_CLEARANCE_M};
 use super::{CameraRoute, KeyFrame, Lens, RouteError};
 use crate::city::LocalFrame;
 use crate::geom::tolerance::ROUTE_NODE_GRID_M;
@@ -583,6 +583,236 @@ pub fn street_walk(
     keep_clear("street", keys, lens, obstacles, EYE_CLEARANCE_M)
 }
 
+/// Parameters of [`corner_walk`].
+#[derive(Clone, Debug, PartialEq)]
+pub struct CornerWalkParams {
+    /// Eye height above the ground, metres.
+    pub eye_height: f64,
+    /// Distances from the facades at which the corners are rounded, metres, used in turn (one
+    /// per corner passed).
+    pub offsets: Vec<f64>,
+    /// How far along each facade the walk runs beside it before and after the corner, metres
+    /// (shortened to 80 % of a shorter wall).
+    pub approach_m: f64,
+    /// A street node passes the convex building corners within this distance, metres.
+    pub reach_m: f64,
+    /// Least turn of the outline at a corner worth rounding, radians.
+    pub min_turn: f64,
+    /// Least distance from the eye to any building anywhere on the route, metres.
+    pub clearance_m: f64,
+    /// Walking speed between corners, metres per second.
+    pub speed: f64,
+    /// Walking speed beside and around a corner, metres per second (slower, so that evenly
+    /// timed frames crowd where the occluders' shadows are hardest).
+    pub corner_speed: f64,
+    /// Near plane, metres: below the least offset, so the walls beside the eye stay closed.
+    pub near: f64,
+    /// Largest angle between two points of a corner's arc, radians.
+    pub arc_step: f64,
+}
+
+impl Default for CornerWalkParams {
+    fn default() -> Self {
+        Self {
+            eye_height: 1.7,
+            offsets: vec![0.3, 0.5, 0.7, 1.0],
+            approach_m: 4.0,
+            reach_m: 30.0,
+            min_turn: 30f64.to_radians(),
+            clearance_m: 0.25,
+            speed: 1.4,
+            corner_speed: 0.35,
+            near: 0.1,
+            arc_step: 15f64.to_radians(),
+        }
+    }
+}
+
+impl CornerWalkParams {
+    fn check(&self) -> Result<(), String> {
+        let pos = |v: f64| v > 0.0 && v.is_finite();
+        if !(pos(self.eye_height)
+            && pos(self.approach_m)
+            && pos(self.reach_m)
+            && pos(self.speed)
+            && pos(self.corner_speed)
+            && pos(self.near)
+            && pos(self.arc_step))
+        {
+            return Err(
+                "eye height, approach, reach, speeds, near plane and arc step must be positive and finite"
+                    .into(),
+            );
+        }
+        if !(self.clearance_m.is_finite() && self.clearance_m >= 0.0) {
+            return Err(format!(
+                "clearance {} m: must be finite and not negative",
+                self.clearance_m
+            ));
+        }
+        if !(self.min_turn.is_finite() && (0.0..std::f64::consts::PI).contains(&self.min_turn)) {
+            return Err(format!(
+                "least turn {} rad: must be in [0, π)",
+                self.min_turn
+            ));
+        }
+        if self.offsets.is_empty()
+            || self
+                .offsets
+                .iter()
+                .any(|&o| !(o.is_finite() && o > self.clearance_m && o > self.near))
+        {
+            return Err(format!(
+                "offsets {:?} m: give at least one, each finite and beyond the clearance ({} m) and the near plane ({} m)",
+                self.offsets, self.clearance_m, self.near
+            ));
+        }
+        Ok(())
+    }
+}
+
+/// The points of one corner visit: beside the arriving wall `approach` metres before the
+/// corner at `offset` from it, around the corner on the arc of radius `offset`, and beside the
+/// leaving wall `approach` metres after it.
+fn corner_visit(c: &FootprintCorner, offset: f64, approach: f64, arc_step: f64) -> Vec<DVec2> {
+    let before = approach.min(0.8 * c.incoming_len);
+    let after = approach.min(0.8 * c.outgoing_len);
+    let n_in = c.incoming_normal();
+    let mut pts = vec![c.at - c.incoming * before + n_in * offset];
+    let steps = (c.turn / arc_step).ceil().max(1.0) as usize;
+    for k in 0..=steps {
+        let a = c.turn * k as f64 / steps as f64;
+        pts.push(c.at + DVec2::from_angle(a).rotate(n_in) * offset);
+    }
+    pts.push(c.at + c.outgoing * after + c.outgoing_normal() * offset);
+    pts
+}
+
+/// A street-level walk that hugs building corners, the hardest case for occluder shadows: along
+/// the shortest street paths between consecutive `waypoints` (local frame) over the streets a
+/// camera can walk [`EYE_CLEARANCE_M`] clear of `obstacles`, and at every street node where
+/// three or more streets meet (a block corner) it leaves the street to round the nearest convex
+/// building corner within `reach_m`: beside the arriving facade, around the corner at one of
+/// `offsets` from both walls, and beside the leaving facade, looking along the way, then back
+/// to the street. A corner is rounded only when the whole visit and the straight legs to and
+/// from it keep `clearance_m` from every building (a corner touching a neighbour is passed by);
+/// each corner once. The eye never comes nearer than `clearance_m` to any building on any
+/// frame (the curve is straightened where it would come nearer).
+///
+/// # Errors
+/// [`RouteError::Bad`] for bad parameters, fewer than two waypoints, no walkable street path,
+/// or when no corner can be rounded.
+pub fn corner_walk(
+    graph: &StreetGraph,
+    obstacles: &Obstacles,
+    waypoints: &[DVec2],
+    params: &CornerWalkParams,
+    mut lens: Lens,
+) -> Result<CameraRoute, RouteError> {
+    let bad = |problem: String| RouteError::Bad {
+        route: "corners".into(),
+        problem,
+    };
+    params.check().map_err(&bad)?;
+    if waypoints.len() < 2 {
+        return Err(bad(format!("needs two waypoints, got {}", waypoints.len())));
+    }
+    let eye = params.eye_height;
+    let gap = params.clearance_m;
+    let graph = &graph.walkable(obstacles, eye, EYE_CLEARANCE_M);
+    let mut path: Vec<u32> = Vec::new();
+    for w in waypoints.windows(2) {
+        let s = graph
+            .nearest_in_main_component(w[0])
+            .ok_or_else(|| bad("no street node is clear of the buildings".into()))?;
+        let e = graph
+            .nearest_in_main_component(w[1])
+            .ok_or_else(|| bad("no street node is clear of the buildings".into()))?;
+        let p = graph
+            .shortest_path(s, e)
+            .ok_or_else(|| bad("no street path between two waypoints".into()))?;
+        for v in p {
+            if path.last() != Some(&v) {
+                path.push(v);
+            }
+        }
+    }
+    if path.len() < 2 {
+        return Err(bad("the waypoints snap to the same street node".into()));
+    }
+    let seg_clear = |a: DVec2, b: DVec2| obstacles.segment_distance(a, b, eye, gap) >= gap;
+    // Points and whether the way to each point runs beside a corner (slow).
+    let mut pts: Vec<(DVec2, bool)> = Vec::new();
+    let mut visited: Vec<DVec2> = Vec::new();
+    let mut rounded = 0usize;
+    for (i, &v) in path.iter().enumerate() {
+        let node = graph.nodes[v as usize];
+        pts.push((node, false));
+        if graph.adjacency[v as usize].len() < 3 {
+            continue;
+        }
+        let next = path.get(i + 1).map(|&w| graph.nodes[w as usize]);
+        let offset = params.offsets[rounded % params.offsets.len()];
+        let corners = obstacles.convex_corners_near(node, params.reach_m, params.min_turn);
+        for c in corners.iter().take(8) {
+            if visited.iter().any(|q| q.distance(c.at) < 1e-6) {
+                continue;
+            }
+            let visit = corner_visit(c, offset, params.approach_m, params.arc_step);
+            let ok = seg_clear(node, visit[0]) && visit.windows(2).all(|w| seg_clear(w[0], w[1]));
+            if !ok {
+                continue;
+            }
+            let end = visit[visit.len() - 1];
+            // Straight on to the next node, else back by this one.
+            let back = match next {
+                Some(n) if seg_clear(end, n) => false,
+                Some(_) => {
+                    if !seg_clear(end, node) {
+                        continue;
+                    }
+                    true
+                }
+                None => false,
+            };
+            pts.push((visit[0], false));
+            pts.extend(visit[1..].iter().map(|&p| (p, true)));
+            if back {
+                pts.push((node, false));
+            }
+            visited.push(c.at);
+            rounded += 1;
+            break;
+        }
+    }
+    if rounded == 0 {
+        return Err(bad(format!(
+            "no building corner within {} m of the street path can be rounded {} m clear of every building",
+            params.reach_m, gap
+        )));
+    }
+    pts.dedup_by(|a, b| a.0.distance(b.0) < 1e-6);
+    let mut keys = Vec::with_capacity(pts.len());
+    let mut t = 0.0;
+    for (i, &(p, slow)) in pts.iter().enumerate() {
+        if i > 0 {
+            let speed = if slow {
+                params.corner_speed
+            } else {
+                params.speed
+            };
+            t += pts[i - 1].0.distance(p) / speed;
+        }
+        let ahead = pts
+            .get(i + 1)
+            .map(|q| q.0 - p)
+            .unwrap_or_else(|| p - pts[i.saturating_sub(1)].0);
+        keys.push(KeyFrame::new(t, p.extend(eye), ahead.y.atan2(ahead.x), 0.0));
+    }
+    lens.near = params.near;
+    keep_clear("corners", keys, lens, obstacles, gap)
+}
+
 /// Share of the buildings' footprint area that the orbit's spread covers: the radius the
 /// orbit scales is the distance from the buildings' centre within which this share of the area
 /// lies (the 90th percentile), so that a few outlying buildings far away neither move the centre
@@ -757,6 +987,120 @@ mod tests {
         let p = g.shortest_path(a, b).unwrap();
         assert!((g.path_length(&p) - 400.0).abs() < 1e-9);
         assert_eq!(p.len(), 5);
+    }
+
+    /// Box buildings `margin` metres inside each block of [`grid_lines`], in world coordinates.
+    fn grid_buildings(margin: f64) -> Vec<crate::city::Building> {
+        use crate::city::model::{BuildingId, HeightSource};
+        use geo_types::polygon;
+        let mut out = Vec::new();
+        for i in 0..2 {
+            for j in 0..2 {
+                let (x0, y0) = (1000.0 + 100.0 * i as f64, 2000.0 + 100.0 * j as f64);
+                let (x1, y1) = (x0 + 100.0 - margin, y0 + 100.0 - margin);
+                let (x0, y0) = (x0 + margin, y0 + margin);
+                out.push(crate::city::Building {
+                    id: BuildingId(out.len() as u32),
+                    source_id: format!("t:{}", out.len()),
+                    footprint: polygon![(x: x0, y: y0), (x: x1, y: y0), (x: x1, y: y1), (x: x0, y: y1)],
+                    height_m: 15.0,
+                    min_height_m: 0.0,
+                    height_source: HeightSource::Height,
+                    attributes: Default::default(),
+                });
+            }
+        }
+        out
+    }
+
+    #[test]
+    fn the_corner_walk_rounds_corners_close_and_never_enters_a_building() {
+        let frame = frame0();
+        let g = StreetGraph::from_world_lines(&grid_lines(), &frame);
+        let buildings = grid_buildings(6.0);
+        let obstacles = Obstacles::from_buildings(&buildings, &frame);
+        let params = CornerWalkParams::default();
+        let waypoints = [
+            DVec2::new(0.0, 0.0),
+            DVec2::new(200.0, 200.0),
+            DVec2::new(200.0, 0.0),
+            DVec2::new(0.0, 200.0),
+        ];
+        let route = corner_walk(&g, &obstacles, &waypoints, &params, Lens::default()).unwrap();
+        assert_eq!(route.lens.near, params.near);
+        // The building corners in the local frame (each block's box, 6 m in).
+        let corners: Vec<DVec2> = buildings
+            .iter()
+            .flat_map(|b| {
+                b.footprint
+                    .exterior()
+                    .coords()
+                    .take(4)
+                    .copied()
+                    .collect::<Vec<_>>()
+            })
+            .map(|c| frame.to_local_xy(c))
+            .collect();
+        let inside = |p: DVec2| {
+            buildings.iter().any(|b| {
+                let r = b.footprint.exterior();
+                let (lo, hi) = (frame.to_local_xy(r.0[0]), frame.to_local_xy(r.0[2]));
+                p.x >= lo.x && p.x <= hi.x && p.y >= lo.y && p.y <= hi.y
+            })
+        };
+        let cams = route.sample(40_000);
+        let mut passed = vec![f64::INFINITY; corners.len()];
+        for c in &cams {
+            let p = c.position;
+            assert!((p.z - params.eye_height).abs() < 1e-9, "{p}");
+            assert!(!inside(p.truncate()), "eye inside a building at {p}");
+            let d = obstacles.distance(p, 2.0);
+            assert!(
+                d >= params.clearance_m - 1e-6,
+                "eye {d} m from a wall at {p}"
+            );
+            for (k, q) in corners.iter().enumerate() {
+                passed[k] = passed[k].min(q.distance(p.truncate()));
+            }
+        }
+        // The walk crosses the inner intersections: several corners are rounded within the
+        // largest offset (1 m), none nearer than the clearance.
+        let close = passed.iter().filter(|&&d| d <= 1.0 + 1e-3).count();
+        assert!(
+            close >= 4,
+            "corners passed within 1 m: {close} ({passed:?})"
+        );
+        assert!(passed.iter().all(|&d| d >= params.clearance_m - 1e-6));
+        // A frame step of 0.1 m keeps the check above dense: the route is short enough.
+        let len: f64 = cams
+            .windows(2)
+            .map(|w| w[0].position.distance(w[1].position))
+            .sum();
+        assert!(len / 40_000.0 < 0.1, "{len} m");
+    }
+
+    #[test]
+    fn a_corner_walk_with_no_corner_in_reach_is_refused() {
+        let frame = frame0();
+        let g = StreetGraph::from_world_lines(&grid_lines(), &frame);
+        // Buildings 40 m inside their blocks: every corner is 56 m from the nearest street node.
+        let obstacles = Obstacles::from_buildings(&grid_buildings(40.0), &frame);
+        let waypoints = [DVec2::new(0.0, 0.0), DVec2::new(200.0, 200.0)];
+        let params = CornerWalkParams::default();
+        let e = corner_walk(&g, &obstacles, &waypoints, &params, Lens::default()).unwrap_err();
+        assert!(e.to_string().contains("no building corner"), "{e}");
+        // Within a reach of 60 m they are rounded.
+        let far = CornerWalkParams {
+            reach_m: 60.0,
+            ..Default::default()
+        };
+        assert!(corner_walk(&g, &obstacles, &waypoints, &far, Lens::default()).is_ok());
+        let bad = CornerWalkParams {
+            offsets: vec![0.1],
+            ..Default::default()
+        };
+        let e = corner_walk(&g, &obstacles, &waypoints, &bad, Lens::default()).unwrap_err();
+        assert!(e.to_string().contains("offsets"), "{e}");
     }
 
     #[test]

@@ -4,8 +4,8 @@
 //!   Catmull–Rom (positions) and squad (orientations), sampled into [`Camera`]s.
 //! - [`choice`]: [`RouteChoice`], a named generated route or a route file, resolved for a city.
 //! - [`mod@file`]: the route file format (TOML or JSON), see [`file::RouteFile`].
-//! - [`generate`]: routes for any city: the paper's route, a street-level walk, an orbit; the
-//!   street graph and its shortest paths.
+//! - [`generate`]: routes for any city: the paper's route, a street-level walk, a walk rounding
+//!   building corners, an orbit; the street graph and its shortest paths.
 //! - [`obstacles`]: the buildings a generated route keeps its eye [`EYE_CLEARANCE_M`] away from.
 //! - [`spline`]: the interpolation kernels.
 
@@ -16,13 +16,14 @@ pub mod generate;
 pub mod obstacles;
 pub mod spline;
 
-pub use choice::{RouteChoice, RouteContext, STREET_FRAME_STEP_M};
+pub use choice::{RouteChoice, RouteContext, CORNERS_FRAME_STEP_M, STREET_FRAME_STEP_M};
 pub use file::RouteFile;
 pub use flyover::{flyover_route, flyover_route_with_near, FLYOVER_NEAR_SHARE};
 pub use generate::{
-    orbit_route, paper_route, street_walk, PaperRouteParams, StreetGraph, ORBIT_SPREAD_QUANTILE,
+    corner_walk, orbit_route, paper_route, street_walk, CornerWalkParams, PaperRouteParams,
+    StreetGraph, ORBIT_SPREAD_QUANTILE,
 };
-pub use obstacles::{Obstacles, EYE_CLEARANCE_M};
+pub use obstacles::{FootprintCorner, Obstacles, EYE_CLEARANCE_M};
 
 /// Most frames a walk may sample (a route file or a caller's count): 100,000, about an hour at
 /// 30 fps.
@@ -77,7 +78,7 @@ pub enum RouteError {
         problem: String,
     },
     /// A route that is neither a generated route's name nor a file that can be read.
-    #[error("route '{name}': not a route name (paper, orbit, street, flyover), and not a route file: {source}")]
+    #[error("route '{name}': not a route name (paper, orbit, street, flyover, corners), and not a route file: {source}")]
     Unknown {
         /// What was given.
         name: String,

@@ -2,6 +2,7 @@
 //! frame, found near a point through an R-tree of their plan boxes (`rstar`).
 
 use crate::city::{Building, LocalFrame};
+use crate::geom::predicates::ring_signed_area;
 use crate::geom::{Aabb3, Frustum};
 use geo::{Area, Centroid, Distance, Euclidean};
 use geo_types::{Line, Point, Polygon};
@@ -19,6 +20,36 @@ struct Prism {
     footprint: Polygon<f64>,
     lo: f64,
     hi: f64,
+}
+
+/// A convex corner of a building's footprint (local frame), walked counter-clockwise around the
+/// building: the wall arriving at it, then the wall leaving it.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct FootprintCorner {
+    /// The corner.
+    pub at: DVec2,
+    /// Unit direction of the wall arriving at the corner.
+    pub incoming: DVec2,
+    /// Unit direction of the wall leaving the corner.
+    pub outgoing: DVec2,
+    /// Length of the arriving wall, metres.
+    pub incoming_len: f64,
+    /// Length of the leaving wall, metres.
+    pub outgoing_len: f64,
+    /// How far the outline turns left at the corner, radians (in `(0, π)`).
+    pub turn: f64,
+}
+
+impl FootprintCorner {
+    /// Outward unit normal of the arriving wall (right of its direction).
+    pub fn incoming_normal(&self) -> DVec2 {
+        DVec2::new(self.incoming.y, -self.incoming.x)
+    }
+
+    /// Outward unit normal of the leaving wall.
+    pub fn outgoing_normal(&self) -> DVec2 {
+        DVec2::new(self.outgoing.y, -self.outgoing.x)
+    }
 }
 
 /// The buildings of a city as prisms in its local frame, with a spatial index.
@@ -173,6 +204,66 @@ impl Obstacles {
             let b = Aabb3::new(DVec3::new(x0, y0, prism.lo), DVec3::new(x1, y1, prism.hi));
             frustum.intersects_aabb_exact(&b)
         })
+    }
+
+    /// The convex corners of the footprints' outer rings whose vertex lies within `reach` of
+    /// `p` (plan, local frame), where the outline turns by at least `min_turn` radians, nearest
+    /// first (ties in input order). Zero-length walls are skipped.
+    pub fn convex_corners_near(&self, p: DVec2, reach: f64, min_turn: f64) -> Vec<FootprintCorner> {
+        let env = AABB::from_corners([p.x - reach, p.y - reach], [p.x + reach, p.y + reach]);
+        let mut out: Vec<(f64, FootprintCorner)> = Vec::new();
+        let mut hits: Vec<u32> = self
+            .tree
+            .locate_in_envelope_intersecting(&env)
+            .map(|r| r.data)
+            .collect();
+        hits.sort_unstable();
+        for i in hits {
+            let prism = &self.prisms[i as usize];
+            let mut ring: Vec<DVec2> = prism
+                .footprint
+                .exterior()
+                .coords()
+                .map(|c| DVec2::new(c.x, c.y))
+                .collect();
+            ring.dedup_by(|a, b| a.distance(*b) < 1e-9);
+            while ring.len() > 1 && ring[0].distance(ring[ring.len() - 1]) < 1e-9 {
+                ring.pop();
+            }
+            if ring.len() < 3 {
+                continue;
+            }
+            if ring_signed_area(&ring) < 0.0 {
+                ring.reverse();
+            }
+            let n = ring.len();
+            for k in 0..n {
+                let (prev, at, next) = (ring[(k + n - 1) % n], ring[k], ring[(k + 1) % n]);
+                let d = at.distance(p);
+                if d > reach {
+                    continue;
+                }
+                let (li, lo) = (prev.distance(at), at.distance(next));
+                let (ei, eo) = ((at - prev) / li, (next - at) / lo);
+                // Counter-clockwise ring: a convex corner turns left.
+                let turn = ei.perp_dot(eo).atan2(ei.dot(eo));
+                if turn >= min_turn && turn < std::f64::consts::PI {
+                    out.push((
+                        d,
+                        FootprintCorner {
+                            at,
+                            incoming: ei,
+                            outgoing: eo,
+                            incoming_len: li,
+                            outgoing_len: lo,
+                            turn,
+                        },
+                    ));
+                }
+            }
+        }
+        out.sort_by(|a, b| a.0.total_cmp(&b.0));
+        out.into_iter().map(|(_, c)| c).collect()
     }
 
     /// True when `p` is at least `clearance` from every building.

@@ -15,6 +15,8 @@
 //! - [`synthetic`]: a synthetic grid city with exact meshes, for tests and benches.
 //! - [`buildings`]: per-building culling inside the blocks that survived (Willmott et al., §3.2.8).
 //! - [`bench`]: the culler against the oracle over random views, per cull map resolution.
+//! - [`route_proof`]: the culler and the per-building test against the supersampled oracle on
+//!   every frame of whole routes, for every structure and several cull map resolutions.
 
 pub mod adversarial;
 pub mod bench;
@@ -24,6 +26,7 @@ pub mod cullmap;
 pub mod frame;
 pub mod occluders;
 pub mod oracle;
+pub mod route_proof;
 pub mod shadow;
 pub mod synthetic;
 pub mod views;

@@ -113,6 +113,15 @@ pub enum JobError {
     /// The walk failed.
     #[error(transparent)]
     Walk(#[from] WalkError),
+    /// The culling check over routes could not be set up.
+    #[error("checking the culling over routes of {city}")]
+    Proof {
+        /// City name.
+        city: String,
+        /// What went wrong.
+        #[source]
+        source: crate::visibility::VisibilityError,
+    },
 }
 
 impl WalkJob {

@@ -11,6 +11,7 @@ mod decide;
 pub mod far;
 mod hybrid;
 pub mod job;
+pub mod proof;
 pub mod step;
 mod summary;
 pub mod sweep;
@@ -22,6 +23,7 @@ pub use far::{
     ImageError, OcclusionDecision, PixelBound, SilhouetteBound,
 };
 pub use job::{run_job, FarJob, GpuRenderers, JobError, JobProgress, NoGpu, Quiet, WalkJob};
+pub use proof::{run_route_proof, RouteProofJob, RouteProofReport};
 pub use step::{CullStep, Culled, FarPick, FarStep};
 pub use summary::{summarise, SummaryRow};
 
