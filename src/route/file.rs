@@ -206,6 +206,44 @@ impl RouteFile {
         }
     }
 
+    /// The number of frames to sample over `route` (built from this file), checked: `frames`,
+    /// else `fps` (default 30) × the route's duration, 1 to [`MAX_FRAMES`](super::MAX_FRAMES).
+    /// `file` names the file in the error.
+    ///
+    /// # Errors
+    /// [`RouteError::Bad`] naming the file, the fields and the cap.
+    pub fn frame_count(&self, route: &CameraRoute, file: &str) -> Result<usize, RouteError> {
+        let max = super::MAX_FRAMES;
+        let bad = |problem: String| RouteError::Bad {
+            route: file.into(),
+            problem,
+        };
+        match self.frame_spec() {
+            FrameSpec::Count(n) => super::check_frames(file, n).map_err(|_| {
+                bad(format!(
+                    "frames = {n}: expected 1 to {max} (the most frames a walk may sample)"
+                ))
+            }),
+            FrameSpec::Rate(fps) => {
+                let n = route.frames_at_rate(fps);
+                if (1..=max).contains(&n) {
+                    Ok(n)
+                } else {
+                    Err(bad(format!(
+                        "fps = {fps} over the route's duration of {:.3} s gives {} frames; at most \
+                         {max} frames (fps × duration + 1): lower fps or give `frames`",
+                        route.duration(),
+                        if n == usize::MAX {
+                            "more than 2^64".to_string()
+                        } else {
+                            n.to_string()
+                        }
+                    )))
+                }
+            }
+        }
+    }
+
     /// Builds the route; `frame` is the city's local frame, needed when `frame = "world"`.
     pub fn to_route(&self, frame: Option<&LocalFrame>) -> Result<CameraRoute, RouteError> {
         let name = self.name.clone();
