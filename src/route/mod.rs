@@ -248,8 +248,16 @@ impl CameraRoute {
                 key: i,
                 problem: problem.to_string(),
             };
-            if !k.time.is_finite() || !k.position.is_finite() || !k.orientation.is_finite() {
-                return Err(bad("time, position and orientation must be finite"));
+            for (what, finite) in [
+                ("time", k.time.is_finite()),
+                ("position", k.position.is_finite()),
+                ("orientation", k.orientation.is_finite()),
+            ] {
+                if !finite {
+                    return Err(bad(&format!(
+                        "{what} is not a finite number (it overflowed or was given as NaN/inf)"
+                    )));
+                }
             }
             if k.orientation.length() < 1e-9 {
                 return Err(bad("orientation is not a rotation"));
