@@ -80,18 +80,29 @@ pub fn read_with(path: &Path, columns: &Columns) -> Result<Layer, ImportError> {
         None => None,
     };
 
+    // The record headers of the .shp, walked by their lengths, and the index checked against
+    // them: a lie in either is named with its record.
+    let walk = walk_records(&shp_bytes);
+    let walk_problem = walk.as_ref().err().cloned();
     // Geometry (through the index when there is one and it is sound, else in sequence) and
     // attributes, side by side.
     let (shapes, attributes) = rayon::join(
         || -> Result<(Vec<Shape>, Option<String>), ImportError> {
             let indexed = match (&shx_path, shx_bytes) {
-                (Some(shx), Some(bytes)) => match read_shapes_indexed(&shp_bytes, bytes) {
-                    Ok(shapes) => Ok(shapes),
-                    Err(e) => Err(format!(
-                        "{} is damaged ({e}): it was ignored and the records were read in \
-                         sequence from the .shp",
+                (Some(shx), Some(bytes)) => match index_agrees(&bytes, &walk) {
+                    Err(why) => Err(format!(
+                        "{} is damaged, it disagrees with the .shp ({why}): it was ignored and the records were \
+                         read in sequence from the .shp",
                         shx.display()
                     )),
+                    Ok(()) => match read_shapes_indexed(&shp_bytes, bytes) {
+                        Ok(shapes) => Ok(shapes),
+                        Err(e) => Err(format!(
+                            "{} is damaged ({e}): it was ignored and the records were read in \
+                             sequence from the .shp",
+                            shx.display()
+                        )),
+                    },
                 },
                 _ => Err(format!(
                     "no {} index: records were read in sequence from the .shp",
@@ -101,22 +112,40 @@ pub fn read_with(path: &Path, columns: &Columns) -> Result<Layer, ImportError> {
             match indexed {
                 // The shapes own their coordinates: the file's bytes are no longer needed.
                 Ok(s) => Ok((s, None)),
-                Err(note) => Ok((read_shapes_in_sequence(path, shp_bytes)?, Some(note))),
+                Err(note) => Ok((
+                    read_shapes_in_sequence(path, shp_bytes, walk_problem.as_deref())?,
+                    Some(note),
+                )),
             }
         },
         || read_dbf(&dbf_path, columns),
     );
     let (shapes, note) = shapes?;
     report.notes.extend(note);
+    if let Err(problem) = &walk {
+        report.notes.push(format!(
+            "{}: its record headers disagree with its records ({problem}); the records were \
+             read from their content",
+            path.display()
+        ));
+    }
     // Attributes: a record that cannot be read costs its feature, not the layer.
     let (declared, records) = attributes?;
+    let why = |walk: &Result<Vec<(usize, usize)>, String>| match walk {
+        Err(e) => format!(" ({e})"),
+        Ok(r) if r.len() != shapes.len() => {
+            format!(" (the .shp's record headers give {} records)", r.len())
+        }
+        Ok(_) => String::new(),
+    };
     if declared != shapes.len() {
         return Err(ImportError::Format {
             file: path.to_path_buf(),
             message: format!(
-                "{} shapes in the .shp but {declared} records in {}",
+                "{} shapes in the .shp but {declared} records in {}{}",
                 shapes.len(),
-                dbf_path.display()
+                dbf_path.display(),
+                why(&walk)
             ),
         });
     }
@@ -288,6 +317,85 @@ impl dbase::ReadableRecord for ProjectedRecord {
     }
 }
 
+/// The `.shp`'s records as (byte offset, content bytes), found by walking the record headers
+/// from the end of the 100-byte file header: each header holds its record's number (from 1) and
+/// its content length in 16-bit words. A length that runs past the end of the file, or a record
+/// whose number is not the next one (the previous record's length is then wrong), is named.
+fn walk_records(shp: &[u8]) -> Result<Vec<(usize, usize)>, String> {
+    let be = |at: usize| i32::from_be_bytes([shp[at], shp[at + 1], shp[at + 2], shp[at + 3]]);
+    let mut records: Vec<(usize, usize)> = Vec::new();
+    let mut at = 100usize;
+    while at + 8 <= shp.len() {
+        let (number, words) = (be(at), be(at + 4));
+        let k = records.len();
+        if i64::from(number) != k as i64 + 1 {
+            return Err(match records.last() {
+                Some(&(prev, len)) => format!(
+                    "the record header at byte {at} is numbered {number}, not {}: the length \
+                     of record {} ({len} bytes at byte {prev}) is wrong",
+                    k + 1,
+                    k - 1
+                ),
+                None => format!("the first record header (byte 100) is numbered {number}, not 1"),
+            });
+        }
+        let len = usize::try_from(words).map_err(|_| {
+            format!("record {k} (byte {at}) gives a negative length ({words} words)")
+        })? * 2;
+        if at + 8 + len > shp.len() {
+            return Err(format!(
+                "record {k} (byte {at}) gives a length of {len} bytes, past the end of the \
+                 .shp ({} bytes)",
+                shp.len()
+            ));
+        }
+        records.push((at, len));
+        at += 8 + len;
+    }
+    if at != shp.len() {
+        return Err(format!(
+            "{} stray bytes after record {} at the end of the .shp",
+            shp.len() - at,
+            records.len().saturating_sub(1)
+        ));
+    }
+    Ok(records)
+}
+
+/// Whether the `.shx` index holds exactly the `.shp`'s records (offsets and lengths, in
+/// 16-bit words): the first disagreement, named by record, when not.
+fn index_agrees(shx: &[u8], walk: &Result<Vec<(usize, usize)>, String>) -> Result<(), String> {
+    if shx.len() < 100 || (shx.len() - 100) % 8 != 0 {
+        return Err(format!(
+            "{} bytes, not a 100-byte header and 8 bytes a record",
+            shx.len()
+        ));
+    }
+    // A lie in the .shp's own headers: the index is checked by the shapes it leads to instead.
+    let Ok(records) = walk else {
+        return Ok(());
+    };
+    let n = (shx.len() - 100) / 8;
+    let word = |o: usize| i32::from_be_bytes([shx[o], shx[o + 1], shx[o + 2], shx[o + 3]]);
+    for (i, &(at, len)) in records.iter().enumerate().take(n) {
+        let e = 100 + 8 * i;
+        let (off, bytes) = (i64::from(word(e)) * 2, i64::from(word(e + 4)) * 2);
+        if off != at as i64 || bytes != len as i64 {
+            return Err(format!(
+                "record {i}: the .shx gives offset {off} and length {bytes} bytes, the .shp's \
+                 record is at offset {at} with length {len} bytes"
+            ));
+        }
+    }
+    if n != records.len() {
+        return Err(format!(
+            "the .shx indexes {n} records, the .shp holds {}",
+            records.len()
+        ));
+    }
+    Ok(())
+}
+
 /// Every shape, through the `.shx` index; any error (a bad header, an offset beyond the file,
 /// a record that does not parse) says the index cannot be trusted.
 fn read_shapes_indexed(shp: &[u8], shx: Vec<u8>) -> Result<Vec<Shape>, shapefile::Error> {
@@ -296,7 +404,11 @@ fn read_shapes_indexed(shp: &[u8], shx: Vec<u8>) -> Result<Vec<Shape>, shapefile
 }
 
 /// Every shape, read in sequence from the `.shp`.
-fn read_shapes_in_sequence(path: &Path, shp: Vec<u8>) -> Result<Vec<Shape>, ImportError> {
+fn read_shapes_in_sequence(
+    path: &Path,
+    shp: Vec<u8>,
+    walk_problem: Option<&str>,
+) -> Result<Vec<Shape>, ImportError> {
     let mut reader =
         ShapeReader::new(Cursor::new(shp)).map_err(|source| ImportError::Shapefile {
             file: path.to_path_buf(),
@@ -307,7 +419,10 @@ fn read_shapes_in_sequence(path: &Path, shp: Vec<u8>) -> Result<Vec<Shape>, Impo
     for (i, s) in reader.iter_shapes().enumerate() {
         shapes.push(s.map_err(|source| ImportError::Shapefile {
             file: path.to_path_buf(),
-            what: format!("record {i} cannot be read (truncated or corrupt file)"),
+            what: match walk_problem {
+                Some(w) => format!("record {i} cannot be read (truncated or corrupt file; {w})"),
+                None => format!("record {i} cannot be read (truncated or corrupt file)"),
+            },
             source,
         })?);
     }

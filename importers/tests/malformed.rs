@@ -107,6 +107,71 @@ fn shp_damaged_shx_is_handled_like_a_missing_one() {
     assert_eq!(l.features.len(), reference.features.len());
 }
 
+#[test]
+fn shx_and_record_length_lies_are_named_by_record() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = copy_shp("bubenec/streets", dir.path());
+    let reference = shp::read(&p).unwrap();
+    let n = reference.features.len();
+    let good_shx = std::fs::read(data("bubenec/streets.shx")).unwrap();
+    let good_shp = std::fs::read(data("bubenec/streets.shp")).unwrap();
+    let be = |b: &[u8], at: usize| i32::from_be_bytes([b[at], b[at + 1], b[at + 2], b[at + 3]]);
+    // Record 5's index entry points at record 6: read through the index, record 6 would be read
+    // twice. The note names the record and both offsets; the features are the file's.
+    let mut shx = good_shx.clone();
+    let six: Vec<u8> = shx[100 + 8 * 6..100 + 8 * 7].to_vec();
+    shx[100 + 8 * 5..100 + 8 * 6].copy_from_slice(&six);
+    std::fs::write(dir.path().join("l.shx"), &shx).unwrap();
+    let l = shp::read(&p).unwrap();
+    let geoms = |l: &blockwalk_importers::Layer| -> Vec<_> {
+        l.features
+            .iter()
+            .map(|f| (f.fid, f.geometry.clone()))
+            .collect()
+    };
+    assert_eq!(geoms(&l), geoms(&reference));
+    let note = l.report.notes.join("\n");
+    let at5 = 2 * be(&good_shx, 100 + 8 * 5);
+    let at6 = 2 * be(&good_shx, 100 + 8 * 6);
+    assert!(note.contains("record 5: the .shx gives offset"), "{note}");
+    assert!(
+        note.contains(&format!("offset {at6}")) && note.contains(&format!("offset {at5}")),
+        "{note}"
+    );
+    // An index one record short (its header still consistent): not a count mismatch, but the
+    // index named as short; the records come from the .shp.
+    let mut shx = good_shx[..good_shx.len() - 8].to_vec();
+    let words = (shx.len() / 2) as i32;
+    shx[24..28].copy_from_slice(&words.to_be_bytes());
+    std::fs::write(dir.path().join("l.shx"), &shx).unwrap();
+    let l = shp::read(&p).unwrap();
+    assert_eq!(l.features.len(), n);
+    let note = l.report.notes.join("\n");
+    assert!(
+        note.contains(&format!(
+            "the .shx indexes {} records, the .shp holds {n}",
+            n - 1
+        )),
+        "{note}"
+    );
+    // A record header in the .shp whose length lies (record 3 claims 8 bytes more): with the
+    // index, the index is named; without it, the read error names record 3's length.
+    std::fs::write(dir.path().join("l.shx"), &good_shx).unwrap();
+    let mut shp_bytes = good_shp.clone();
+    let at3 = 2 * be(&good_shx, 100 + 8 * 3) as usize;
+    let words3 = be(&shp_bytes, at3 + 4);
+    shp_bytes[at3 + 4..at3 + 8].copy_from_slice(&(words3 + 4).to_be_bytes());
+    std::fs::write(dir.path().join("l.shp"), &shp_bytes).unwrap();
+    std::fs::remove_file(dir.path().join("l.shx")).unwrap();
+    // Read or refused, the lie is named.
+    let text = match shp::read(&p) {
+        Ok(l) => l.report.notes.join("\n"),
+        Err(e) => e.to_string(),
+    };
+    assert!(text.contains("the length of record 3"), "{text}");
+    assert!(!text.starts_with("shapes in"), "{text}");
+}
+
 /// Offset of record `i`'s first field in a DBF (after the deletion flag).
 fn dbf_record(bytes: &[u8], i: usize) -> usize {
     let header = u16::from_le_bytes([bytes[8], bytes[9]]) as usize;
