@@ -168,6 +168,23 @@ fn empty_street_layer_gives_only_outskirts() {
 
 #[test]
 fn bad_options_are_errors() {
+    for snap in [5.01, 1e9] {
+        let opts = BlockOptions {
+            snap_tolerance: snap,
+            ..BlockOptions::default()
+        };
+        let e = detect_geometry(BlockSource::Streets, &[], &[], &[], &opts).unwrap_err();
+        assert!(
+            matches!(e, BlockError::BadOption { name: "snap_tolerance", value, .. } if value == snap),
+            "{e:?}"
+        );
+        assert!(e.to_string().contains("5 m"), "{e}");
+    }
+    let at_bound = BlockOptions {
+        snap_tolerance: blockwalk::blocks::noding::MAX_SNAP_TOLERANCE,
+        ..BlockOptions::default()
+    };
+    assert!(detect_geometry(BlockSource::Streets, &[], &[], &[], &at_bound).is_ok());
     let opts = BlockOptions {
         snap_tolerance: f64::NAN,
         ..BlockOptions::default()

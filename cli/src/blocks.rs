@@ -37,7 +37,8 @@ pub struct Args {
     #[arg(long, value_enum)]
     pub source: Option<SourceArg>,
     /// Snap tolerance, metres.
-    #[arg(long, default_value_t = blockwalk::blocks::noding::DEFAULT_SNAP_TOLERANCE)]
+    #[arg(long, default_value_t = blockwalk::blocks::noding::DEFAULT_SNAP_TOLERANCE,
+          value_parser = snap_tolerance)]
     pub snap: f64,
     /// Bridges and tunnels (a `bridge` or `tunnel` attribute) do not bound blocks. By default
     /// every street line bounds blocks, as in a plain polygonize of the lines (momepy, shapely), so
@@ -116,4 +117,13 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         );
     }
     Ok(())
+}
+
+fn snap_tolerance(s: &str) -> Result<f64, String> {
+    super::common::f64_in(
+        s,
+        0.0,
+        blockwalk::blocks::noding::MAX_SNAP_TOLERANCE,
+        "metres; larger tolerances merge street corners and collapse blocks",
+    )
 }

@@ -22,6 +22,29 @@ pub fn choice<T: Choice + Send + Sync>() -> impl clap::builder::TypedValueParser
     .map(|s| T::from_name(&s).expect("clap accepted one of the listed names"))
 }
 
+/// A whole number of at least 1 (a count where 0 would do nothing, or mean something unsaid).
+pub fn at_least_one(s: &str) -> Result<usize, String> {
+    match s.parse::<usize>() {
+        Ok(0) => Err("0 is not allowed: expected a whole number of at least 1".into()),
+        Ok(n) => Ok(n),
+        Err(e) => Err(format!("{e}: expected a whole number of at least 1")),
+    }
+}
+
+/// A number in the closed range `lo..=hi` (`what` names the bound in the message).
+pub fn f64_in(s: &str, lo: f64, hi: f64, what: &str) -> Result<f64, String> {
+    let v: f64 = s
+        .parse()
+        .map_err(|e| format!("{e}: expected a number from {lo} to {hi}"))?;
+    if v.is_finite() && (lo..=hi).contains(&v) {
+        Ok(v)
+    } else {
+        Err(format!(
+            "{v} is out of range: expected {lo} to {hi} ({what})"
+        ))
+    }
+}
+
 /// A city on the command line: footprints, optional streets and parcels, or a generated city's
 /// directory.
 #[derive(clap::Args, Debug, Clone)]

@@ -19,6 +19,11 @@ use std::collections::HashMap;
 /// [`crate::geom::tolerance::STREET_SNAP_M`] (5 cm), where its reason is given.
 pub const DEFAULT_SNAP_TOLERANCE: f64 = STREET_SNAP_M;
 
+/// Largest snap tolerance accepted, in the lines' units (metres for a city): 5 m. Snapping
+/// merges every pair of points closer than the tolerance, so beyond a few metres it closes
+/// streets and collapses small blocks (at 1 km a whole district is one node and no block is left).
+pub const MAX_SNAP_TOLERANCE: f64 = 5.0;
+
 /// A planar straight-line graph: nodes and undirected edges between distinct nodes, with no two
 /// edges crossing or overlapping (up to the snap tolerance).
 #[derive(Clone, Debug, Default)]

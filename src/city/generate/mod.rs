@@ -123,6 +123,9 @@ pub enum GenerateError {
         /// The value given.
         value: f64,
     },
+    /// No buildings asked for.
+    #[error("invalid parameter buildings = 0: a generated city needs at least 1 building")]
+    NoBuildings,
     /// Blocks are too small for two rows of parcels.
     #[error("invalid parameter block_m: blocks must be at least {min_m} m on a side, got {lo} m")]
     BlocksTooSmall {
@@ -155,9 +158,12 @@ impl GenerateParams {
     /// Checks the ranges and the storey height.
     ///
     /// # Errors
-    /// [`GenerateError::BadRange`], [`GenerateError::BadStoreyHeight`] or
-    /// [`GenerateError::BlocksTooSmall`].
+    /// [`GenerateError::NoBuildings`], [`GenerateError::BadRange`],
+    /// [`GenerateError::BadStoreyHeight`] or [`GenerateError::BlocksTooSmall`].
     pub fn validate(&self) -> Result<(), GenerateError> {
+        if self.buildings == 0 {
+            return Err(GenerateError::NoBuildings);
+        }
         for (name, (lo, hi)) in [
             ("block_m", self.block_m),
             ("street_m", self.street_m),
@@ -242,6 +248,17 @@ pub fn generate_city(p: &GenerateParams) -> Result<GeneratedCity, GenerateError>
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn zero_buildings_is_refused() {
+        let p = GenerateParams {
+            buildings: 0,
+            ..GenerateParams::default()
+        };
+        let e = generate_city(&p).err().expect("refused");
+        assert!(matches!(e, GenerateError::NoBuildings), "{e:?}");
+        assert!(e.to_string().contains("at least 1"), "{e}");
+    }
     use crate::geom::predicates::polygon_area;
     use crate::geom::repair::check_polygon;
 
