@@ -130,7 +130,26 @@ pub fn read_with(path: &Path, columns: &Columns) -> Result<Layer, ImportError> {
         ));
     }
     // Attributes: a record that cannot be read costs its feature, not the layer.
-    let (declared, records) = attributes?;
+    let (declared, records, blanked) = attributes?;
+    if !blanked.is_empty() {
+        let examples: Vec<String> = blanked
+            .iter()
+            .take(crate::report::GROUP_EXAMPLES)
+            .map(|(i, name, raw)| format!("record {i} {name} = {raw:?}"))
+            .collect();
+        report.notes.push(format!(
+            "{}: {} value(s) of numeric fields are not numbers and were read as empty (a height \
+             read so falls back to the default height): {}{}",
+            dbf_path.display(),
+            blanked.len(),
+            examples.join(", "),
+            if blanked.len() > examples.len() {
+                ", …"
+            } else {
+                ""
+            }
+        ));
+    }
     let why = |walk: &Result<Vec<(usize, usize)>, String>| match walk {
         Err(e) => format!(" ({e})"),
         Ok(r) if r.len() != shapes.len() => {
@@ -217,14 +236,23 @@ pub fn read_with(path: &Path, columns: &Columns) -> Result<Layer, ImportError> {
 
 /// Every record of the `.dbf` as attributes (the `columns` asked for), with the number of
 /// records its header declares.
+#[allow(clippy::type_complexity)]
 fn read_dbf(
     dbf_path: &Path,
     columns: &Columns,
-) -> Result<(usize, Vec<Result<Attributes, dbase::Error>>), ImportError> {
-    let dbf_bytes = std::fs::read(dbf_path).map_err(|source| ImportError::Io {
+) -> Result<
+    (
+        usize,
+        Vec<Result<Attributes, dbase::Error>>,
+        Vec<(usize, String, String)>,
+    ),
+    ImportError,
+> {
+    let mut dbf_bytes = std::fs::read(dbf_path).map_err(|source| ImportError::Io {
         file: dbf_path.to_path_buf(),
         source,
     })?;
+    let blanked = blank_bad_numbers(&mut dbf_bytes, columns);
     let decimals = dbf_decimals(&dbf_bytes);
     let mut dbf =
         dbase::Reader::new(Cursor::new(dbf_bytes)).map_err(|source| ImportError::Dbase {
@@ -267,7 +295,60 @@ fn read_dbf(
         records.push(r.map(|r| r.0));
     }
     PLAN.set(previous);
-    Ok((declared, records))
+    Ok((declared, records, blanked))
+}
+
+/// Blanks (with spaces, which read as empty) every value of a numeric field (`N` or `F`, among
+/// the `columns` asked for) that is not a number (all `*`, the usual null, is left as it is), so that one bad value costs that value and not its record; returns
+/// (record, field, text) for each. A table whose header cannot be walked is left as it is (the
+/// dBase reader then says what is wrong).
+fn blank_bad_numbers(bytes: &mut [u8], columns: &Columns) -> Vec<(usize, String, String)> {
+    let mut out = Vec::new();
+    if bytes.len() < 32 {
+        return out;
+    }
+    let n_records = u32::from_le_bytes([bytes[4], bytes[5], bytes[6], bytes[7]]) as usize;
+    let header = u16::from_le_bytes([bytes[8], bytes[9]]) as usize;
+    let record = u16::from_le_bytes([bytes[10], bytes[11]]) as usize;
+    // (name, type, offset in the record after the deletion flag, length)
+    let mut fields: Vec<(String, u8, usize, usize)> = Vec::new();
+    let (mut off, mut at) = (32, 0usize);
+    while off + 32 <= bytes.len() && off + 32 <= header && bytes[off] != 0x0D {
+        let name_bytes = &bytes[off..off + 11];
+        let end = name_bytes.iter().position(|&b| b == 0).unwrap_or(11);
+        let name = String::from_utf8_lossy(&name_bytes[..end])
+            .trim()
+            .to_string();
+        let len = bytes[off + 16] as usize;
+        fields.push((name, bytes[off + 11], at, len));
+        at += len;
+        off += 32;
+    }
+    if record == 0 || at + 1 > record {
+        return out;
+    }
+    for i in 0..n_records {
+        let start = header + i * record + 1;
+        if start + at > bytes.len() {
+            break;
+        }
+        for (name, kind, f_at, len) in &fields {
+            if !matches!(kind, b'N' | b'F' | b'n' | b'f') || !columns.wants(name) {
+                continue;
+            }
+            let cell = &mut bytes[start + f_at..start + f_at + len];
+            let text = String::from_utf8_lossy(cell).trim().to_string();
+            if text.is_empty()
+                || text.bytes().all(|b| b == b'*')
+                || text.parse::<f64>().is_ok_and(f64::is_finite)
+            {
+                continue;
+            }
+            out.push((i, name.clone(), text));
+            cell.fill(b' ');
+        }
+    }
+    out
 }
 
 /// How the fields of the table being read are turned into attributes: per field (in the
@@ -323,6 +404,12 @@ impl dbase::ReadableRecord for ProjectedRecord {
 /// whose number is not the next one (the previous record's length is then wrong), is named.
 fn walk_records(shp: &[u8]) -> Result<Vec<(usize, usize)>, String> {
     let be = |at: usize| i32::from_be_bytes([shp[at], shp[at + 1], shp[at + 2], shp[at + 3]]);
+    if shp.len() < 100 {
+        return Err(format!(
+            "{} bytes, shorter than the 100-byte header",
+            shp.len()
+        ));
+    }
     let mut records: Vec<(usize, usize)> = Vec::new();
     let mut at = 100usize;
     while at + 8 <= shp.len() {

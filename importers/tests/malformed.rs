@@ -180,7 +180,7 @@ fn dbf_record(bytes: &[u8], i: usize) -> usize {
 }
 
 #[test]
-fn dbf_bad_value_costs_one_feature_not_the_layer() {
+fn dbf_bad_number_costs_that_value_not_the_feature() {
     let dir = tempfile::tempdir().unwrap();
     let p = copy_shp("bubenec/streets", dir.path());
     let mut dbf = std::fs::read(dir.path().join("l.dbf")).unwrap();
@@ -188,15 +188,51 @@ fn dbf_bad_value_costs_one_feature_not_the_layer() {
     dbf[at..at + 11].copy_from_slice(b"   12x4#!  ");
     std::fs::write(dir.path().join("l.dbf"), &dbf).unwrap();
     let l = shp::read(&p).unwrap();
-    assert_eq!(l.features.len(), 34);
-    assert_eq!(l.report.refused.len(), 1);
-    assert_eq!(l.report.refused[0].fid, 3);
+    assert_eq!(l.features.len(), 35, "{:?}", l.report.refused);
+    assert!(l.report.refused.is_empty());
+    let f3 = l.features.iter().find(|f| f.fid == 3).unwrap();
     assert!(
-        l.report.refused[0].reason.contains("l.dbf"),
-        "{}",
-        l.report.refused[0].reason
+        f3.attributes
+            .get("FID")
+            .is_none_or(|v| matches!(v, AttrValue::Null)),
+        "{:?}",
+        f3.attributes
     );
-    assert_eq!(l.report.refused_by_reason[0].count, 1);
+    let note = l.report.notes.join("\n");
+    assert!(note.contains("l.dbf: 1 value(s)"), "{note}");
+    assert!(note.contains("record 3 FID = \"12x4#!\""), "{note}");
+}
+
+#[test]
+fn an_unparsable_height_is_read_as_empty_with_the_feature_named() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = copy_shp("helsinki/buildings", dir.path());
+    let reference = shp::read(&p).unwrap();
+    let mut dbf = std::fs::read(dir.path().join("l.dbf")).unwrap();
+    // osm_id N18, osm_type C80, building C80, name C80, then height N24.
+    let at = dbf_record(&dbf, 7) + 18 + 80 + 80 + 80;
+    dbf[at..at + 24].copy_from_slice(b"            twelve metre");
+    std::fs::write(dir.path().join("l.dbf"), &dbf).unwrap();
+    let l = shp::read(&p).unwrap();
+    assert_eq!(l.features.len(), reference.features.len());
+    assert!(l.report.refused.is_empty(), "{:?}", l.report.refused);
+    let f7 = l.features.iter().find(|f| f.fid == 7).unwrap();
+    assert!(
+        f7.attributes
+            .get("height")
+            .is_none_or(|v| matches!(v, AttrValue::Null)),
+        "{:?}",
+        f7.attributes
+    );
+    // The other attributes of the feature are kept.
+    let r7 = reference.features.iter().find(|f| f.fid == 7).unwrap();
+    assert_eq!(f7.attributes.get("osm_id"), r7.attributes.get("osm_id"));
+    let note = l.report.notes.join("\n");
+    assert!(
+        note.contains("record 7 height = \"twelve metre\""),
+        "{note}"
+    );
+    assert!(note.contains("default height"), "{note}");
 }
 
 #[test]
@@ -647,19 +683,27 @@ fn shp_column_projection_skips_other_columns() {
     let start = header_len + 1 + off;
     bytes[start..start + len].fill(b'x');
     std::fs::write(&dbf, bytes).unwrap();
+    // The bad value costs that value (read as empty, with a note naming the record), not the
+    // feature; in a column not asked for it is not even looked at.
     let bad_all = shp::read(&shp_path).unwrap();
-    assert_eq!(bad_all.report.refused.len(), 1);
-    assert_eq!(bad_all.report.refused[0].fid, 0);
     assert!(
-        bad_all.report.refused[0]
-            .reason
-            .contains("attribute record cannot be read"),
+        bad_all.report.refused.is_empty(),
         "{:?}",
         bad_all.report.refused
     );
+    assert_eq!(bad_all.features.len(), full.features.len());
+    let names_it = |l: &blockwalk_importers::Layer| {
+        l.report
+            .notes
+            .iter()
+            .any(|n| n.contains("record 0 levels = \"xxxx"))
+    };
+    assert!(names_it(&bad_all), "{:?}", bad_all.report.notes);
     let skipped = shp::read_with(&shp_path, &Columns::only(["height"])).unwrap();
     assert!(skipped.report.refused.is_empty());
+    assert!(!names_it(&skipped), "{:?}", skipped.report.notes);
     assert_eq!(skipped.features.len(), full.features.len());
     let asked = shp::read_with(&shp_path, &Columns::only(["levels"])).unwrap();
-    assert_eq!(asked.report.refused, bad_all.report.refused);
+    assert!(asked.report.refused.is_empty());
+    assert!(names_it(&asked), "{:?}", asked.report.notes);
 }
