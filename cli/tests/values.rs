@@ -91,3 +91,60 @@ fn values_in_range_pass_the_parser() {
         assert!(err.contains("no-such-city"), "{args:?}: {err}");
     }
 }
+
+fn run(args: &[&std::ffi::OsStr]) -> (std::process::ExitStatus, String) {
+    let o = std::process::Command::new(env!("CARGO_BIN_EXE_blockwalk"))
+        .args(args)
+        .output()
+        .expect("run blockwalk");
+    (o.status, String::from_utf8_lossy(&o.stderr).into_owned())
+}
+
+#[test]
+fn demo_astana_on_another_citys_folder_is_refused_naming_the_count() {
+    let dir = tempfile::tempdir().unwrap();
+    let data = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../data/helsinki");
+    for ext in ["shp", "shx", "dbf", "prj"] {
+        std::fs::copy(
+            data.join(format!("buildings.{ext}")),
+            dir.path().join(format!("buildings.{ext}")),
+        )
+        .unwrap();
+        std::fs::copy(
+            data.join(format!("streets_blockclass.{ext}")),
+            dir.path().join(format!("streets_blockclass.{ext}")),
+        )
+        .unwrap();
+    }
+    let out = dir.path().join("out");
+    let (status, err) = run(&[
+        "demo".as_ref(),
+        "--astana".as_ref(),
+        dir.path().as_os_str(),
+        "--out".as_ref(),
+        out.as_os_str(),
+    ]);
+    assert!(!status.success(), "{err}");
+    assert!(err.contains("not Astana's 32056"), "{err}");
+    assert!(err.contains("buildings.shp"), "{err}");
+    assert!(!out.join("astana.glb").exists());
+}
+
+#[test]
+fn jobs_plan_on_a_missing_folder_says_it_does_not_exist() {
+    let dir = tempfile::tempdir().unwrap();
+    let gone = dir.path().join("no-such-city");
+    let (status, err) = run(&[
+        "jobs".as_ref(),
+        "plan".as_ref(),
+        gone.as_os_str(),
+        "-o".as_ref(),
+        dir.path().join("plan").as_os_str(),
+    ]);
+    assert!(!status.success(), "{err}");
+    assert!(
+        err.contains("no-such-city: no such file or folder"),
+        "{err}"
+    );
+    assert!(!err.contains("give a .shp"), "{err}");
+}
