@@ -57,6 +57,19 @@ pub fn read(path: &Path) -> Result<Layer, ImportError> {
 /// # Errors
 /// As [`read`].
 pub fn read_with(path: &Path, columns: &Columns) -> Result<Layer, ImportError> {
+    read_with_stated_crs(path, columns, None)
+}
+
+/// [`read_with`], with the CRS `stated` by the caller in place of the `.prj` (which is then not
+/// read, so a `.prj` that cannot be understood does not stop the import; a note says so).
+///
+/// # Errors
+/// As [`read`], except [`ImportError::Crs`] when a CRS is stated.
+pub fn read_with_stated_crs(
+    path: &Path,
+    columns: &Columns,
+    stated: Option<&Crs>,
+) -> Result<Layer, ImportError> {
     let io = |file: &Path| {
         let file = file.to_path_buf();
         move |source| ImportError::Io { file, source }
@@ -181,7 +194,20 @@ pub fn read_with(path: &Path, columns: &Columns) -> Result<Layer, ImportError> {
     }
 
     // CRS.
-    let crs = read_prj(path, &mut report)?;
+    let crs = match stated {
+        Some(crs) => {
+            report.notes.push(format!(
+                "CRS stated: {}{}",
+                crs.describe(),
+                match companion(path, "prj") {
+                    Some(prj) => format!(" ({} not read)", prj.display()),
+                    None => String::new(),
+                }
+            ));
+            crs.clone()
+        }
+        None => read_prj(path, &mut report)?,
+    };
 
     // Shapes to geometry in parallel; refusals and notes in record order.
     let converted: Vec<(Result<Geometry, String>, Option<String>)> = shapes

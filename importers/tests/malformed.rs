@@ -271,6 +271,20 @@ fn prj_garbage_is_a_crs_error_not_metres() {
         "{e:?}"
     );
     assert!(e.to_string().contains("l.prj"), "{e}");
+    assert!(e.to_string().contains("--crs EPSG:XXXX"), "{e}");
+    // A stated CRS replaces the .prj, which is then not read: the garbage stops nothing.
+    let utm = Crs::from_epsg(32633).unwrap();
+    let l = shp::read_with_stated_crs(&p, &blockwalk_importers::Columns::All, Some(&utm)).unwrap();
+    assert_eq!(l.crs, utm);
+    assert_eq!(l.features.len(), 35);
+    assert!(
+        l.report
+            .notes
+            .iter()
+            .any(|n| n.contains("CRS stated") && n.contains("l.prj not read")),
+        "{:?}",
+        l.report.notes
+    );
 }
 
 #[test]
@@ -315,6 +329,7 @@ fn prj_in_feet_is_refused() {
         ),
         "{e:?}"
     );
+    assert!(e.to_string().contains("--crs EPSG:XXXX"), "{e}");
 }
 
 #[test]
