@@ -124,9 +124,16 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 "details".into(),
                 serde_json::json!(path.display().to_string()),
             );
+            o.insert(
+                "import".into(),
+                super::common::city_report_json(&scene.city),
+            );
         }
         outln!("{}", serde_json::to_string(&short)?);
     } else {
+        for line in super::common::city_report_lines(&scene.city) {
+            outln!("{line}");
+        }
         print_summary(&summary, &path)?;
     }
     Ok(())
