@@ -115,7 +115,7 @@ const ASTANA_BUILDINGS: u64 = 32_056;
 /// Records in a Shapefile, from its `.shx` index (100-byte header, 8 bytes a record).
 fn shx_records(shp: &Path) -> Option<u64> {
     let len = std::fs::metadata(shp.with_extension("shx")).ok()?.len();
-    (len >= 100 && (len - 100) % 8 == 0).then_some((len - 100) / 8)
+    (len >= 100 && (len - 100).is_multiple_of(8)).then_some((len - 100) / 8)
 }
 
 /// `d` holds Astana's layers and its footprint count: another city's folder is refused rather

@@ -478,7 +478,7 @@ fn walk_records(shp: &[u8]) -> Result<Vec<(usize, usize)>, String> {
 /// Whether the `.shx` index holds exactly the `.shp`'s records (offsets and lengths, in
 /// 16-bit words): the first disagreement, named by record, when not.
 fn index_agrees(shx: &[u8], walk: &Result<Vec<(usize, usize)>, String>) -> Result<(), String> {
-    if shx.len() < 100 || (shx.len() - 100) % 8 != 0 {
+    if shx.len() < 100 || !(shx.len() - 100).is_multiple_of(8) {
         return Err(format!(
             "{} bytes, not a 100-byte header and 8 bytes a record",
             shx.len()
