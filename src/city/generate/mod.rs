@@ -255,7 +255,9 @@ mod tests {
             buildings: 0,
             ..GenerateParams::default()
         };
-        let e = generate_city(&p).err().expect("refused");
+        let Err(e) = generate_city(&p) else {
+            panic!("0 buildings must be refused")
+        };
         assert!(matches!(e, GenerateError::NoBuildings), "{e:?}");
         assert!(e.to_string().contains("at least 1"), "{e}");
     }
