@@ -35,6 +35,19 @@ fn bench(c: &mut Criterion) {
     );
     let mut g = c.benchmark_group("blocks");
     g.sample_size(10);
+    // Lines through one point: every pair crosses there, the worst case for the split lists.
+    let star: Vec<LineString<f64>> = (0..10_000)
+        .map(|k| {
+            let a = std::f64::consts::PI * (k as f64 + 0.5) / 10_000.0;
+            LineString::from(vec![
+                (-1000.0 * a.cos(), -1000.0 * a.sin()),
+                (1000.0 * a.cos(), 1000.0 * a.sin()),
+            ])
+        })
+        .collect();
+    g.bench_function("noding_10k_lines_through_one_point", |b| {
+        b.iter(|| node_lines(black_box(&star), DEFAULT_SNAP_TOLERANCE))
+    });
     g.bench_function("streets_80k_buildings", |b| {
         b.iter(|| {
             detect_geometry(

@@ -168,6 +168,23 @@ fn empty_street_layer_gives_only_outskirts() {
 
 #[test]
 fn bad_options_are_errors() {
+    for snap in [5.01, 1e9] {
+        let opts = BlockOptions {
+            snap_tolerance: snap,
+            ..BlockOptions::default()
+        };
+        let e = detect_geometry(BlockSource::Streets, &[], &[], &[], &opts).unwrap_err();
+        assert!(
+            matches!(e, BlockError::BadOption { name: "snap_tolerance", value, .. } if value == snap),
+            "{e:?}"
+        );
+        assert!(e.to_string().contains("5 m"), "{e}");
+    }
+    let at_bound = BlockOptions {
+        snap_tolerance: blockwalk::blocks::noding::MAX_SNAP_TOLERANCE,
+        ..BlockOptions::default()
+    };
+    assert!(detect_geometry(BlockSource::Streets, &[], &[], &[], &at_bound).is_ok());
     let opts = BlockOptions {
         snap_tolerance: f64::NAN,
         ..BlockOptions::default()
@@ -313,4 +330,42 @@ fn generated_city_faces_are_its_blocks() {
     assert_eq!(with, g.blocks);
     assert_eq!(outskirts, 0);
     assert!(once_each(&l, fps.len()));
+}
+
+/// `n` lines through the point (3, -2), at angles spread evenly over a half turn.
+fn star(n: usize, radius: f64) -> Vec<LineString<f64>> {
+    (0..n)
+        .map(|k| {
+            let a = std::f64::consts::PI * (k as f64 + 0.5) / n as f64;
+            let (dx, dy) = (radius * a.cos(), radius * a.sin());
+            LineString::from(vec![(3.0 - dx, -2.0 - dy), (3.0 + dx, -2.0 + dy)])
+        })
+        .collect()
+}
+
+#[test]
+fn two_thousand_lines_through_one_point_make_one_centre_node_and_two_edges_each() {
+    use blockwalk::blocks::noding::DEFAULT_SNAP_TOLERANCE;
+    let n = 2000;
+    let g = node_lines(&star(n, 100.0), DEFAULT_SNAP_TOLERANCE);
+    assert_eq!(g.edges.len(), 2 * n, "two edges per line");
+    assert_eq!(g.nodes.len(), 2 * n + 1, "the line ends and one centre");
+    let deg = g.degrees();
+    let centres: Vec<usize> = (0..g.nodes.len()).filter(|&i| deg[i] > 1).collect();
+    assert_eq!(centres.len(), 1, "{centres:?}");
+    let c = g.nodes[centres[0]];
+    assert_eq!(deg[centres[0]] as usize, 2 * n);
+    assert!(
+        (c.x - 3.0).hypot(c.y + 2.0) <= DEFAULT_SNAP_TOLERANCE,
+        "{c:?}"
+    );
+    // Every edge joins the centre to one line end, 100 m away.
+    for e in &g.edges {
+        assert!(e.contains(&(centres[0] as u32)), "{e:?}");
+        let [p, q] = [g.nodes[e[0] as usize], g.nodes[e[1] as usize]];
+        assert!(((p.x - q.x).hypot(p.y - q.y) - 100.0).abs() < 1e-6);
+    }
+    // The same as a brute-force count on a small star: every line meets every other once.
+    let small = node_lines(&star(7, 10.0), DEFAULT_SNAP_TOLERANCE);
+    assert_eq!((small.nodes.len(), small.edges.len()), (15, 14));
 }

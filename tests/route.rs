@@ -199,6 +199,70 @@ fn route_file_errors_name_the_problem() {
 }
 
 #[test]
+fn route_file_numbers_that_are_not_finite_or_out_of_range_are_named_with_their_key() {
+    let file = |second: &str| {
+        format!(
+            "[[keys]]\nposition = [0.0, 0.0, 1.7]\nyaw_deg = 0.0\n\
+             [[keys]]\n{second}\n"
+        )
+    };
+    let cases = [
+        (
+            "position = [nan, 0.0, 1.7]\nyaw_deg = 0.0",
+            "position = [NaN, 0, 1.7]: not a finite number",
+        ),
+        (
+            "position = [inf, 0.0, 1.7]\nyaw_deg = 0.0",
+            "not a finite number",
+        ),
+        (
+            "position = [1e300, 0.0, 1.7]\nyaw_deg = 0.0",
+            "out of range; expected -100000000 to 100000000 m",
+        ),
+        (
+            "position = [-1e300, 0.0, 1.7]\nyaw_deg = 0.0",
+            "out of range",
+        ),
+        (
+            "position = [5.0, 0.0, 1.7]\nlook_at = [nan, 0.0, 0.0]",
+            "look_at = [NaN, 0, 0]: not a finite number",
+        ),
+        (
+            "position = [5.0, 0.0, 1.7]\nyaw_deg = nan",
+            "yaw_deg = NaN: not a finite number",
+        ),
+        (
+            "position = [5.0, 0.0, 1.7]\nyaw_deg = 0.0\ntime = 1e300",
+            "time = 1e300: out of range",
+        ),
+        (
+            "position = [5.0, 0.0, 1.7]\nyaw_deg = 0.0\nspeed = nan",
+            "speed = NaN: not a finite number",
+        ),
+    ];
+    for (second, want) in cases {
+        let e = RouteFile::from_toml(&file(second))
+            .unwrap()
+            .to_route(None)
+            .unwrap_err();
+        assert!(
+            matches!(e, RouteError::BadKey { key: 1, .. }),
+            "{second}: {e:?}"
+        );
+        let text = e.to_string();
+        assert!(text.contains("key frame 1"), "{second}: {text}");
+        assert!(text.contains(want), "{second}: {text}");
+        assert!(
+            !text.contains("neither moves nor turns"),
+            "{second}: {text}"
+        );
+    }
+    // Large but in range is still accepted.
+    let ok = file("position = [1e7, 0.0, 1.7]\nyaw_deg = 0.0");
+    assert!(RouteFile::from_toml(&ok).unwrap().to_route(None).is_ok());
+}
+
+#[test]
 fn route_file_read_errors_name_the_file_and_keep_the_cause() {
     use std::error::Error;
     let dir = tempfile::tempdir().unwrap();

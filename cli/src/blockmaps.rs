@@ -21,7 +21,7 @@ pub struct Args {
     pub levels: Option<u32>,
     /// Maps down to nodes of at most M blocks. Without --levels or --leaf-blocks, maps stop
     /// where a node's meshes take fewer bytes than a map (Cignoni et al., §4).
-    #[arg(long)]
+    #[arg(long, value_parser = super::common::at_least_one)]
     pub leaf_blocks: Option<usize>,
     /// Output directory.
     #[arg(short = 'o', long = "out")]
@@ -31,7 +31,7 @@ pub struct Args {
     pub png: bool,
     /// Maps to check against the oracle's mesh image (one random view each, 160x90, projected
     /// error 1 px), spread evenly over the list.
-    #[arg(long, default_value_t = 8)]
+    #[arg(long, default_value_t = 8, value_parser = super::common::at_least_one)]
     pub check: usize,
     /// Height-map samples per texel side: 1 samples each texel's centre; N > 1 takes N×N samples
     /// and fills a texel when at least --fill-share of them hit a building.
@@ -44,7 +44,7 @@ pub struct Args {
     #[arg(long)]
     pub ao: bool,
     /// How far ambient occlusion looks for occluders, metres.
-    #[arg(long, default_value_t = 30.0)]
+    #[arg(long, default_value_t = 30.0, value_parser = ao_radius)]
     pub ao_radius: f64,
     /// How inner nodes' maps are built: `polygons` (from the source footprints, as every leaf)
     /// or `children` (from their children's maps, max-filtered, with a derived ε that is also
@@ -116,9 +116,16 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 "details".into(),
                 serde_json::json!(path.display().to_string()),
             );
+            o.insert(
+                "import".into(),
+                super::common::city_report_json(&scene.city),
+            );
         }
         outln!("{}", serde_json::to_string(&short)?);
     } else {
+        for line in super::common::city_report_lines(&scene.city) {
+            outln!("{line}");
+        }
         print_summary(&summary, &path)?;
     }
     Ok(())
@@ -214,4 +221,16 @@ fn print_summary(s: &serde_json::Value, path: &std::path::Path) -> anyhow::Resul
         );
     }
     Ok(())
+}
+
+fn ao_radius(s: &str) -> Result<f64, String> {
+    let max = blockwalk::blockmap::build::MAX_AO_RADIUS_M;
+    let v = super::common::f64_in(s, 0.0, max, "metres")?;
+    if v > 0.0 {
+        Ok(v)
+    } else {
+        Err(format!(
+            "{v} is out of range: expected a radius above 0, at most {max} (metres)"
+        ))
+    }
 }

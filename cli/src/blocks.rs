@@ -37,7 +37,8 @@ pub struct Args {
     #[arg(long, value_enum)]
     pub source: Option<SourceArg>,
     /// Snap tolerance, metres.
-    #[arg(long, default_value_t = blockwalk::blocks::noding::DEFAULT_SNAP_TOLERANCE)]
+    #[arg(long, default_value_t = blockwalk::blocks::noding::DEFAULT_SNAP_TOLERANCE,
+          value_parser = snap_tolerance)]
     pub snap: f64,
     /// Bridges and tunnels (a `bridge` or `tunnel` attribute) do not bound blocks. By default
     /// every street line bounds blocks, as in a plain polygonize of the lines (momepy, shapely), so
@@ -89,6 +90,23 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         write_map(p, &layout, &footprints, 1600)?;
     }
     let s = summary(&layout, &city.transform);
+    // A layer given but unusable: the blocks come from the next source, said aloud.
+    let r = &city.report;
+    let fallback = match layout.source {
+        BlockSource::Streets => None,
+        BlockSource::Parcels => r.street_layer_unusable.as_ref().map(|why| {
+            format!("blocks from parcels, not streets: the street layer is unusable ({why})")
+        }),
+        BlockSource::Footprints => match (&r.street_layer_unusable, &r.parcel_layer_unusable) {
+            (_, Some(why)) => Some(format!(
+                "blocks from footprints, not parcels: the parcel layer is unusable ({why})"
+            )),
+            (Some(why), None) => Some(format!(
+                "blocks from footprints, not streets: the street layer is unusable ({why})"
+            )),
+            (None, None) => None,
+        },
+    };
     if args.json {
         let mut v = serde_json::to_value(&s)?;
         v["ms"] = serde_json::json!(ms);
@@ -96,10 +114,15 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         v["buildings"] = serde_json::json!(city.buildings.len());
         v["crs"] = serde_json::json!(city.transform.describe());
         v["street_layer_unusable"] = serde_json::json!(city.report.street_layer_unusable);
+        v["fallback"] = serde_json::json!(fallback);
+        v["import"] = super::common::city_report_json(&city);
         outln!("{}", serde_json::to_string(&v)?);
     } else {
-        if let Some(why) = &city.report.street_layer_unusable {
-            outln!("street layer unusable, blocks do not come from it: {why}");
+        for line in super::common::city_report_lines(&city) {
+            outln!("{line}");
+        }
+        if let Some(f) = &fallback {
+            outln!("{f}");
         }
         outln!(
             "{}: {} blocks from {:?} ({:.0} m², {:.1} in the input's units), {} outskirts groups",
@@ -116,4 +139,13 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         );
     }
     Ok(())
+}
+
+fn snap_tolerance(s: &str) -> Result<f64, String> {
+    super::common::f64_in(
+        s,
+        0.0,
+        blockwalk::blocks::noding::MAX_SNAP_TOLERANCE,
+        "metres; larger tolerances merge street corners and collapse blocks",
+    )
 }

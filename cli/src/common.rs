@@ -22,6 +22,29 @@ pub fn choice<T: Choice + Send + Sync>() -> impl clap::builder::TypedValueParser
     .map(|s| T::from_name(&s).expect("clap accepted one of the listed names"))
 }
 
+/// A whole number of at least 1 (a count where 0 would do nothing, or mean something unsaid).
+pub fn at_least_one(s: &str) -> Result<usize, String> {
+    match s.parse::<usize>() {
+        Ok(0) => Err("0 is not allowed: expected a whole number of at least 1".into()),
+        Ok(n) => Ok(n),
+        Err(e) => Err(format!("{e}: expected a whole number of at least 1")),
+    }
+}
+
+/// A number in the closed range `lo..=hi` (`what` names the bound in the message).
+pub fn f64_in(s: &str, lo: f64, hi: f64, what: &str) -> Result<f64, String> {
+    let v: f64 = s
+        .parse()
+        .map_err(|e| format!("{e}: expected a number from {lo} to {hi}"))?;
+    if v.is_finite() && (lo..=hi).contains(&v) {
+        Ok(v)
+    } else {
+        Err(format!(
+            "{v} is out of range: expected {lo} to {hi} ({what})"
+        ))
+    }
+}
+
 /// A city on the command line: footprints, optional streets and parcels, or a generated city's
 /// directory.
 #[derive(clap::Args, Debug, Clone)]
@@ -238,4 +261,81 @@ impl FarArgs {
             self.hysteresis,
         )?)
     }
+}
+
+/// The import report of a city as `import --json` gives it (counts, refusals with reasons,
+/// warnings and notes), for the commands that read a city.
+pub fn city_report_json(city: &City) -> serde_json::Value {
+    let r = &city.report;
+    serde_json::json!({
+        "crs": r.crs,
+        "buildings_read": r.buildings_read,
+        "buildings_imported": r.buildings_imported,
+        "buildings_repaired": r.buildings_repaired.len(),
+        "buildings_refused": r.buildings_refused,
+        "refused_by_reason": r.refused_by_reason,
+        "implausible_heights": r.implausible_heights.len(),
+        "streets_read": r.streets_read,
+        "streets_refused": r.streets_refused,
+        "parcels_read": r.parcels_read,
+        "parcels_refused": r.parcels_refused,
+        "street_layer_unusable": r.street_layer_unusable,
+        "parcel_layer_unusable": r.parcel_layer_unusable,
+        "warnings": r.notes.iter().filter(|n| n.starts_with("warning:")).collect::<Vec<_>>(),
+        "notes": r.notes,
+    })
+}
+
+/// The import report's lines a command that reads a city prints before its own summary: what
+/// was refused (footprints, street and parcel features, with reasons) and every warning.
+pub fn city_report_lines(city: &City) -> Vec<String> {
+    let r = &city.report;
+    let mut out = Vec::new();
+    if !r.buildings_refused.is_empty() || !r.buildings_repaired.is_empty() {
+        out.push(format!(
+            "footprints: {} read, {} imported, {} repaired, {} refused",
+            r.buildings_read,
+            r.buildings_imported,
+            r.buildings_repaired.len(),
+            r.buildings_refused.len()
+        ));
+        for g in &r.refused_by_reason {
+            out.push(format!(
+                "  refused {} × {} (e.g. {})",
+                g.count,
+                g.reason,
+                g.examples.join(", ")
+            ));
+        }
+    }
+    for (what, read, refused) in [
+        ("street", r.streets_read, &r.streets_refused),
+        ("parcel", r.parcels_read, &r.parcels_refused),
+    ] {
+        if refused.is_empty() {
+            continue;
+        }
+        let groups = blockwalk::importers::group_reasons(
+            refused.iter().map(|n| (n.id.clone(), n.reason.as_str())),
+        );
+        out.push(format!(
+            "{what} features: {read} read, {} refused",
+            refused.len()
+        ));
+        for g in &groups {
+            out.push(format!(
+                "  refused {} × {} (e.g. {})",
+                g.count,
+                g.reason,
+                g.examples.join(", ")
+            ));
+        }
+    }
+    out.extend(
+        r.notes
+            .iter()
+            .filter(|n| n.starts_with("warning:"))
+            .cloned(),
+    );
+    out
 }

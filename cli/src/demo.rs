@@ -109,6 +109,35 @@ fn has_astana(d: &Path) -> bool {
     d.join("buildings.shp").is_file() && d.join("streets_blockclass.shp").is_file()
 }
 
+/// Footprints in the Astana data, as the demo's headings and figures state.
+const ASTANA_BUILDINGS: u64 = 32_056;
+
+/// Records in a Shapefile, from its `.shx` index (100-byte header, 8 bytes a record).
+fn shx_records(shp: &Path) -> Option<u64> {
+    let len = std::fs::metadata(shp.with_extension("shx")).ok()?.len();
+    (len >= 100 && (len - 100).is_multiple_of(8)).then_some((len - 100) / 8)
+}
+
+/// `d` holds Astana's layers and its footprint count: another city's folder is refused rather
+/// than run under Astana's headings.
+fn check_astana(d: &Path) -> anyhow::Result<()> {
+    let fp = d.join("buildings.shp");
+    match shx_records(&fp) {
+        Some(ASTANA_BUILDINGS) => Ok(()),
+        Some(n) => anyhow::bail!(
+            "{}: {n} footprints, not Astana's {ASTANA_BUILDINGS}: this folder is not the Astana \
+             data, and `demo --astana` would run it under Astana's headings and figures; for \
+             another city run the commands of the README's \"Your own city\" on it",
+            fp.display()
+        ),
+        None => anyhow::bail!(
+            "{}: no readable .shx index beside it to count the footprints (Astana has \
+             {ASTANA_BUILDINGS})",
+            fp.display()
+        ),
+    }
+}
+
 /// The Astana folder: `given`, or for `auto` the first `../shared/data/astana` or
 /// `shared/data/astana` from the working directory upwards.
 fn find_astana(given: &Path) -> anyhow::Result<PathBuf> {
@@ -118,6 +147,7 @@ fn find_astana(given: &Path) -> anyhow::Result<PathBuf> {
             "{}: the Astana data is not there (expected buildings.shp and streets_blockclass.shp)",
             given.display()
         );
+        check_astana(given)?;
         return Ok(given.to_path_buf());
     }
     let mut looked = Vec::new();
@@ -126,6 +156,7 @@ fn find_astana(given: &Path) -> anyhow::Result<PathBuf> {
             for rel in ["../shared/data/astana", "shared/data/astana"] {
                 let c = dir.join(rel);
                 if has_astana(&c) {
+                    check_astana(&c)?;
                     return Ok(c);
                 }
                 looked.push(c.display().to_string());

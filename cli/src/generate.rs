@@ -13,7 +13,7 @@ use super::common::spinner;
 #[derive(clap::Args, Debug)]
 pub struct Args {
     /// Number of buildings.
-    #[arg(long, default_value_t = 1000)]
+    #[arg(long, default_value_t = 1000, value_parser = super::common::at_least_one)]
     buildings: usize,
     /// Random seed.
     #[arg(long, default_value_t = 1)]

@@ -75,8 +75,12 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     if args.json {
         let mut v = serde_json::to_value(&summary)?;
         v["total_seconds"] = serde_json::json!(total_s);
+        v["import"] = super::common::city_report_json(&scene.city);
         outln!("{}", serde_json::to_string(&v)?);
     } else {
+        for line in super::common::city_report_lines(&scene.city) {
+            outln!("{line}");
+        }
         outln!(
             "{}: {} tiles ({} BlockMap height fields, {} building leaves), depth {}, {} buildings, {:.2} MiB, built in {:.1} s ({:.1} s with loading)",
             summary.city,

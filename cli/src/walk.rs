@@ -50,7 +50,7 @@ pub struct Args {
     #[arg(long)]
     pub render: bool,
     /// Keep every k-th rendered frame as PNG.
-    #[arg(long, default_value_t = 30)]
+    #[arg(long, default_value_t = 30, value_parser = super::common::at_least_one)]
     pub image_every: usize,
     /// Where the PNG frames go (default: OUT/frames).
     #[arg(long)]

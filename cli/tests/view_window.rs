@@ -140,3 +140,25 @@ fn a_bad_tau_is_refused_before_a_window_opens() {
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(err.contains("tau 0"), "{err}");
 }
+
+#[test]
+fn without_a_display_the_viewer_says_so_in_one_line() {
+    let out = Command::new(env!("CARGO_BIN_EXE_blockwalk"))
+        .args(["view", "synthetic:3x3", "--frames", "1"])
+        .env_remove("DISPLAY")
+        .env_remove("WAYLAND_DISPLAY")
+        .output()
+        .expect("run blockwalk view");
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success(), "{err}");
+    // The key help may come first; the error is one line, said once.
+    let lines: Vec<&str> = err.lines().filter(|l| l.contains("error")).collect();
+    assert_eq!(lines.len(), 1, "one error line: {err}");
+    assert_eq!(err.matches("display").count(), 1, "said once: {err}");
+    assert!(lines[0].contains("no display found"), "{err}");
+    assert!(
+        lines[0].contains("DISPLAY") && lines[0].contains("walk --render"),
+        "{err}"
+    );
+    assert!(!err.contains(".cargo") && !err.contains("winit"), "{err}");
+}

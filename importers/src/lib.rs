@@ -272,7 +272,7 @@ pub enum ImportError {
         source: osmpbf::Error,
     },
     /// The file's CRS (`.prj`, `crs` member, `gpkg_spatial_ref_sys`) is unknown or unusable.
-    #[error("{file}: CRS from {from}: {source}")]
+    #[error("{file}: CRS from {from}: {source}; {}", crs_hint(.source))]
     Crs {
         /// The file.
         file: PathBuf,
@@ -356,9 +356,36 @@ pub fn read_layer_with(
     theme: &Theme,
     columns: &Columns,
 ) -> Result<Layer, ImportError> {
+    read_layer_with_stated_crs(path, theme, columns, None)
+}
+
+/// What a user can do about a CRS that cannot be used.
+fn crs_hint(e: &CrsError) -> &'static str {
+    match e {
+        CrsError::NotMetres { .. } => {
+            "blockwalk works in metres: reproject the file to a metric CRS (e.g. `ogr2ogr -t_srs \
+             EPSG:XXXX out.shp in.shp`); `--crs EPSG:XXXX` overrides the file's CRS only for \
+             coordinates already in that CRS"
+        }
+        _ => "state the CRS instead: `--crs EPSG:XXXX` on the command line overrides the file's",
+    }
+}
+
+/// [`read_layer_with`] with a CRS `stated` by the caller: a Shapefile's `.prj` is then not read
+/// (one that cannot be understood does not stop the import) and the layer is in the stated CRS.
+/// Other formats are read as usual (the caller applies the stated CRS to the layer).
+///
+/// # Errors
+/// As [`read_layer`].
+pub fn read_layer_with_stated_crs(
+    path: &Path,
+    theme: &Theme,
+    columns: &Columns,
+    stated: Option<&Crs>,
+) -> Result<Layer, ImportError> {
     let s = path.to_string_lossy();
     if s.to_ascii_lowercase().ends_with(".shp") {
-        return shp::read_with(path, columns);
+        return shp::read_with_stated_crs(path, columns, stated);
     }
     let mut layer = read_any(path, theme)?;
     if let Columns::Only(_) = columns {

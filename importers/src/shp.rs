@@ -57,6 +57,19 @@ pub fn read(path: &Path) -> Result<Layer, ImportError> {
 /// # Errors
 /// As [`read`].
 pub fn read_with(path: &Path, columns: &Columns) -> Result<Layer, ImportError> {
+    read_with_stated_crs(path, columns, None)
+}
+
+/// [`read_with`], with the CRS `stated` by the caller in place of the `.prj` (which is then not
+/// read, so a `.prj` that cannot be understood does not stop the import; a note says so).
+///
+/// # Errors
+/// As [`read`], except [`ImportError::Crs`] when a CRS is stated.
+pub fn read_with_stated_crs(
+    path: &Path,
+    columns: &Columns,
+    stated: Option<&Crs>,
+) -> Result<Layer, ImportError> {
     let io = |file: &Path| {
         let file = file.to_path_buf();
         move |source| ImportError::Io { file, source }
@@ -80,18 +93,29 @@ pub fn read_with(path: &Path, columns: &Columns) -> Result<Layer, ImportError> {
         None => None,
     };
 
+    // The record headers of the .shp, walked by their lengths, and the index checked against
+    // them: a lie in either is named with its record.
+    let walk = walk_records(&shp_bytes);
+    let walk_problem = walk.as_ref().err().cloned();
     // Geometry (through the index when there is one and it is sound, else in sequence) and
     // attributes, side by side.
     let (shapes, attributes) = rayon::join(
         || -> Result<(Vec<Shape>, Option<String>), ImportError> {
             let indexed = match (&shx_path, shx_bytes) {
-                (Some(shx), Some(bytes)) => match read_shapes_indexed(&shp_bytes, bytes) {
-                    Ok(shapes) => Ok(shapes),
-                    Err(e) => Err(format!(
-                        "{} is damaged ({e}): it was ignored and the records were read in \
-                         sequence from the .shp",
+                (Some(shx), Some(bytes)) => match index_agrees(&bytes, &walk) {
+                    Err(why) => Err(format!(
+                        "{} is damaged, it disagrees with the .shp ({why}): it was ignored and the records were \
+                         read in sequence from the .shp",
                         shx.display()
                     )),
+                    Ok(()) => match read_shapes_indexed(&shp_bytes, bytes) {
+                        Ok(shapes) => Ok(shapes),
+                        Err(e) => Err(format!(
+                            "{} is damaged ({e}): it was ignored and the records were read in \
+                             sequence from the .shp",
+                            shx.display()
+                        )),
+                    },
                 },
                 _ => Err(format!(
                     "no {} index: records were read in sequence from the .shp",
@@ -101,22 +125,59 @@ pub fn read_with(path: &Path, columns: &Columns) -> Result<Layer, ImportError> {
             match indexed {
                 // The shapes own their coordinates: the file's bytes are no longer needed.
                 Ok(s) => Ok((s, None)),
-                Err(note) => Ok((read_shapes_in_sequence(path, shp_bytes)?, Some(note))),
+                Err(note) => Ok((
+                    read_shapes_in_sequence(path, shp_bytes, walk_problem.as_deref())?,
+                    Some(note),
+                )),
             }
         },
         || read_dbf(&dbf_path, columns),
     );
     let (shapes, note) = shapes?;
     report.notes.extend(note);
+    if let Err(problem) = &walk {
+        report.notes.push(format!(
+            "{}: its record headers disagree with its records ({problem}); the records were \
+             read from their content",
+            path.display()
+        ));
+    }
     // Attributes: a record that cannot be read costs its feature, not the layer.
-    let (declared, records) = attributes?;
+    let (declared, records, blanked) = attributes?;
+    if !blanked.is_empty() {
+        let examples: Vec<String> = blanked
+            .iter()
+            .take(crate::report::GROUP_EXAMPLES)
+            .map(|(i, name, raw)| format!("record {i} {name} = {raw:?}"))
+            .collect();
+        report.notes.push(format!(
+            "{}: {} value(s) of numeric fields are not numbers and were read as empty (a height \
+             read so falls back to the default height): {}{}",
+            dbf_path.display(),
+            blanked.len(),
+            examples.join(", "),
+            if blanked.len() > examples.len() {
+                ", …"
+            } else {
+                ""
+            }
+        ));
+    }
+    let why = |walk: &Result<Vec<(usize, usize)>, String>| match walk {
+        Err(e) => format!(" ({e})"),
+        Ok(r) if r.len() != shapes.len() => {
+            format!(" (the .shp's record headers give {} records)", r.len())
+        }
+        Ok(_) => String::new(),
+    };
     if declared != shapes.len() {
         return Err(ImportError::Format {
             file: path.to_path_buf(),
             message: format!(
-                "{} shapes in the .shp but {declared} records in {}",
+                "{} shapes in the .shp but {declared} records in {}{}",
                 shapes.len(),
-                dbf_path.display()
+                dbf_path.display(),
+                why(&walk)
             ),
         });
     }
@@ -133,7 +194,20 @@ pub fn read_with(path: &Path, columns: &Columns) -> Result<Layer, ImportError> {
     }
 
     // CRS.
-    let crs = read_prj(path, &mut report)?;
+    let crs = match stated {
+        Some(crs) => {
+            report.notes.push(format!(
+                "CRS stated: {}{}",
+                crs.describe(),
+                match companion(path, "prj") {
+                    Some(prj) => format!(" ({} not read)", prj.display()),
+                    None => String::new(),
+                }
+            ));
+            crs.clone()
+        }
+        None => read_prj(path, &mut report)?,
+    };
 
     // Shapes to geometry in parallel; refusals and notes in record order.
     let converted: Vec<(Result<Geometry, String>, Option<String>)> = shapes
@@ -188,14 +262,23 @@ pub fn read_with(path: &Path, columns: &Columns) -> Result<Layer, ImportError> {
 
 /// Every record of the `.dbf` as attributes (the `columns` asked for), with the number of
 /// records its header declares.
+#[allow(clippy::type_complexity)]
 fn read_dbf(
     dbf_path: &Path,
     columns: &Columns,
-) -> Result<(usize, Vec<Result<Attributes, dbase::Error>>), ImportError> {
-    let dbf_bytes = std::fs::read(dbf_path).map_err(|source| ImportError::Io {
+) -> Result<
+    (
+        usize,
+        Vec<Result<Attributes, dbase::Error>>,
+        Vec<(usize, String, String)>,
+    ),
+    ImportError,
+> {
+    let mut dbf_bytes = std::fs::read(dbf_path).map_err(|source| ImportError::Io {
         file: dbf_path.to_path_buf(),
         source,
     })?;
+    let blanked = blank_bad_numbers(&mut dbf_bytes, columns);
     let decimals = dbf_decimals(&dbf_bytes);
     let mut dbf =
         dbase::Reader::new(Cursor::new(dbf_bytes)).map_err(|source| ImportError::Dbase {
@@ -238,7 +321,60 @@ fn read_dbf(
         records.push(r.map(|r| r.0));
     }
     PLAN.set(previous);
-    Ok((declared, records))
+    Ok((declared, records, blanked))
+}
+
+/// Blanks (with spaces, which read as empty) every value of a numeric field (`N` or `F`, among
+/// the `columns` asked for) that is not a number (all `*`, the usual null, is left as it is), so that one bad value costs that value and not its record; returns
+/// (record, field, text) for each. A table whose header cannot be walked is left as it is (the
+/// dBase reader then says what is wrong).
+fn blank_bad_numbers(bytes: &mut [u8], columns: &Columns) -> Vec<(usize, String, String)> {
+    let mut out = Vec::new();
+    if bytes.len() < 32 {
+        return out;
+    }
+    let n_records = u32::from_le_bytes([bytes[4], bytes[5], bytes[6], bytes[7]]) as usize;
+    let header = u16::from_le_bytes([bytes[8], bytes[9]]) as usize;
+    let record = u16::from_le_bytes([bytes[10], bytes[11]]) as usize;
+    // (name, type, offset in the record after the deletion flag, length)
+    let mut fields: Vec<(String, u8, usize, usize)> = Vec::new();
+    let (mut off, mut at) = (32, 0usize);
+    while off + 32 <= bytes.len() && off + 32 <= header && bytes[off] != 0x0D {
+        let name_bytes = &bytes[off..off + 11];
+        let end = name_bytes.iter().position(|&b| b == 0).unwrap_or(11);
+        let name = String::from_utf8_lossy(&name_bytes[..end])
+            .trim()
+            .to_string();
+        let len = bytes[off + 16] as usize;
+        fields.push((name, bytes[off + 11], at, len));
+        at += len;
+        off += 32;
+    }
+    if record == 0 || at + 1 > record {
+        return out;
+    }
+    for i in 0..n_records {
+        let start = header + i * record + 1;
+        if start + at > bytes.len() {
+            break;
+        }
+        for (name, kind, f_at, len) in &fields {
+            if !matches!(kind, b'N' | b'F' | b'n' | b'f') || !columns.wants(name) {
+                continue;
+            }
+            let cell = &mut bytes[start + f_at..start + f_at + len];
+            let text = String::from_utf8_lossy(cell).trim().to_string();
+            if text.is_empty()
+                || text.bytes().all(|b| b == b'*')
+                || text.parse::<f64>().is_ok_and(f64::is_finite)
+            {
+                continue;
+            }
+            out.push((i, name.clone(), text));
+            cell.fill(b' ');
+        }
+    }
+    out
 }
 
 /// How the fields of the table being read are turned into attributes: per field (in the
@@ -288,6 +424,91 @@ impl dbase::ReadableRecord for ProjectedRecord {
     }
 }
 
+/// The `.shp`'s records as (byte offset, content bytes), found by walking the record headers
+/// from the end of the 100-byte file header: each header holds its record's number (from 1) and
+/// its content length in 16-bit words. A length that runs past the end of the file, or a record
+/// whose number is not the next one (the previous record's length is then wrong), is named.
+fn walk_records(shp: &[u8]) -> Result<Vec<(usize, usize)>, String> {
+    let be = |at: usize| i32::from_be_bytes([shp[at], shp[at + 1], shp[at + 2], shp[at + 3]]);
+    if shp.len() < 100 {
+        return Err(format!(
+            "{} bytes, shorter than the 100-byte header",
+            shp.len()
+        ));
+    }
+    let mut records: Vec<(usize, usize)> = Vec::new();
+    let mut at = 100usize;
+    while at + 8 <= shp.len() {
+        let (number, words) = (be(at), be(at + 4));
+        let k = records.len();
+        if i64::from(number) != k as i64 + 1 {
+            return Err(match records.last() {
+                Some(&(prev, len)) => format!(
+                    "the record header at byte {at} is numbered {number}, not {}: the length \
+                     of record {} ({len} bytes at byte {prev}) is wrong",
+                    k + 1,
+                    k - 1
+                ),
+                None => format!("the first record header (byte 100) is numbered {number}, not 1"),
+            });
+        }
+        let len = usize::try_from(words).map_err(|_| {
+            format!("record {k} (byte {at}) gives a negative length ({words} words)")
+        })? * 2;
+        if at + 8 + len > shp.len() {
+            return Err(format!(
+                "record {k} (byte {at}) gives a length of {len} bytes, past the end of the \
+                 .shp ({} bytes)",
+                shp.len()
+            ));
+        }
+        records.push((at, len));
+        at += 8 + len;
+    }
+    if at != shp.len() {
+        return Err(format!(
+            "{} stray bytes after record {} at the end of the .shp",
+            shp.len() - at,
+            records.len().saturating_sub(1)
+        ));
+    }
+    Ok(records)
+}
+
+/// Whether the `.shx` index holds exactly the `.shp`'s records (offsets and lengths, in
+/// 16-bit words): the first disagreement, named by record, when not.
+fn index_agrees(shx: &[u8], walk: &Result<Vec<(usize, usize)>, String>) -> Result<(), String> {
+    if shx.len() < 100 || !(shx.len() - 100).is_multiple_of(8) {
+        return Err(format!(
+            "{} bytes, not a 100-byte header and 8 bytes a record",
+            shx.len()
+        ));
+    }
+    // A lie in the .shp's own headers: the index is checked by the shapes it leads to instead.
+    let Ok(records) = walk else {
+        return Ok(());
+    };
+    let n = (shx.len() - 100) / 8;
+    let word = |o: usize| i32::from_be_bytes([shx[o], shx[o + 1], shx[o + 2], shx[o + 3]]);
+    for (i, &(at, len)) in records.iter().enumerate().take(n) {
+        let e = 100 + 8 * i;
+        let (off, bytes) = (i64::from(word(e)) * 2, i64::from(word(e + 4)) * 2);
+        if off != at as i64 || bytes != len as i64 {
+            return Err(format!(
+                "record {i}: the .shx gives offset {off} and length {bytes} bytes, the .shp's \
+                 record is at offset {at} with length {len} bytes"
+            ));
+        }
+    }
+    if n != records.len() {
+        return Err(format!(
+            "the .shx indexes {n} records, the .shp holds {}",
+            records.len()
+        ));
+    }
+    Ok(())
+}
+
 /// Every shape, through the `.shx` index; any error (a bad header, an offset beyond the file,
 /// a record that does not parse) says the index cannot be trusted.
 fn read_shapes_indexed(shp: &[u8], shx: Vec<u8>) -> Result<Vec<Shape>, shapefile::Error> {
@@ -296,7 +517,11 @@ fn read_shapes_indexed(shp: &[u8], shx: Vec<u8>) -> Result<Vec<Shape>, shapefile
 }
 
 /// Every shape, read in sequence from the `.shp`.
-fn read_shapes_in_sequence(path: &Path, shp: Vec<u8>) -> Result<Vec<Shape>, ImportError> {
+fn read_shapes_in_sequence(
+    path: &Path,
+    shp: Vec<u8>,
+    walk_problem: Option<&str>,
+) -> Result<Vec<Shape>, ImportError> {
     let mut reader =
         ShapeReader::new(Cursor::new(shp)).map_err(|source| ImportError::Shapefile {
             file: path.to_path_buf(),
@@ -307,7 +532,10 @@ fn read_shapes_in_sequence(path: &Path, shp: Vec<u8>) -> Result<Vec<Shape>, Impo
     for (i, s) in reader.iter_shapes().enumerate() {
         shapes.push(s.map_err(|source| ImportError::Shapefile {
             file: path.to_path_buf(),
-            what: format!("record {i} cannot be read (truncated or corrupt file)"),
+            what: match walk_problem {
+                Some(w) => format!("record {i} cannot be read (truncated or corrupt file; {w})"),
+                None => format!("record {i} cannot be read (truncated or corrupt file)"),
+            },
             source,
         })?);
     }

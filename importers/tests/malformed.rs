@@ -107,6 +107,71 @@ fn shp_damaged_shx_is_handled_like_a_missing_one() {
     assert_eq!(l.features.len(), reference.features.len());
 }
 
+#[test]
+fn shx_and_record_length_lies_are_named_by_record() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = copy_shp("bubenec/streets", dir.path());
+    let reference = shp::read(&p).unwrap();
+    let n = reference.features.len();
+    let good_shx = std::fs::read(data("bubenec/streets.shx")).unwrap();
+    let good_shp = std::fs::read(data("bubenec/streets.shp")).unwrap();
+    let be = |b: &[u8], at: usize| i32::from_be_bytes([b[at], b[at + 1], b[at + 2], b[at + 3]]);
+    // Record 5's index entry points at record 6: read through the index, record 6 would be read
+    // twice. The note names the record and both offsets; the features are the file's.
+    let mut shx = good_shx.clone();
+    let six: Vec<u8> = shx[100 + 8 * 6..100 + 8 * 7].to_vec();
+    shx[100 + 8 * 5..100 + 8 * 6].copy_from_slice(&six);
+    std::fs::write(dir.path().join("l.shx"), &shx).unwrap();
+    let l = shp::read(&p).unwrap();
+    let geoms = |l: &blockwalk_importers::Layer| -> Vec<_> {
+        l.features
+            .iter()
+            .map(|f| (f.fid, f.geometry.clone()))
+            .collect()
+    };
+    assert_eq!(geoms(&l), geoms(&reference));
+    let note = l.report.notes.join("\n");
+    let at5 = 2 * be(&good_shx, 100 + 8 * 5);
+    let at6 = 2 * be(&good_shx, 100 + 8 * 6);
+    assert!(note.contains("record 5: the .shx gives offset"), "{note}");
+    assert!(
+        note.contains(&format!("offset {at6}")) && note.contains(&format!("offset {at5}")),
+        "{note}"
+    );
+    // An index one record short (its header still consistent): not a count mismatch, but the
+    // index named as short; the records come from the .shp.
+    let mut shx = good_shx[..good_shx.len() - 8].to_vec();
+    let words = (shx.len() / 2) as i32;
+    shx[24..28].copy_from_slice(&words.to_be_bytes());
+    std::fs::write(dir.path().join("l.shx"), &shx).unwrap();
+    let l = shp::read(&p).unwrap();
+    assert_eq!(l.features.len(), n);
+    let note = l.report.notes.join("\n");
+    assert!(
+        note.contains(&format!(
+            "the .shx indexes {} records, the .shp holds {n}",
+            n - 1
+        )),
+        "{note}"
+    );
+    // A record header in the .shp whose length lies (record 3 claims 8 bytes more): with the
+    // index, the index is named; without it, the read error names record 3's length.
+    std::fs::write(dir.path().join("l.shx"), &good_shx).unwrap();
+    let mut shp_bytes = good_shp.clone();
+    let at3 = 2 * be(&good_shx, 100 + 8 * 3) as usize;
+    let words3 = be(&shp_bytes, at3 + 4);
+    shp_bytes[at3 + 4..at3 + 8].copy_from_slice(&(words3 + 4).to_be_bytes());
+    std::fs::write(dir.path().join("l.shp"), &shp_bytes).unwrap();
+    std::fs::remove_file(dir.path().join("l.shx")).unwrap();
+    // Read or refused, the lie is named.
+    let text = match shp::read(&p) {
+        Ok(l) => l.report.notes.join("\n"),
+        Err(e) => e.to_string(),
+    };
+    assert!(text.contains("the length of record 3"), "{text}");
+    assert!(!text.starts_with("shapes in"), "{text}");
+}
+
 /// Offset of record `i`'s first field in a DBF (after the deletion flag).
 fn dbf_record(bytes: &[u8], i: usize) -> usize {
     let header = u16::from_le_bytes([bytes[8], bytes[9]]) as usize;
@@ -115,7 +180,7 @@ fn dbf_record(bytes: &[u8], i: usize) -> usize {
 }
 
 #[test]
-fn dbf_bad_value_costs_one_feature_not_the_layer() {
+fn dbf_bad_number_costs_that_value_not_the_feature() {
     let dir = tempfile::tempdir().unwrap();
     let p = copy_shp("bubenec/streets", dir.path());
     let mut dbf = std::fs::read(dir.path().join("l.dbf")).unwrap();
@@ -123,15 +188,51 @@ fn dbf_bad_value_costs_one_feature_not_the_layer() {
     dbf[at..at + 11].copy_from_slice(b"   12x4#!  ");
     std::fs::write(dir.path().join("l.dbf"), &dbf).unwrap();
     let l = shp::read(&p).unwrap();
-    assert_eq!(l.features.len(), 34);
-    assert_eq!(l.report.refused.len(), 1);
-    assert_eq!(l.report.refused[0].fid, 3);
+    assert_eq!(l.features.len(), 35, "{:?}", l.report.refused);
+    assert!(l.report.refused.is_empty());
+    let f3 = l.features.iter().find(|f| f.fid == 3).unwrap();
     assert!(
-        l.report.refused[0].reason.contains("l.dbf"),
-        "{}",
-        l.report.refused[0].reason
+        f3.attributes
+            .get("FID")
+            .is_none_or(|v| matches!(v, AttrValue::Null)),
+        "{:?}",
+        f3.attributes
     );
-    assert_eq!(l.report.refused_by_reason[0].count, 1);
+    let note = l.report.notes.join("\n");
+    assert!(note.contains("l.dbf: 1 value(s)"), "{note}");
+    assert!(note.contains("record 3 FID = \"12x4#!\""), "{note}");
+}
+
+#[test]
+fn an_unparsable_height_is_read_as_empty_with_the_feature_named() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = copy_shp("helsinki/buildings", dir.path());
+    let reference = shp::read(&p).unwrap();
+    let mut dbf = std::fs::read(dir.path().join("l.dbf")).unwrap();
+    // osm_id N18, osm_type C80, building C80, name C80, then height N24.
+    let at = dbf_record(&dbf, 7) + 18 + 80 + 80 + 80;
+    dbf[at..at + 24].copy_from_slice(b"            twelve metre");
+    std::fs::write(dir.path().join("l.dbf"), &dbf).unwrap();
+    let l = shp::read(&p).unwrap();
+    assert_eq!(l.features.len(), reference.features.len());
+    assert!(l.report.refused.is_empty(), "{:?}", l.report.refused);
+    let f7 = l.features.iter().find(|f| f.fid == 7).unwrap();
+    assert!(
+        f7.attributes
+            .get("height")
+            .is_none_or(|v| matches!(v, AttrValue::Null)),
+        "{:?}",
+        f7.attributes
+    );
+    // The other attributes of the feature are kept.
+    let r7 = reference.features.iter().find(|f| f.fid == 7).unwrap();
+    assert_eq!(f7.attributes.get("osm_id"), r7.attributes.get("osm_id"));
+    let note = l.report.notes.join("\n");
+    assert!(
+        note.contains("record 7 height = \"twelve metre\""),
+        "{note}"
+    );
+    assert!(note.contains("default height"), "{note}");
 }
 
 #[test]
@@ -170,6 +271,20 @@ fn prj_garbage_is_a_crs_error_not_metres() {
         "{e:?}"
     );
     assert!(e.to_string().contains("l.prj"), "{e}");
+    assert!(e.to_string().contains("--crs EPSG:XXXX"), "{e}");
+    // A stated CRS replaces the .prj, which is then not read: the garbage stops nothing.
+    let utm = Crs::from_epsg(32633).unwrap();
+    let l = shp::read_with_stated_crs(&p, &blockwalk_importers::Columns::All, Some(&utm)).unwrap();
+    assert_eq!(l.crs, utm);
+    assert_eq!(l.features.len(), 35);
+    assert!(
+        l.report
+            .notes
+            .iter()
+            .any(|n| n.contains("CRS stated") && n.contains("l.prj not read")),
+        "{:?}",
+        l.report.notes
+    );
 }
 
 #[test]
@@ -214,6 +329,7 @@ fn prj_in_feet_is_refused() {
         ),
         "{e:?}"
     );
+    assert!(e.to_string().contains("--crs EPSG:XXXX"), "{e}");
 }
 
 #[test]
@@ -582,19 +698,27 @@ fn shp_column_projection_skips_other_columns() {
     let start = header_len + 1 + off;
     bytes[start..start + len].fill(b'x');
     std::fs::write(&dbf, bytes).unwrap();
+    // The bad value costs that value (read as empty, with a note naming the record), not the
+    // feature; in a column not asked for it is not even looked at.
     let bad_all = shp::read(&shp_path).unwrap();
-    assert_eq!(bad_all.report.refused.len(), 1);
-    assert_eq!(bad_all.report.refused[0].fid, 0);
     assert!(
-        bad_all.report.refused[0]
-            .reason
-            .contains("attribute record cannot be read"),
+        bad_all.report.refused.is_empty(),
         "{:?}",
         bad_all.report.refused
     );
+    assert_eq!(bad_all.features.len(), full.features.len());
+    let names_it = |l: &blockwalk_importers::Layer| {
+        l.report
+            .notes
+            .iter()
+            .any(|n| n.contains("record 0 levels = \"xxxx"))
+    };
+    assert!(names_it(&bad_all), "{:?}", bad_all.report.notes);
     let skipped = shp::read_with(&shp_path, &Columns::only(["height"])).unwrap();
     assert!(skipped.report.refused.is_empty());
+    assert!(!names_it(&skipped), "{:?}", skipped.report.notes);
     assert_eq!(skipped.features.len(), full.features.len());
     let asked = shp::read_with(&shp_path, &Columns::only(["levels"])).unwrap();
-    assert_eq!(asked.report.refused, bad_all.report.refused);
+    assert!(asked.report.refused.is_empty());
+    assert!(names_it(&asked), "{:?}", asked.report.notes);
 }

@@ -76,6 +76,11 @@ use serde::Serialize;
 /// The owner of a texel no building covers.
 pub const SKY: u32 = u32::MAX;
 
+/// Largest ambient-occlusion radius accepted, metres. Each azimuth is marched in at most
+/// [`super::ao::MAX_STEPS`] samples, so past this radius a step (over 12 m) jumps across streets
+/// and whole buildings, and the occlusion fades towards nothing instead of growing.
+pub const MAX_AO_RADIUS_M: f64 = 200.0;
+
 /// Construction options.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize)]
 pub struct BuildOptions {
@@ -137,9 +142,12 @@ impl BuildOptions {
                 self.fill_share
             ));
         }
-        if self.ao && !(self.ao_radius_m.is_finite() && self.ao_radius_m > 0.0) {
+        if !(self.ao_radius_m.is_finite()
+            && self.ao_radius_m > 0.0
+            && self.ao_radius_m <= MAX_AO_RADIUS_M)
+        {
             return bad(format!(
-                "ao_radius_m = {}: need a finite radius > 0",
+                "ao_radius_m = {}: expected a radius in (0, {MAX_AO_RADIUS_M}] m",
                 self.ao_radius_m
             ));
         }
@@ -954,6 +962,29 @@ pub fn nearest_facade(b: &SourceBuilding, p: DVec2) -> Option<(DVec2, f32)> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_ao_radius_is_bounded() {
+        for (r, ok) in [
+            (30.0, true),
+            (MAX_AO_RADIUS_M, true),
+            (200.5, false),
+            (1e9, false),
+            (0.0, false),
+            (f64::NAN, false),
+        ] {
+            let o = BuildOptions {
+                ao: true,
+                ao_radius_m: r,
+                ..BuildOptions::default()
+            };
+            assert_eq!(o.validate().is_ok(), ok, "{r}");
+            if !ok {
+                let e = o.validate().unwrap_err().to_string();
+                assert!(e.contains("(0, 200] m"), "{e}");
+            }
+        }
+    }
 
     #[test]
     fn kept_area_of_two_half_planes() {

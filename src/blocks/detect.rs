@@ -153,7 +153,8 @@ pub fn detect(city: &City, opts: &BlockOptions) -> Result<BlockLayout, BlockErro
 /// the buildings, `BuildingId(i)` for `footprints[i]`.
 ///
 /// # Errors
-/// [`BlockError::BadOption`] for a negative or non-finite length.
+/// [`BlockError::BadOption`] for a negative or non-finite length, or a snap tolerance above
+/// [`super::noding::MAX_SNAP_TOLERANCE`].
 pub fn detect_geometry(
     source: BlockSource,
     lines: &[LineString<f64>],
@@ -161,6 +162,14 @@ pub fn detect_geometry(
     footprints: &[Polygon<f64>],
     opts: &BlockOptions,
 ) -> Result<BlockLayout, BlockError> {
+    let max_snap = super::noding::MAX_SNAP_TOLERANCE;
+    if opts.snap_tolerance.is_finite() && opts.snap_tolerance > max_snap {
+        return Err(BlockError::BadOption {
+            name: "snap_tolerance",
+            value: opts.snap_tolerance,
+            why: "at most MAX_SNAP_TOLERANCE = 5 m: larger tolerances merge street corners and collapse blocks",
+        });
+    }
     for (name, value) in [
         ("snap_tolerance", opts.snap_tolerance),
         ("outskirts_link", opts.outskirts_link),

@@ -6,6 +6,10 @@
 //! closer than the tolerance are merged into one node; duplicate and collinear overlapping pieces
 //! become one edge; zero-length pieces are dropped. Candidate pairs come from an R-tree of the
 //! segments' envelopes (O(n log n) for street networks), the crossing tests use exact orientation.
+//! Split points are snapped as they are found and kept once per segment and node, so memory grows
+//! with the nodes on each segment, not with the segments crossing it; the pairs themselves are
+//! still all tested, so `n` lines through one point (every pair crossing there) cost `n²` tests
+//! (10,000 such lines: 16 s, 10 MB in the test profile; `cargo bench -p blockwalk --bench blocks`).
 
 use crate::geom::predicates::{orient2d, segments_intersect, Orientation, SegmentIntersection};
 use crate::geom::segment::point_segment_distance;
@@ -13,11 +17,17 @@ use crate::geom::tolerance::STREET_SNAP_M;
 use geo_types::{Coord, LineString};
 use rstar::{primitives::GeomWithData, primitives::Rectangle, RTree, AABB};
 use std::collections::HashMap;
+use std::hash::{BuildHasherDefault, Hasher};
 
 /// Default snap tolerance in metres: points closer than this are one node, and a line end this
 /// close to another line joins it. The street graph's tolerance,
 /// [`crate::geom::tolerance::STREET_SNAP_M`] (5 cm), where its reason is given.
 pub const DEFAULT_SNAP_TOLERANCE: f64 = STREET_SNAP_M;
+
+/// Largest snap tolerance accepted, in the lines' units (metres for a city): 5 m. Snapping
+/// merges every pair of points closer than the tolerance, so beyond a few metres it closes
+/// streets and collapses small blocks (at 1 km a whole district is one node and no block is left).
+pub const MAX_SNAP_TOLERANCE: f64 = 5.0;
 
 /// A planar straight-line graph: nodes and undirected edges between distinct nodes, with no two
 /// edges crossing or overlapping (up to the snap tolerance).
@@ -52,19 +62,48 @@ impl PlanarGraph {
     }
 }
 
-/// Snaps points to nodes: a point joins the first node created within `tol` of it (first by
-/// insertion order: line vertices before computed intersections), else it makes a new node.
+/// Snaps points to nodes: a point joins the nearest node within `tol` of it (ties to the first
+/// created; line vertices are created before computed intersections), else it makes a new node.
+/// Every node is therefore more than `tol` from every other. Nodes are kept in square cells of
+/// side `tol`; a point looks in its cell and the eight around it.
 struct Snapper {
     tol: f64,
-    cells: HashMap<(i64, i64), Vec<u32>>,
+    cells: HashMap<(i64, i64), Vec<u32>, BuildHasherDefault<CellHasher>>,
     nodes: Vec<Coord<f64>>,
+}
+
+/// A small multiplicative hasher for integer cell keys (the default SipHash costs more than the
+/// distance tests it guards, and the keys are not chosen by an adversary of the table).
+#[derive(Default)]
+struct CellHasher(u64);
+
+impl Hasher for CellHasher {
+    fn finish(&self) -> u64 {
+        // The splitmix64 finaliser, so that the low bits (the table's bucket) depend on every
+        // bit of the keys (exact-coordinate keys often end in zero bits).
+        let mut z = self.0;
+        z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
+        z ^ (z >> 31)
+    }
+    fn write(&mut self, bytes: &[u8]) {
+        for &b in bytes {
+            self.write_u64(u64::from(b));
+        }
+    }
+    fn write_i64(&mut self, v: i64) {
+        self.write_u64(v as u64);
+    }
+    fn write_u64(&mut self, v: u64) {
+        self.0 = (self.0.rotate_left(5) ^ v).wrapping_mul(0x517c_c1b7_2722_0a95);
+    }
 }
 
 impl Snapper {
     fn new(tol: f64) -> Self {
         Self {
             tol,
-            cells: HashMap::new(),
+            cells: HashMap::default(),
             nodes: Vec::new(),
         }
     }
@@ -103,6 +142,23 @@ impl Snapper {
         self.cells.entry((kx, ky)).or_default().push(id);
         id
     }
+    /// [`Snapper::node`] for `c` when `hint` is a node that `c` certainly snaps to, without the
+    /// lookup: `c` within `0.49·tol` of `hint` (every other node is more than `tol` from `hint`,
+    /// so more than `0.51·tol` from `c`), or, with `tol = 0`, `c` bitwise equal to `hint`.
+    fn node_near(&mut self, c: Coord<f64>, hint: Option<u32>) -> u32 {
+        if let Some(h) = hint {
+            let n = self.nodes[h as usize];
+            let same = if self.tol > 0.0 {
+                (n.x - c.x).hypot(n.y - c.y) <= 0.49 * self.tol
+            } else {
+                n.x.to_bits() == c.x.to_bits() && n.y.to_bits() == c.y.to_bits()
+            };
+            if same {
+                return h;
+            }
+        }
+        self.node(c)
+    }
 }
 
 /// One noding pass over segments; returns the graph and whether any segment was split at a point
@@ -119,8 +175,28 @@ fn node_once(segs: &[[Coord<f64>; 2]], tol: f64) -> (PlanarGraph, bool) {
         })
         .collect();
     let tree = RTree::bulk_load(envs);
-    // Split points per segment: (parameter, point).
-    let mut splits: Vec<Vec<(f64, Coord<f64>)>> = vec![Vec::new(); segs.len()];
+    // Line vertices become nodes first, so a computed point near a vertex joins the vertex.
+    let mut snap = Snapper::new(tol);
+    let ends: Vec<[u32; 2]> = segs
+        .iter()
+        .map(|s| [snap.node(s[0]), snap.node(s[1])])
+        .collect();
+    // Split nodes per segment: (parameter, node). A point is snapped to its node as it is found,
+    // and a node equal to the one last recorded on the same segment is not recorded again: when
+    // many segments cross one segment at one point (lines through a common centre) the segment
+    // keeps one entry, not one per crossing segment.
+    let mut splits: Vec<Vec<(f64, u32)>> = vec![Vec::new(); segs.len()];
+    let mut changed = false;
+    let mut record = |snap: &mut Snapper, seg: usize, t: f64, p: Coord<f64>| {
+        let n = snap.node_near(p, splits[seg].last().map(|&(_, n)| n));
+        if n != ends[seg][0] && n != ends[seg][1] {
+            changed = true;
+        }
+        let list = &mut splits[seg];
+        if list.last().is_none_or(|&(_, last)| last != n) {
+            list.push((t, n));
+        }
+    };
     for (i, s) in segs.iter().enumerate() {
         let env = AABB::from_corners(
             [s[0].x.min(s[1].x) - tol, s[0].y.min(s[1].y) - tol],
@@ -133,6 +209,26 @@ fn node_once(segs: &[[Coord<f64>; 2]], tol: f64) -> (PlanarGraph, bool) {
             }
             let [a, b] = *s;
             let [c, d] = segs[j];
+            // Segments sharing an end (pieces of one line, edges at a node) cannot cross
+            // properly, and the shared end lies on both: only the other two ends need a look.
+            let shared = [a == c || a == d, b == c || b == d];
+            if shared[0] || shared[1] {
+                let (pi, pj) = if shared[0] {
+                    (b, if a == c { d } else { c })
+                } else {
+                    (a, if b == c { d } else { c })
+                };
+                for (p, target, other) in [(pj, i, [a, b]), (pi, j, [c, d])] {
+                    let (dist, t) = point_segment_distance(p, other[0], other[1]);
+                    if (dist <= tol || orient2d(other[0], other[1], p) == Orientation::Collinear)
+                        && t > 0.0
+                        && t < 1.0
+                    {
+                        record(&mut snap, target, t, p);
+                    }
+                }
+                continue;
+            }
             if segments_intersect(a, b, c, d) == SegmentIntersection::Proper {
                 // Proper crossing: the point, computed relative to `a` for precision.
                 let r = b - a;
@@ -145,8 +241,8 @@ fn node_once(segs: &[[Coord<f64>; 2]], tol: f64) -> (PlanarGraph, bool) {
                     y: a.y + t * r.y,
                 };
                 let (_, u) = point_segment_distance(p, c, d);
-                splits[i].push((t, p));
-                splits[j].push((u, p));
+                record(&mut snap, i, t, p);
+                record(&mut snap, j, u, p);
             }
             // Ends touching or near the other segment (T-junctions, overlaps, near misses).
             // An exactly collinear end counts as distance 0 whatever the rounding of the distance.
@@ -161,26 +257,18 @@ fn node_once(segs: &[[Coord<f64>; 2]], tol: f64) -> (PlanarGraph, bool) {
                     && t > 0.0
                     && t < 1.0
                 {
-                    splits[target].push((t, p));
+                    record(&mut snap, target, t, p);
                 }
             }
         }
     }
-    let mut snap = Snapper::new(tol);
-    let ends: Vec<[u32; 2]> = segs
-        .iter()
-        .map(|s| [snap.node(s[0]), snap.node(s[1])])
-        .collect();
-    let mut changed = false;
     let mut edges: Vec<[u32; 2]> = Vec::with_capacity(segs.len());
     for (i, sp) in splits.iter_mut().enumerate() {
-        sp.sort_by(|x, y| x.0.total_cmp(&y.0));
+        // Sorted once per segment, by parameter then node, so equal parameters order the same
+        // way on every run.
+        sp.sort_unstable_by(|x, y| x.0.total_cmp(&y.0).then(x.1.cmp(&y.1)));
         let mut prev = ends[i][0];
-        for &(_, p) in sp.iter() {
-            let n = snap.node(p);
-            if n != ends[i][0] && n != ends[i][1] {
-                changed = true;
-            }
+        for &(_, n) in sp.iter() {
             if n != prev {
                 edges.push([prev.min(n), prev.max(n)]);
                 prev = n;

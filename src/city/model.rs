@@ -170,6 +170,14 @@ pub struct CityReport {
     pub street_layer_unusable: Option<String>,
     /// The same for the parcel layer.
     pub parcel_layer_unusable: Option<String>,
+    /// Street features read (0 without a street layer).
+    pub streets_read: usize,
+    /// Street features (or parts) refused, with the reason (the importer's refusals included).
+    pub streets_refused: Vec<RefusalNote>,
+    /// Parcel features read (0 without a parcel layer).
+    pub parcels_read: usize,
+    /// Parcel features (or parts) refused, with the reason.
+    pub parcels_refused: Vec<RefusalNote>,
     /// Where the local origin is and how far the model reaches from it (f32 precision).
     pub frame: crate::city::build::FrameReport,
     /// Other notes (per layer).

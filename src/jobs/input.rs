@@ -12,8 +12,17 @@ use super::*;
 /// (`buildings.shp`, `streets.shp`) or a footprint file with `streets`.
 ///
 /// # Errors
-/// [`JobsError::Unsupported`] without a street layer or for footprints that are not a Shapefile.
+/// [`JobsError::Unsupported`] for a path that does not exist, without a street layer or for
+/// footprints that are not a Shapefile.
 pub fn city_files(input: &Path, streets: Option<&Path>) -> Result<(PathBuf, PathBuf), JobsError> {
+    for given in std::iter::once(input).chain(streets) {
+        if !given.exists() {
+            return Err(JobsError::Unsupported {
+                file: given.to_path_buf(),
+                why: "no such file or folder".into(),
+            });
+        }
+    }
     let (fp, st) = if input.is_dir() {
         let s = input.join("streets.shp");
         (
@@ -25,6 +34,14 @@ pub fn city_files(input: &Path, streets: Option<&Path>) -> Result<(PathBuf, Path
     } else {
         (input.to_path_buf(), streets.map(Path::to_path_buf))
     };
+    if input.is_dir() && !fp.is_file() {
+        return Err(JobsError::Unsupported {
+            file: input.to_path_buf(),
+            why: "the folder holds no buildings.shp (a generated city's folder has buildings.shp \
+                  and streets.shp)"
+                .into(),
+        });
+    }
     if !fp.to_string_lossy().to_ascii_lowercase().ends_with(".shp") {
         return Err(JobsError::Unsupported {
             file: fp,
@@ -75,4 +92,34 @@ pub(super) fn metric_transform(
                 source,
             },
         })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_missing_path_is_named_as_missing_not_as_the_wrong_kind() {
+        let dir = tempfile::tempdir().unwrap();
+        let gone = dir.path().join("no-such-city");
+        let e = city_files(&gone, None).unwrap_err().to_string();
+        assert!(
+            e.contains("no-such-city") && e.contains("no such file or folder"),
+            "{e}"
+        );
+        assert!(!e.contains("give a .shp"), "{e}");
+        let fp = dir.path().join("b.shp");
+        std::fs::write(&fp, b"").unwrap();
+        let e = city_files(&fp, Some(&dir.path().join("streets.shp")))
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("streets.shp: no such file or folder"), "{e}");
+        let e = city_files(dir.path(), None).unwrap_err().to_string();
+        assert!(e.contains("holds no buildings.shp"), "{e}");
+        // A file that exists but is not a Shapefile still gets the Shapefile hint.
+        let gj = dir.path().join("b.geojson");
+        std::fs::write(&gj, b"{}").unwrap();
+        let e = city_files(&gj, None).unwrap_err().to_string();
+        assert!(e.contains("give a .shp"), "{e}");
+    }
 }

@@ -66,15 +66,25 @@ pub enum WindowError {
         /// Height asked for, pixels.
         height: u32,
     },
+    /// Neither `DISPLAY` nor `WAYLAND_DISPLAY` is set (Linux and the BSDs): there is nothing to
+    /// open a window on.
+    #[error(
+        "no display found: set DISPLAY (X11) or WAYLAND_DISPLAY, run under xvfb-run, or use \
+         `blockwalk walk --render` for headless frames"
+    )]
+    NoDisplay,
     /// The event loop could not be created or failed (usually: no X11 or Wayland display).
-    #[error("cannot open a window: {source} (is a display available? try xvfb-run)")]
+    #[error(
+        "cannot open a window (no usable display? set DISPLAY, run under xvfb-run, or use \
+         `blockwalk walk --render` for headless frames)"
+    )]
     EventLoop {
         /// What winit said.
         #[source]
         source: winit::error::EventLoopError,
     },
     /// The window could not be created.
-    #[error("cannot create the window: {source} (is a display available? try xvfb-run)")]
+    #[error("cannot create the window (is a display available? try xvfb-run)")]
     CreateWindow {
         /// What winit said.
         #[source]
@@ -222,6 +232,21 @@ pub struct ViewerSummary {
     pub screenshot: Option<PathBuf>,
 }
 
+/// False where a window needs `DISPLAY` or `WAYLAND_DISPLAY` and neither is set (a free
+/// desktop Unix); true elsewhere (Windows and macOS always have their window server).
+fn display_available() -> bool {
+    if cfg!(any(
+        target_os = "windows",
+        target_os = "macos",
+        target_os = "ios"
+    )) {
+        return true;
+    }
+    ["DISPLAY", "WAYLAND_DISPLAY"]
+        .iter()
+        .any(|v| std::env::var_os(v).is_some_and(|s| !s.is_empty()))
+}
+
 /// Opens the window and runs until it is closed (or the screenshot is written).
 pub fn run_viewer(
     scene: ViewerScene,
@@ -244,6 +269,9 @@ pub fn run_viewer(
         None => None,
     };
     let cull = CullStep::new(&scene.scene);
+    if !display_available() {
+        return Err(WindowError::NoDisplay);
+    }
     let event_loop = EventLoop::new().map_err(|source| WindowError::EventLoop { source })?;
     event_loop.set_control_flow(ControlFlow::Poll);
     let mut camera = scene.route.camera_at(scene.route.start());

@@ -1,8 +1,8 @@
 //! The route a command plays: a named generated route or a route file.
 
 use super::{
-    corner_walk, orbit_route, paper_route, street_walk, CameraRoute, CornerWalkParams, FrameSpec,
-    Lens, Obstacles, PaperRouteParams, RouteError, RouteFile, StreetGraph,
+    corner_walk, orbit_route, paper_route, street_walk, CameraRoute, CornerWalkParams, Lens,
+    Obstacles, PaperRouteParams, RouteError, RouteFile, StreetGraph,
 };
 use crate::city::{Building, LocalFrame};
 use crate::geom::Aabb3;
@@ -227,10 +227,7 @@ impl RouteChoice {
                 let f = RouteFile::read(path)?;
                 let mut r = f.to_route(Some(ctx.frame))?;
                 r.lens.aspect = ctx.aspect;
-                let frames = match f.frame_spec() {
-                    FrameSpec::Count(n) => n,
-                    FrameSpec::Rate(fps) => r.sample_rate(fps).len(),
-                };
+                let frames = f.frame_count(&r, &path.display().to_string())?;
                 (r, Some(frames))
             }
         })
@@ -280,6 +277,48 @@ mod tests {
             "{e}"
         );
         assert!(e.contains("(os error 2)"), "{e}");
+    }
+
+    #[test]
+    fn a_route_file_whose_rate_gives_too_many_frames_is_refused_naming_file_fields_and_cap() {
+        let frame = LocalFrame {
+            origin: glam::DVec3::ZERO,
+        };
+        let ctx = RouteContext {
+            city: "box",
+            bounds: Aabb3::from_points([glam::DVec3::ZERO, glam::DVec3::new(100.0, 100.0, 10.0)]),
+            street_edges: &[],
+            buildings: &[],
+            frame: &frame,
+            aspect: 16.0 / 9.0,
+        };
+        let dir = tempfile::tempdir().unwrap();
+        let keys = "[[keys]]\nposition = [0.0, 0.0, 1.7]\nyaw_deg = 0.0\n\
+                    [[keys]]\nposition = [14.0, 0.0, 1.7]\nyaw_deg = 0.0\n";
+        let resolve = |head: &str| {
+            let file = dir.path().join("r.toml");
+            std::fs::write(&file, format!("{head}\n{keys}")).unwrap();
+            RouteChoice::File(file.clone()).resolve(&ctx)
+        };
+        // 10 s of route: 30 fps gives 301 frames, as sampling does.
+        let (route, frames) = resolve("fps = 30.0").unwrap();
+        assert_eq!(frames, Some(301));
+        assert_eq!(route.sample_rate(30.0).len(), 301);
+        // 1e9 fps over 10 s would be 1e10 frames: refused before anything is allocated.
+        for head in ["fps = 1e9", "fps = 1e300", "frames = 100001"] {
+            let e = resolve(head).unwrap_err().to_string();
+            assert!(e.contains("r.toml"), "{head}: {e}");
+            assert!(e.contains("100000"), "{head}: {e}");
+            let field = head.split(' ').next().unwrap();
+            assert!(e.contains(&format!("{field} = ")), "{head}: {e}");
+        }
+        let e = resolve("fps = 1e9").unwrap_err().to_string();
+        assert!(e.contains("duration of 10.000 s"), "{e}");
+        // The cap itself is accepted: 10,000 fps over 10 s is 100,001 frames, 9,999 fps fits.
+        assert_eq!(resolve("fps = 9999.0").unwrap().1, Some(99_991));
+        assert!(resolve("fps = 10000.0").is_err());
+        // sample_rate never allocates past the cap.
+        assert_eq!(route.sample_rate(1e9).len(), crate::route::MAX_FRAMES);
     }
 
     #[test]

@@ -37,6 +37,54 @@ use glam::DVec3;
 use serde::{Deserialize, Serialize};
 use std::path::Path;
 
+/// Largest coordinate a route file's positions and `look_at` may have, metres (local or world):
+/// 100,000 km, far beyond any city on the globe.
+pub const MAX_COORD_M: f64 = 1.0e8;
+/// Largest time a key may have, seconds (about 31 years).
+pub const MAX_TIME_S: f64 = 1.0e9;
+/// Largest speed a key may give, m/s.
+pub const MAX_SPEED_M_S: f64 = 1.0e6;
+/// Largest heading magnitude, degrees.
+pub const MAX_ANGLE_DEG: f64 = 1.0e6;
+
+/// Every number in `values` (the key field `what`) finite and within ±`max` `unit`.
+fn check_numbers(
+    bad_key: &dyn Fn(String) -> RouteError,
+    what: &str,
+    values: &[f64],
+    max: f64,
+    unit: &str,
+) -> Result<(), RouteError> {
+    let one = |v: f64| {
+        if v.is_finite() && v.abs() >= 1e12 {
+            format!("{v:e}")
+        } else {
+            v.to_string()
+        }
+    };
+    let shown = || {
+        if values.len() == 1 {
+            one(values[0])
+        } else {
+            let all: Vec<String> = values.iter().map(|&v| one(v)).collect();
+            format!("[{}]", all.join(", "))
+        }
+    };
+    if values.iter().any(|v| !v.is_finite()) {
+        return Err(bad_key(format!(
+            "{what} = {}: not a finite number",
+            shown()
+        )));
+    }
+    if values.iter().any(|v| v.abs() > max) {
+        return Err(bad_key(format!(
+            "{what} = {}: out of range; expected -{max} to {max} {unit}",
+            shown()
+        )));
+    }
+    Ok(())
+}
+
 /// Which coordinates a route file's positions are in.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
@@ -206,6 +254,44 @@ impl RouteFile {
         }
     }
 
+    /// The number of frames to sample over `route` (built from this file), checked: `frames`,
+    /// else `fps` (default 30) × the route's duration, 1 to [`MAX_FRAMES`](super::MAX_FRAMES).
+    /// `file` names the file in the error.
+    ///
+    /// # Errors
+    /// [`RouteError::Bad`] naming the file, the fields and the cap.
+    pub fn frame_count(&self, route: &CameraRoute, file: &str) -> Result<usize, RouteError> {
+        let max = super::MAX_FRAMES;
+        let bad = |problem: String| RouteError::Bad {
+            route: file.into(),
+            problem,
+        };
+        match self.frame_spec() {
+            FrameSpec::Count(n) => super::check_frames(file, n).map_err(|_| {
+                bad(format!(
+                    "frames = {n}: expected 1 to {max} (the most frames a walk may sample)"
+                ))
+            }),
+            FrameSpec::Rate(fps) => {
+                let n = route.frames_at_rate(fps);
+                if (1..=max).contains(&n) {
+                    Ok(n)
+                } else {
+                    Err(bad(format!(
+                        "fps = {fps} over the route's duration of {:.3} s gives {} frames; at most \
+                         {max} frames (fps × duration + 1): lower fps or give `frames`",
+                        route.duration(),
+                        if n == usize::MAX {
+                            "more than 2^64".to_string()
+                        } else {
+                            n.to_string()
+                        }
+                    )))
+                }
+            }
+        }
+    }
+
     /// Builds the route; `frame` is the city's local frame, needed when `frame = "world"`.
     pub fn to_route(&self, frame: Option<&LocalFrame>) -> Result<CameraRoute, RouteError> {
         let name = self.name.clone();
@@ -250,6 +336,22 @@ impl RouteFile {
                 key: i,
                 problem,
             };
+            check_numbers(&bad_key, "position", &k.position, MAX_COORD_M, "m")?;
+            if let Some(t) = k.look_at {
+                check_numbers(&bad_key, "look_at", &t, MAX_COORD_M, "m")?;
+            }
+            if let Some(y) = k.yaw_deg {
+                check_numbers(&bad_key, "yaw_deg", &[y], MAX_ANGLE_DEG, "°")?;
+            }
+            if let Some(p) = k.pitch_deg {
+                check_numbers(&bad_key, "pitch_deg", &[p], 90.0, "°")?;
+            }
+            if let Some(t) = k.time {
+                check_numbers(&bad_key, "time", &[t], MAX_TIME_S, "s")?;
+            }
+            if let Some(v) = k.speed {
+                check_numbers(&bad_key, "speed", &[v], MAX_SPEED_M_S, "m/s")?;
+            }
             let position = to_local(k.position)?;
             let (yaw, pitch) = match (k.look_at, k.yaw_deg) {
                 (Some(_), Some(_)) => {

@@ -249,8 +249,16 @@ impl CameraRoute {
                 key: i,
                 problem: problem.to_string(),
             };
-            if !k.time.is_finite() || !k.position.is_finite() || !k.orientation.is_finite() {
-                return Err(bad("time, position and orientation must be finite"));
+            for (what, finite) in [
+                ("time", k.time.is_finite()),
+                ("position", k.position.is_finite()),
+                ("orientation", k.orientation.is_finite()),
+            ] {
+                if !finite {
+                    return Err(bad(&format!(
+                        "{what} is not a finite number (it overflowed or was given as NaN/inf)"
+                    )));
+                }
             }
             if k.orientation.length() < 1e-9 {
                 return Err(bad("orientation is not a rotation"));
@@ -371,13 +379,20 @@ impl CameraRoute {
         }
     }
 
-    /// Cameras at `fps` frames per second from the start to the end (the end included when it
-    /// falls on a frame). `fps` must be positive.
-    pub fn sample_rate(&self, fps: f64) -> Vec<Camera> {
+    /// How many frames [`CameraRoute::sample_rate`] gives at `fps` (0 when `fps` is not
+    /// positive and finite), computed without sampling; saturates at `usize::MAX`.
+    pub fn frames_at_rate(&self, fps: f64) -> usize {
         if !(fps > 0.0 && fps.is_finite()) {
-            return Vec::new();
+            return 0;
         }
-        let n = (self.duration() * fps + 1e-9).floor() as usize + 1;
+        ((self.duration() * fps + 1e-9).floor() as usize).saturating_add(1)
+    }
+
+    /// Cameras at `fps` frames per second from the start to the end (the end included when it
+    /// falls on a frame). `fps` must be positive. At most [`MAX_FRAMES`] cameras: check the
+    /// count with [`CameraRoute::frames_at_rate`] first (a rate past the cap stops there).
+    pub fn sample_rate(&self, fps: f64) -> Vec<Camera> {
+        let n = self.frames_at_rate(fps).min(MAX_FRAMES);
         (0..n)
             .map(|f| self.camera_at(self.start() + f as f64 / fps))
             .collect()

@@ -5,7 +5,7 @@
 use crate::blocks::{BlockId, BlockLayout};
 use crate::city::build::{build_city, BuildError, BuildOptions};
 use crate::city::{City, Mesh};
-use crate::importers::{read_layer_with, Columns, ImportError, Layer, Theme};
+use crate::importers::{read_layer_with_stated_crs, Columns, ImportError, Layer, Theme};
 use crate::visibility::synthetic::SyntheticCity;
 use glam::DVec2;
 use std::path::{Path, PathBuf};
@@ -276,15 +276,22 @@ impl CitySource {
         let Some((fp, st, pa)) = self.layer_files()? else {
             return Ok(None);
         };
+        // A stated CRS replaces the footprints' own (`.prj` included, which is then not read).
+        let stated = match self {
+            CitySource::Files { crs, .. } => crs.as_ref(),
+            _ => None,
+        };
         let read = |path: &Path, theme: &Theme| {
-            let columns = if *theme == Theme::Buildings {
-                columns
+            let (columns, stated) = if *theme == Theme::Buildings {
+                (columns, stated)
             } else {
-                &Columns::All
+                (&Columns::All, None)
             };
-            read_layer_with(path, theme, columns).map_err(|source| SourceError::Read {
-                file: path.to_path_buf(),
-                source: Box::new(source),
+            read_layer_with_stated_crs(path, theme, columns, stated).map_err(|source| {
+                SourceError::Read {
+                    file: path.to_path_buf(),
+                    source: Box::new(source),
+                }
             })
         };
         for p in std::iter::once(&fp).chain(&st).chain(&pa) {

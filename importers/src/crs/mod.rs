@@ -129,7 +129,9 @@ pub enum CoordError {
         crs: String,
     },
     /// A longitude beyond ±180°.
-    #[error("longitude {lon}° is beyond ±180° in {crs}")]
+    #[error(
+        "longitude {lon}° is beyond ±180° in {crs} (by more than the 1e-6° accepted for rounding)"
+    )]
     Longitude {
         /// The longitude, degrees.
         lon: f64,

@@ -183,6 +183,20 @@ fn coordinates_are_checked_against_their_crs() {
         g.check([200.0, 10.0]),
         Err(CoordError::Longitude { .. })
     ));
+    // A hair past the antimeridian (rounding) is taken, and lands where 180° does; clearly
+    // beyond is refused, saying by how much is accepted.
+    for lon in [180.000_000_1, -180.000_000_1] {
+        assert!(g.check([lon, 10.0]).is_ok(), "{lon}");
+    }
+    let e = g.check([180.001, 10.0]).unwrap_err();
+    assert!(matches!(e, CoordError::Longitude { .. }), "{e:?}");
+    assert!(e.to_string().contains("1e-6°"), "{e}");
+    let t = Crs::Geographic { epsg: Some(4326) }.metric_transform([179.9, 10.0]);
+    let (a, b) = (
+        t.try_to_metric([180.000_000_1, 10.0]).unwrap(),
+        t.try_to_metric([180.0, 10.0]).unwrap(),
+    );
+    assert!((a[0] - b[0]).hypot(a[1] - b[1]) < 0.05, "{a:?} {b:?}");
     assert!(matches!(
         g.check([f64::NAN, 10.0]),
         Err(CoordError::NonFinite { .. })

@@ -4,6 +4,11 @@
 use super::*;
 use std::sync::Arc;
 
+/// How far past ±180° a longitude may be written and still be taken (as the same meridian:
+/// the projection wraps it): 1e-6°, about 0.1 m on the equator, for coordinates written a hair
+/// past the antimeridian (180.0000001) by rounding. Farther is refused.
+pub const LONGITUDE_TOLERANCE_DEG: f64 = 1e-6;
+
 /// A `proj4rs` projection and whether it takes degrees (geographic) rather than metres.
 #[derive(Clone)]
 pub(super) struct Frame {
@@ -197,7 +202,7 @@ impl MetricTransform {
         if lat.abs() > 90.0 {
             return Err(CoordError::Latitude { lat, crs: crs() });
         }
-        if lon.abs() > 180.0 + 1e-9 {
+        if lon.abs() > 180.0 + LONGITUDE_TOLERANCE_DEG {
             return Err(CoordError::Longitude { lon, crs: crs() });
         }
         if !i.source.degrees {

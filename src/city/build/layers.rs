@@ -8,7 +8,7 @@ use super::geometry::{
     geometry_kind, has_tag, lines_of, polygons_of, to_metric_line, to_metric_polygon, truthy,
 };
 use super::BuildOptions;
-use crate::city::model::{CityReport, Parcel, Street};
+use crate::city::model::{CityReport, Parcel, RefusalNote, Street};
 use crate::geom::repair::repair_polygon;
 
 /// Why a layer that was given yields nothing, or `None` when it yields something.
@@ -127,6 +127,8 @@ pub(crate) fn build_streets(
         &refused,
     ));
     report.street_layer_unusable = unusable(layer, out.len(), excluded, &refused, "street line");
+    report.streets_read += read;
+    report.streets_refused.extend(refusal_notes(&refused));
     out
 }
 
@@ -184,7 +186,16 @@ pub(crate) fn build_parcels(
         &refused,
     ));
     report.parcel_layer_unusable = unusable(layer, out.len(), 0, &refused, "parcel");
+    report.parcels_read += read;
+    report.parcels_refused.extend(refusal_notes(&refused));
     out
+}
+
+fn refusal_notes(refused: &[(String, String)]) -> impl Iterator<Item = RefusalNote> + '_ {
+    refused.iter().map(|(id, reason)| RefusalNote {
+        id: id.clone(),
+        reason: reason.clone(),
+    })
 }
 
 /// The features the importer refused, as `(layer:fid, "importer: reason")`, the start of a

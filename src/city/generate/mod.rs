@@ -126,6 +126,9 @@ pub enum GenerateError {
         /// The value given.
         value: f64,
     },
+    /// No buildings asked for.
+    #[error("invalid parameter buildings = 0: a generated city needs at least 1 building")]
+    NoBuildings,
     /// Blocks are too small for two rows of parcels.
     #[error("invalid parameter block_m: blocks must be at least {min_m} m on a side, got {lo} m")]
     BlocksTooSmall {
@@ -158,9 +161,12 @@ impl GenerateParams {
     /// Checks the ranges and the storey height.
     ///
     /// # Errors
-    /// [`GenerateError::BadRange`], [`GenerateError::BadStoreyHeight`] or
-    /// [`GenerateError::BlocksTooSmall`].
+    /// [`GenerateError::NoBuildings`], [`GenerateError::BadRange`],
+    /// [`GenerateError::BadStoreyHeight`] or [`GenerateError::BlocksTooSmall`].
     pub fn validate(&self) -> Result<(), GenerateError> {
+        if self.buildings == 0 {
+            return Err(GenerateError::NoBuildings);
+        }
         for (name, (lo, hi)) in [
             ("block_m", self.block_m),
             ("street_m", self.street_m),
@@ -245,6 +251,19 @@ pub fn generate_city(p: &GenerateParams) -> Result<GeneratedCity, GenerateError>
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn zero_buildings_is_refused() {
+        let p = GenerateParams {
+            buildings: 0,
+            ..GenerateParams::default()
+        };
+        let Err(e) = generate_city(&p) else {
+            panic!("0 buildings must be refused")
+        };
+        assert!(matches!(e, GenerateError::NoBuildings), "{e:?}");
+        assert!(e.to_string().contains("at least 1"), "{e}");
+    }
     use crate::geom::predicates::polygon_area;
     use crate::geom::repair::check_polygon;
 
