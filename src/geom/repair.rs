@@ -471,8 +471,18 @@ fn is_spike(a: Coord<f64>, b: Coord<f64>, c: Coord<f64>) -> bool {
     if a == c {
         return true;
     }
-    orient2d(a, b, c) == Orientation::Collinear
-        && (b.x - a.x) * (c.x - b.x) + (b.y - a.y) * (c.y - b.y) < 0.0
+    if orient2d(a, b, c) != Orientation::Collinear {
+        return false;
+    }
+    // On one line, `b` is the tip when `a` and `c` lie on the same side of it. Compared
+    // coordinate by coordinate, exactly: the sign of a dot product in floating point is wrong
+    // when its terms underflow, overflow or cancel (coordinates near 1e-300 or 1e300).
+    let same_side = |p: f64, q: f64, o: f64| (p > o && q > o) || (p < o && q < o);
+    if a.x != b.x {
+        same_side(a.x, c.x, b.x)
+    } else {
+        same_side(a.y, c.y, b.y)
+    }
 }
 
 /// Below this many edges the pairwise loops are faster than building an R-tree; the answers
@@ -742,12 +752,49 @@ fn closed_polygon(r: &[Coord<f64>]) -> Polygon<f64> {
 }
 
 /// Resolves self-intersections and crossing rings with the overlay (see the module doc).
+/// The smallest and largest extent (the larger side of a ring's bounding box) the overlay
+/// resolves. `i_overlay` maps the bounding box of each operation onto a 2³⁰ integer grid by a
+/// power of two; for a box below about 1e-290 that scale overflows to infinity, above about
+/// 1e300 the box's own size does, and the grid coordinates come out as garbage (products that
+/// overflow). Footprints are metres to kilometres across.
+pub const OVERLAY_EXTENT_RANGE: (f64, f64) = (1e-280, 1e300);
+
+/// Why the overlay cannot take these rings, if it cannot: a ring whose extent is outside
+/// [`OVERLAY_EXTENT_RANGE`].
+fn overlay_range_problem<'a>(
+    rings: impl Iterator<Item = (usize, &'a [Coord<f64>])>,
+) -> Option<String> {
+    let (lo, hi) = OVERLAY_EXTENT_RANGE;
+    for (k, r) in rings {
+        let (mut x0, mut y0, mut x1, mut y1) = (f64::MAX, f64::MAX, f64::MIN, f64::MIN);
+        for c in r {
+            x0 = x0.min(c.x);
+            y0 = y0.min(c.y);
+            x1 = x1.max(c.x);
+            y1 = y1.max(c.y);
+        }
+        let extent = (x1 - x0).max(y1 - y0);
+        if !(lo..=hi).contains(&extent) {
+            return Some(format!(
+                "ring {k} is {extent:e} across, outside the {lo:e} to {hi:e} the overlay resolves"
+            ));
+        }
+    }
+    None
+}
+
 fn overlay_repair(
     ext: Vec<Coord<f64>>,
     holes: Vec<(usize, Vec<Coord<f64>>)>,
     why: String,
     mut actions: Vec<RepairAction>,
 ) -> Result<Repaired, Refusal> {
+    let rings = std::iter::once((0, &ext[..])).chain(holes.iter().map(|(k, h)| (*k, &h[..])));
+    if let Some(problem) = overlay_range_problem(rings) {
+        return Err(Refusal::Unrepairable {
+            why: format!("{why}; {problem}"),
+        });
+    }
     let empty = MultiPolygon::<f64>::new(vec![]);
     let mut area =
         closed_polygon(&ext).boolean_op_with_fill_rule(&empty, OpType::Union, FillRule::NonZero);

@@ -187,7 +187,7 @@ impl RouteChoice {
                 r.lens.aspect = ctx.aspect;
                 let frames = match f.frame_spec() {
                     FrameSpec::Count(n) => n,
-                    FrameSpec::Rate(fps) => r.sample_rate(fps).len(),
+                    FrameSpec::Rate(fps) => r.frames_at_rate(fps),
                 };
                 (r, Some(frames))
             }

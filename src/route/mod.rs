@@ -373,13 +373,19 @@ impl CameraRoute {
     /// Cameras at `fps` frames per second from the start to the end (the end included when it
     /// falls on a frame). `fps` must be positive.
     pub fn sample_rate(&self, fps: f64) -> Vec<Camera> {
-        if !(fps > 0.0 && fps.is_finite()) {
-            return Vec::new();
-        }
-        let n = (self.duration() * fps + 1e-9).floor() as usize + 1;
+        let n = self.frames_at_rate(fps);
         (0..n)
             .map(|f| self.camera_at(self.start() + f as f64 / fps))
             .collect()
+    }
+
+    /// How many cameras [`CameraRoute::sample_rate`] gives at `fps`, counted without making
+    /// them (it saturates at `usize::MAX`; 0 for a rate that is not positive and finite).
+    pub fn frames_at_rate(&self, fps: f64) -> usize {
+        if !(fps > 0.0 && fps.is_finite()) {
+            return 0;
+        }
+        ((self.duration() * fps + 1e-9).floor() as usize).saturating_add(1)
     }
 
     /// The fewest frames, found deterministically, for which [`CameraRoute::sample`] puts
