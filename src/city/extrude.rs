@@ -54,6 +54,23 @@ pub enum ExtrudeError {
         /// Vertices that fell on another.
         duplicates: usize,
     },
+    /// Two neighbouring vertices of a ring round to the same f32 point in the local frame.
+    #[error(
+        "building {id}: vertices {vertex} and the next of ring {ring} are {gap:e} m apart, \
+         below f32 resolution at {from_origin:.0} m from the local origin"
+    )]
+    BelowPrecision {
+        /// Source id.
+        id: String,
+        /// Ring index (0 the exterior).
+        ring: usize,
+        /// The first vertex's index in its ring.
+        vertex: usize,
+        /// Their distance, metres.
+        gap: f64,
+        /// The first vertex's distance from the local origin, metres.
+        from_origin: f64,
+    },
     /// Heights are not finite or the top is not above the bottom.
     #[error("building {id}: top {top} m is not above bottom {bottom} m")]
     Heights {
@@ -139,6 +156,23 @@ fn extrude_with(b: &Building, frame: &LocalFrame, s: &mut Scratch) -> Result<Mes
     }
     s.starts.push(s.local.len());
     let n_in = s.local.len();
+    // Neighbouring vertices that round to one f32 point would make degenerate triangles and an
+    // open prism: the footprint has a detail finer than f32 resolves this far from the origin.
+    for (ring, w) in s.starts.windows(2).enumerate() {
+        let pts = &s.local[w[0]..w[1]];
+        for (vertex, &a) in pts.iter().enumerate() {
+            let c = pts[(vertex + 1) % pts.len()];
+            if a.as_vec2() == c.as_vec2() {
+                return Err(ExtrudeError::BelowPrecision {
+                    id: b.source_id.clone(),
+                    ring,
+                    vertex,
+                    gap: a.distance(c),
+                    from_origin: a.length(),
+                });
+            }
+        }
+    }
 
     // A simple footprint without holes and with few vertices (most buildings) is ear-clipped
     // (exact predicates; a ring the clipper cannot prove simple, or finds no ear in, falls

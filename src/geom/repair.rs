@@ -228,7 +228,7 @@ pub fn repair_rings(exterior: &[Coord<f64>], holes: &[&[Coord<f64>]]) -> Result<
     // Simple, non-touching rings: orient, then check that holes lie inside the exterior and
     // outside each other.
     let mut ext = ext;
-    if ring_signed_area(&ext) < 0.0 {
+    if !simple_ring_is_ccw(&ext) {
         ext.reverse();
         actions.push(RepairAction::Rewound { ring: 0 });
     }
@@ -250,7 +250,7 @@ pub fn repair_rings(exterior: &[Coord<f64>], holes: &[&[Coord<f64>]]) -> Result<
             });
             continue;
         }
-        if ring_signed_area(&h) > 0.0 {
+        if simple_ring_is_ccw(&h) {
             h.reverse();
             actions.push(RepairAction::Rewound { ring: k });
         }
@@ -307,11 +307,14 @@ pub fn check_polygon(poly: &Polygon<f64>) -> Result<(), String> {
         if !ring_is_simple(open) {
             return Err(format!("ring {k} is not simple"));
         }
-        let a = ring_signed_area(open);
-        if k == 0 && a <= 0.0 {
+        if ring_signed_area(open) == 0.0 {
+            return Err(format!("ring {k} has zero area"));
+        }
+        let ccw = simple_ring_is_ccw(open);
+        if k == 0 && !ccw {
             return Err("exterior is not counter-clockwise".into());
         }
-        if k > 0 && a >= 0.0 {
+        if k > 0 && ccw {
             return Err(format!("hole {k} is not clockwise"));
         }
     }
@@ -483,6 +486,19 @@ fn is_spike(a: Coord<f64>, b: Coord<f64>, c: Coord<f64>) -> bool {
     } else {
         same_side(a.y, c.y, b.y)
     }
+}
+
+/// Whether a simple open ring runs counter-clockwise, decided exactly: the turn at its lowest
+/// (then leftmost) vertex, a convex corner of any simple ring, has the ring's orientation. The
+/// sign of the shoelace sum is not exact: with coordinates of very different magnitudes its
+/// rounding can give both windings the same sign.
+pub fn simple_ring_is_ccw(r: &[Coord<f64>]) -> bool {
+    let n = r.len();
+    let Some(i) = (0..n).min_by(|&a, &b| r[a].y.total_cmp(&r[b].y).then(r[a].x.total_cmp(&r[b].x)))
+    else {
+        return false;
+    };
+    orient2d(r[(i + n - 1) % n], r[i], r[(i + 1) % n]) == Orientation::CounterClockwise
 }
 
 /// Below this many edges the pairwise loops are faster than building an R-tree; the answers
@@ -817,7 +833,7 @@ fn overlay_repair(
                 why: format!("{why}; the overlay left a non-simple ring"),
             });
         }
-        if ring_signed_area(&cleaned) < 0.0 {
+        if !simple_ring_is_ccw(&cleaned) {
             cleaned.reverse();
         }
         let mut hs = Vec::new();
@@ -826,7 +842,7 @@ fn overlay_repair(
                 Ok(r) => r,
                 Err(_) => continue,
             };
-            if ring_signed_area(&hc) > 0.0 {
+            if simple_ring_is_ccw(&hc) {
                 hc.reverse();
             }
             hs.push(LineString::from(hc));
