@@ -178,6 +178,23 @@ pub fn repair_polygon(poly: &Polygon<f64>) -> Result<Repaired, Refusal> {
 /// # Errors
 /// As [`repair_polygon`].
 pub fn repair_rings(exterior: &[Coord<f64>], holes: &[&[Coord<f64>]]) -> Result<Repaired, Refusal> {
+    let r = repair_rings_unchecked(exterior, holes)?;
+    // A ring whose area rounds to zero in f64 (coordinates near the bottom of its range) is
+    // refused as [`check_polygon`] would call it invalid: its winding and its area mean nothing.
+    let zero = |l: &LineString<f64>| ring_signed_area(open_ring(&l.0)) == 0.0;
+    if r.polygons
+        .iter()
+        .any(|p| zero(p.exterior()) || p.interiors().iter().any(zero))
+    {
+        return Err(Refusal::ZeroArea);
+    }
+    Ok(r)
+}
+
+fn repair_rings_unchecked(
+    exterior: &[Coord<f64>],
+    holes: &[&[Coord<f64>]],
+) -> Result<Repaired, Refusal> {
     for (ring, pts) in std::iter::once(exterior)
         .chain(holes.iter().copied())
         .enumerate()
