@@ -21,7 +21,7 @@ use crate::city::{Building, BuildingId, HeightSource, LocalFrame};
 use crate::geom::predicates::{
     on_segment, orient2d, polygon_area, segments_intersect, Orientation, SegmentIntersection,
 };
-use crate::geom::repair::{check_polygon, repair_polygon};
+use crate::geom::repair::{check_polygon, repair_polygon, COORD_RANGE};
 use crate::jobs::{write_plan, Plan};
 use crate::route::{check_frames, RouteChoice, RouteContext};
 
@@ -160,12 +160,19 @@ pub fn check_repair(data: &[u8]) -> Outcome {
     }
 }
 
+/// Zero, or a magnitude inside [`COORD_RANGE`]: the coordinates a city's streets can have (the
+/// build checks them against their CRS), where the exact predicates stay exact.
+fn in_range(v: f64) -> bool {
+    v == 0.0 || (COORD_RANGE.0..=COORD_RANGE.1).contains(&v.abs())
+}
+
 /// Most segments [`check_faces`] decodes (its planarity check is quadratic).
 pub const FACES_MAX_SEGMENTS: usize = 96;
 
 /// Street noding and faces ([`node_lines`], [`faces`]): lines decoded from `data` (a header byte:
-/// bits 0–1 the snap tolerance 0, 5 cm, 0.5 m or 3 m, bit 2 raw `f64` coordinates; then each
-/// line as a point count byte and its points; non-finite points are dropped, as the callers do)
+/// bits 0–1 the snap tolerance 1 mm, 5 cm, 0.5 m or 3 m, bit 2 raw `f64` coordinates; then each
+/// line as a point count byte and its points; points that are not finite or outside
+/// [`COORD_RANGE`] are dropped, as the city build refuses them)
 /// are noded into a graph whose edges are distinct, ordered, of non-zero length and meet only
 /// at shared nodes (checked pairwise, exactly); its faces satisfy Euler's formula on the edges
 /// that bound faces (nodes − edges + bounded faces = connected pieces), every bounded face has a
@@ -178,7 +185,7 @@ pub fn check_faces(data: &[u8]) -> Outcome {
     let Some(h) = d.byte() else {
         return Outcome::Refused("no input".into());
     };
-    let tol = [0.0, 0.05, 0.5, 3.0][usize::from(h & 3)];
+    let tol = [0.001, 0.05, 0.5, 3.0][usize::from(h & 3)];
     let raw = h & 4 != 0;
     let mut lines = Vec::new();
     let mut segments = 0;
@@ -187,7 +194,7 @@ pub fn check_faces(data: &[u8]) -> Outcome {
         let pts: Vec<Coord<f64>> = d
             .ring(n, raw)
             .into_iter()
-            .filter(|c| c.x.is_finite() && c.y.is_finite())
+            .filter(|c| in_range(c.x) && in_range(c.y))
             .collect();
         segments += pts.len().saturating_sub(1);
         if segments > FACES_MAX_SEGMENTS {

@@ -54,18 +54,18 @@ pub enum ExtrudeError {
         /// Vertices that fell on another.
         duplicates: usize,
     },
-    /// Two neighbouring vertices of a ring round to the same f32 point in the local frame.
+    /// Two vertices of the footprint round to the same f32 point in the local frame.
     #[error(
-        "building {id}: vertices {vertex} and the next of ring {ring} are {gap:e} m apart, \
-         below f32 resolution at {from_origin:.0} m from the local origin"
+        "building {id}: vertex {first:?} and vertex {second:?} (ring, index) are {gap:e} m \
+         apart, below f32 resolution at {from_origin:.0} m from the local origin"
     )]
     BelowPrecision {
         /// Source id.
         id: String,
-        /// Ring index (0 the exterior).
-        ring: usize,
-        /// The first vertex's index in its ring.
-        vertex: usize,
+        /// The first vertex: (ring, index in the ring); ring 0 is the exterior.
+        first: (usize, usize),
+        /// The second vertex.
+        second: (usize, usize),
         /// Their distance, metres.
         gap: f64,
         /// The first vertex's distance from the local origin, metres.
@@ -98,6 +98,8 @@ struct Scratch {
     stack: Vec<spade::handles::FixedFaceHandle<spade::handles::InnerTag>>,
     /// The cap's triangles.
     cap: Vec<[u32; 3]>,
+    /// The footprint's vertices rounded to f32 (bit patterns) with their indices in `local`.
+    rounded: Vec<([u32; 2], usize)>,
     /// Along-wall coordinates of one ring.
     us: Vec<f32>,
     /// The ear clipper's ring links (previous, next).
@@ -156,22 +158,27 @@ fn extrude_with(b: &Building, frame: &LocalFrame, s: &mut Scratch) -> Result<Mes
     }
     s.starts.push(s.local.len());
     let n_in = s.local.len();
-    // Neighbouring vertices that round to one f32 point would make degenerate triangles and an
+    // Vertices that round to one f32 point would make degenerate or doubled triangles and an
     // open prism: the footprint has a detail finer than f32 resolves this far from the origin.
-    for (ring, w) in s.starts.windows(2).enumerate() {
-        let pts = &s.local[w[0]..w[1]];
-        for (vertex, &a) in pts.iter().enumerate() {
-            let c = pts[(vertex + 1) % pts.len()];
-            if a.as_vec2() == c.as_vec2() {
-                return Err(ExtrudeError::BelowPrecision {
-                    id: b.source_id.clone(),
-                    ring,
-                    vertex,
-                    gap: a.distance(c),
-                    from_origin: a.length(),
-                });
-            }
-        }
+    s.rounded.clear();
+    s.rounded.extend(s.local.iter().enumerate().map(|(i, p)| {
+        let r = p.as_vec2();
+        ([r.x.to_bits(), r.y.to_bits()], i)
+    }));
+    s.rounded.sort_unstable();
+    if let Some(w) = s.rounded.windows(2).find(|w| w[0].0 == w[1].0) {
+        let (i, j) = (w[0].1.min(w[1].1), w[0].1.max(w[1].1));
+        let at = |k: usize| {
+            let ring = s.starts.partition_point(|&st| st <= k) - 1;
+            (ring, k - s.starts[ring])
+        };
+        return Err(ExtrudeError::BelowPrecision {
+            id: b.source_id.clone(),
+            first: at(i),
+            second: at(j),
+            gap: s.local[i].distance(s.local[j]),
+            from_origin: s.local[i].length(),
+        });
     }
 
     // A simple footprint without holes and with few vertices (most buildings) is ear-clipped

@@ -130,6 +130,19 @@ pub enum Refusal {
         /// Point index.
         index: usize,
     },
+    /// A coordinate's magnitude is outside [`COORD_RANGE`] (and not zero).
+    #[error(
+        "ring {ring}, point {index}: coordinate {value:e} is outside the range the exact \
+         predicates handle (0, or 1e-100 to 1e100 in magnitude)"
+    )]
+    OutOfRange {
+        /// Ring index.
+        ring: usize,
+        /// Point index.
+        index: usize,
+        /// The coordinate.
+        value: f64,
+    },
     /// The exterior has fewer than three distinct points (after dropping repeats and spikes).
     #[error("exterior has {n} distinct point(s) after cleaning, need 3")]
     TooFewPoints {
@@ -145,6 +158,16 @@ pub enum Refusal {
         /// What remained wrong.
         why: String,
     },
+}
+
+/// The magnitudes a non-zero coordinate may have: between them no product of two coordinate
+/// differences, nor the error terms of the exact predicates, overflows or falls into the
+/// subnormals, so orientation and crossing tests stay exact. Footprints are far inside.
+pub const COORD_RANGE: (f64, f64) = (1e-100, 1e100);
+
+/// Whether `v` is zero or of a magnitude inside [`COORD_RANGE`].
+fn in_coord_range(v: f64) -> bool {
+    v == 0.0 || (COORD_RANGE.0..=COORD_RANGE.1).contains(&v.abs())
 }
 
 /// A repaired polygon: valid parts (see the module doc) and what was done.
@@ -204,6 +227,15 @@ fn repair_rings_unchecked(
             .position(|c| !c.x.is_finite() || !c.y.is_finite())
         {
             return Err(Refusal::NonFinite { ring, index });
+        }
+        let far = pts.iter().enumerate().find_map(|(i, c)| {
+            [c.x, c.y]
+                .into_iter()
+                .find(|&v| !in_coord_range(v))
+                .map(|v| (i, v))
+        });
+        if let Some((index, value)) = far {
+            return Err(Refusal::OutOfRange { ring, index, value });
         }
     }
     let mut actions = Vec::new();
@@ -320,6 +352,12 @@ pub fn check_polygon(poly: &Polygon<f64>) -> Result<(), String> {
         let open = &r[..r.len() - 1];
         if open.iter().any(|c| !c.x.is_finite() || !c.y.is_finite()) {
             return Err(format!("ring {k} has a non-finite coordinate"));
+        }
+        if open
+            .iter()
+            .any(|c| !in_coord_range(c.x) || !in_coord_range(c.y))
+        {
+            return Err(format!("ring {k} has a coordinate outside COORD_RANGE"));
         }
         if !ring_is_simple(open) {
             return Err(format!("ring {k} is not simple"));
