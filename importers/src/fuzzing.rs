@@ -116,11 +116,12 @@ fn outcome(file: &Path, read: Result<Layer, ImportError>) -> Outcome {
             }
         }
         Err(e) => {
+            // The file named may be a companion of `file` (`layer.dbf` beside `layer.shp`).
             let msg = e.to_string();
-            let name = file.file_name().map(|n| n.to_string_lossy().into_owned());
+            let stem = file.with_extension("");
             assert!(
-                name.is_some_and(|n| msg.contains(&n)),
-                "error does not name the file {}: {msg}",
+                msg.contains(&*stem.to_string_lossy()),
+                "error does not name a file of the input {}: {msg}",
                 file.display()
             );
             Outcome::Refused(msg)
