@@ -346,8 +346,30 @@ pub fn check_extrude(data: &[u8]) -> Outcome {
                 }
                 let vol = signed_volume(&m);
                 let want = area * (top - bottom);
-                // Raw coordinates may be far from a metre scale: only the sign is checked.
-                let tol = if raw { want } else { 1e-3 * want + 1e-3 };
+                // Raw coordinates may be far from a metre scale: only the sign is checked. Else
+                // each vertex may move by half an f32 step at its distance from the origin,
+                // which changes the area by at most that much times the perimeter.
+                let far = b
+                    .footprint
+                    .exterior()
+                    .0
+                    .iter()
+                    .map(|p| (p.x - c.x).abs().max((p.y - c.y).abs()))
+                    .fold(0.0, f64::max);
+                let step = 2.0 * far * f64::from(f32::EPSILON);
+                let perimeter: f64 = std::iter::once(b.footprint.exterior())
+                    .chain(b.footprint.interiors())
+                    .flat_map(|r| {
+                        r.0.windows(2)
+                            .map(|w| (w[1].x - w[0].x).hypot(w[1].y - w[0].y))
+                    })
+                    .sum();
+                let rounding = step * perimeter * (top - bottom);
+                let tol = if raw {
+                    want
+                } else {
+                    1e-3 * want + 1e-3 + rounding
+                };
                 assert!(
                     vol > 0.0 && (vol - want).abs() <= tol,
                     "part {i}: volume {vol}, footprint area × height {want}\n{:?}",
