@@ -30,6 +30,7 @@ pub mod blockmap;
 pub mod blocks;
 pub mod choice;
 pub mod city;
+pub mod fuzzing;
 pub mod geom;
 pub mod index;
 pub mod jobs;

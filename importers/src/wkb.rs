@@ -69,7 +69,6 @@ pub(crate) fn decode_gpkg(blob: &[u8]) -> Result<GpGeometry, String> {
 }
 
 /// Decodes plain WKB. `Ok(None)` for an empty geometry.
-#[cfg(test)]
 pub(crate) fn decode_wkb(bytes: &[u8]) -> Result<Option<Geometry<f64>>, String> {
     let mut r = Reader { b: bytes, pos: 0 };
     read_geometry(&mut r, 0)

@@ -123,7 +123,11 @@ impl Snapper {
         let mut best: Option<(f64, u32)> = None;
         for dx in -r..=r {
             for dy in -r..=r {
-                if let Some(list) = self.cells.get(&(kx + dx, ky + dy)) {
+                // Keys saturate for coordinates beyond ±2⁶³ tolerances: no cell past them.
+                let (Some(cx), Some(cy)) = (kx.checked_add(dx), ky.checked_add(dy)) else {
+                    continue;
+                };
+                if let Some(list) = self.cells.get(&(cx, cy)) {
                     for &id in list {
                         let n = self.nodes[id as usize];
                         let d = (n.x - c.x).hypot(n.y - c.y);

@@ -54,6 +54,23 @@ pub enum ExtrudeError {
         /// Vertices that fell on another.
         duplicates: usize,
     },
+    /// Two vertices of the footprint round to the same f32 point in the local frame.
+    #[error(
+        "building {id}: vertex {first:?} and vertex {second:?} (ring, index) are {gap:e} m \
+         apart, below f32 resolution at {from_origin:.0} m from the local origin"
+    )]
+    BelowPrecision {
+        /// Source id.
+        id: String,
+        /// The first vertex: (ring, index in the ring); ring 0 is the exterior.
+        first: (usize, usize),
+        /// The second vertex.
+        second: (usize, usize),
+        /// Their distance, metres.
+        gap: f64,
+        /// The first vertex's distance from the local origin, metres.
+        from_origin: f64,
+    },
     /// Heights are not finite or the top is not above the bottom.
     #[error("building {id}: top {top} m is not above bottom {bottom} m")]
     Heights {
@@ -81,6 +98,8 @@ struct Scratch {
     stack: Vec<spade::handles::FixedFaceHandle<spade::handles::InnerTag>>,
     /// The cap's triangles.
     cap: Vec<[u32; 3]>,
+    /// The footprint's vertices rounded to f32 (bit patterns) with their indices in `local`.
+    rounded: Vec<([u32; 2], usize)>,
     /// Along-wall coordinates of one ring.
     us: Vec<f32>,
     /// The ear clipper's ring links (previous, next).
@@ -139,6 +158,28 @@ fn extrude_with(b: &Building, frame: &LocalFrame, s: &mut Scratch) -> Result<Mes
     }
     s.starts.push(s.local.len());
     let n_in = s.local.len();
+    // Vertices that round to one f32 point would make degenerate or doubled triangles and an
+    // open prism: the footprint has a detail finer than f32 resolves this far from the origin.
+    s.rounded.clear();
+    s.rounded.extend(s.local.iter().enumerate().map(|(i, p)| {
+        let r = p.as_vec2();
+        ([r.x.to_bits(), r.y.to_bits()], i)
+    }));
+    s.rounded.sort_unstable();
+    if let Some(w) = s.rounded.windows(2).find(|w| w[0].0 == w[1].0) {
+        let (i, j) = (w[0].1.min(w[1].1), w[0].1.max(w[1].1));
+        let at = |k: usize| {
+            let ring = s.starts.partition_point(|&st| st <= k) - 1;
+            (ring, k - s.starts[ring])
+        };
+        return Err(ExtrudeError::BelowPrecision {
+            id: b.source_id.clone(),
+            first: at(i),
+            second: at(j),
+            gap: s.local[i].distance(s.local[j]),
+            from_origin: s.local[i].length(),
+        });
+    }
 
     // A simple footprint without holes and with few vertices (most buildings) is ear-clipped
     // (exact predicates; a ring the clipper cannot prove simple, or finds no ear in, falls

@@ -130,6 +130,19 @@ pub enum Refusal {
         /// Point index.
         index: usize,
     },
+    /// A coordinate's magnitude is outside [`COORD_RANGE`] (and not zero).
+    #[error(
+        "ring {ring}, point {index}: coordinate {value:e} is outside the range the exact \
+         predicates handle (0, or 1e-100 to 1e100 in magnitude)"
+    )]
+    OutOfRange {
+        /// Ring index.
+        ring: usize,
+        /// Point index.
+        index: usize,
+        /// The coordinate.
+        value: f64,
+    },
     /// The exterior has fewer than three distinct points (after dropping repeats and spikes).
     #[error("exterior has {n} distinct point(s) after cleaning, need 3")]
     TooFewPoints {
@@ -145,6 +158,16 @@ pub enum Refusal {
         /// What remained wrong.
         why: String,
     },
+}
+
+/// The magnitudes a non-zero coordinate may have: between them no product of two coordinate
+/// differences, nor the error terms of the exact predicates, overflows or falls into the
+/// subnormals, so orientation and crossing tests stay exact. Footprints are far inside.
+pub const COORD_RANGE: (f64, f64) = (1e-100, 1e100);
+
+/// Whether `v` is zero or of a magnitude inside [`COORD_RANGE`].
+fn in_coord_range(v: f64) -> bool {
+    v == 0.0 || (COORD_RANGE.0..=COORD_RANGE.1).contains(&v.abs())
 }
 
 /// A repaired polygon: valid parts (see the module doc) and what was done.
@@ -178,6 +201,23 @@ pub fn repair_polygon(poly: &Polygon<f64>) -> Result<Repaired, Refusal> {
 /// # Errors
 /// As [`repair_polygon`].
 pub fn repair_rings(exterior: &[Coord<f64>], holes: &[&[Coord<f64>]]) -> Result<Repaired, Refusal> {
+    let r = repair_rings_unchecked(exterior, holes)?;
+    // A ring whose area rounds to zero in f64 (coordinates near the bottom of its range) is
+    // refused as [`check_polygon`] would call it invalid: its winding and its area mean nothing.
+    let zero = |l: &LineString<f64>| ring_signed_area(open_ring(&l.0)) == 0.0;
+    if r.polygons
+        .iter()
+        .any(|p| zero(p.exterior()) || p.interiors().iter().any(zero))
+    {
+        return Err(Refusal::ZeroArea);
+    }
+    Ok(r)
+}
+
+fn repair_rings_unchecked(
+    exterior: &[Coord<f64>],
+    holes: &[&[Coord<f64>]],
+) -> Result<Repaired, Refusal> {
     for (ring, pts) in std::iter::once(exterior)
         .chain(holes.iter().copied())
         .enumerate()
@@ -187,6 +227,15 @@ pub fn repair_rings(exterior: &[Coord<f64>], holes: &[&[Coord<f64>]]) -> Result<
             .position(|c| !c.x.is_finite() || !c.y.is_finite())
         {
             return Err(Refusal::NonFinite { ring, index });
+        }
+        let far = pts.iter().enumerate().find_map(|(i, c)| {
+            [c.x, c.y]
+                .into_iter()
+                .find(|&v| !in_coord_range(v))
+                .map(|v| (i, v))
+        });
+        if let Some((index, value)) = far {
+            return Err(Refusal::OutOfRange { ring, index, value });
         }
     }
     let mut actions = Vec::new();
@@ -228,7 +277,7 @@ pub fn repair_rings(exterior: &[Coord<f64>], holes: &[&[Coord<f64>]]) -> Result<
     // Simple, non-touching rings: orient, then check that holes lie inside the exterior and
     // outside each other.
     let mut ext = ext;
-    if ring_signed_area(&ext) < 0.0 {
+    if !simple_ring_is_ccw(&ext) {
         ext.reverse();
         actions.push(RepairAction::Rewound { ring: 0 });
     }
@@ -250,7 +299,7 @@ pub fn repair_rings(exterior: &[Coord<f64>], holes: &[&[Coord<f64>]]) -> Result<
             });
             continue;
         }
-        if ring_signed_area(&h) > 0.0 {
+        if simple_ring_is_ccw(&h) {
             h.reverse();
             actions.push(RepairAction::Rewound { ring: k });
         }
@@ -304,14 +353,23 @@ pub fn check_polygon(poly: &Polygon<f64>) -> Result<(), String> {
         if open.iter().any(|c| !c.x.is_finite() || !c.y.is_finite()) {
             return Err(format!("ring {k} has a non-finite coordinate"));
         }
+        if open
+            .iter()
+            .any(|c| !in_coord_range(c.x) || !in_coord_range(c.y))
+        {
+            return Err(format!("ring {k} has a coordinate outside COORD_RANGE"));
+        }
         if !ring_is_simple(open) {
             return Err(format!("ring {k} is not simple"));
         }
-        let a = ring_signed_area(open);
-        if k == 0 && a <= 0.0 {
+        if ring_signed_area(open) == 0.0 {
+            return Err(format!("ring {k} has zero area"));
+        }
+        let ccw = simple_ring_is_ccw(open);
+        if k == 0 && !ccw {
             return Err("exterior is not counter-clockwise".into());
         }
-        if k > 0 && a >= 0.0 {
+        if k > 0 && ccw {
             return Err(format!("hole {k} is not clockwise"));
         }
     }
@@ -471,8 +529,31 @@ fn is_spike(a: Coord<f64>, b: Coord<f64>, c: Coord<f64>) -> bool {
     if a == c {
         return true;
     }
-    orient2d(a, b, c) == Orientation::Collinear
-        && (b.x - a.x) * (c.x - b.x) + (b.y - a.y) * (c.y - b.y) < 0.0
+    if orient2d(a, b, c) != Orientation::Collinear {
+        return false;
+    }
+    // On one line, `b` is the tip when `a` and `c` lie on the same side of it. Compared
+    // coordinate by coordinate, exactly: the sign of a dot product in floating point is wrong
+    // when its terms underflow, overflow or cancel (coordinates near 1e-300 or 1e300).
+    let same_side = |p: f64, q: f64, o: f64| (p > o && q > o) || (p < o && q < o);
+    if a.x != b.x {
+        same_side(a.x, c.x, b.x)
+    } else {
+        same_side(a.y, c.y, b.y)
+    }
+}
+
+/// Whether a simple open ring runs counter-clockwise, decided exactly: the turn at its lowest
+/// (then leftmost) vertex, a convex corner of any simple ring, has the ring's orientation. The
+/// sign of the shoelace sum is not exact: with coordinates of very different magnitudes its
+/// rounding can give both windings the same sign.
+pub fn simple_ring_is_ccw(r: &[Coord<f64>]) -> bool {
+    let n = r.len();
+    let Some(i) = (0..n).min_by(|&a, &b| r[a].y.total_cmp(&r[b].y).then(r[a].x.total_cmp(&r[b].x)))
+    else {
+        return false;
+    };
+    orient2d(r[(i + n - 1) % n], r[i], r[(i + 1) % n]) == Orientation::CounterClockwise
 }
 
 /// Below this many edges the pairwise loops are faster than building an R-tree; the answers
@@ -742,12 +823,49 @@ fn closed_polygon(r: &[Coord<f64>]) -> Polygon<f64> {
 }
 
 /// Resolves self-intersections and crossing rings with the overlay (see the module doc).
+/// The smallest and largest extent (the larger side of a ring's bounding box) the overlay
+/// resolves. `i_overlay` maps the bounding box of each operation onto a 2³⁰ integer grid by a
+/// power of two; for a box below about 1e-290 that scale overflows to infinity, above about
+/// 1e300 the box's own size does, and the grid coordinates come out as garbage (products that
+/// overflow). Footprints are metres to kilometres across.
+pub const OVERLAY_EXTENT_RANGE: (f64, f64) = (1e-280, 1e300);
+
+/// Why the overlay cannot take these rings, if it cannot: a ring whose extent is outside
+/// [`OVERLAY_EXTENT_RANGE`].
+fn overlay_range_problem<'a>(
+    rings: impl Iterator<Item = (usize, &'a [Coord<f64>])>,
+) -> Option<String> {
+    let (lo, hi) = OVERLAY_EXTENT_RANGE;
+    for (k, r) in rings {
+        let (mut x0, mut y0, mut x1, mut y1) = (f64::MAX, f64::MAX, f64::MIN, f64::MIN);
+        for c in r {
+            x0 = x0.min(c.x);
+            y0 = y0.min(c.y);
+            x1 = x1.max(c.x);
+            y1 = y1.max(c.y);
+        }
+        let extent = (x1 - x0).max(y1 - y0);
+        if !(lo..=hi).contains(&extent) {
+            return Some(format!(
+                "ring {k} is {extent:e} across, outside the {lo:e} to {hi:e} the overlay resolves"
+            ));
+        }
+    }
+    None
+}
+
 fn overlay_repair(
     ext: Vec<Coord<f64>>,
     holes: Vec<(usize, Vec<Coord<f64>>)>,
     why: String,
     mut actions: Vec<RepairAction>,
 ) -> Result<Repaired, Refusal> {
+    let rings = std::iter::once((0, &ext[..])).chain(holes.iter().map(|(k, h)| (*k, &h[..])));
+    if let Some(problem) = overlay_range_problem(rings) {
+        return Err(Refusal::Unrepairable {
+            why: format!("{why}; {problem}"),
+        });
+    }
     let empty = MultiPolygon::<f64>::new(vec![]);
     let mut area =
         closed_polygon(&ext).boolean_op_with_fill_rule(&empty, OpType::Union, FillRule::NonZero);
@@ -770,7 +888,7 @@ fn overlay_repair(
                 why: format!("{why}; the overlay left a non-simple ring"),
             });
         }
-        if ring_signed_area(&cleaned) < 0.0 {
+        if !simple_ring_is_ccw(&cleaned) {
             cleaned.reverse();
         }
         let mut hs = Vec::new();
@@ -779,7 +897,7 @@ fn overlay_repair(
                 Ok(r) => r,
                 Err(_) => continue,
             };
-            if ring_signed_area(&hc) > 0.0 {
+            if simple_ring_is_ccw(&hc) {
                 hc.reverse();
             }
             hs.push(LineString::from(hc));

@@ -138,6 +138,10 @@ impl Plan {
             file: path.to_path_buf(),
             source,
         })?;
+        plan.check().map_err(|why| JobsError::Format {
+            file: path.to_path_buf(),
+            why,
+        })?;
         let id = plan.content_id();
         if id != plan.plan_id {
             return Err(JobsError::Format {
@@ -158,6 +162,48 @@ impl Plan {
         p.plan_id.clear();
         let text = serde_json::to_vec(&p).expect("a plan serialises");
         format!("{:08x}", crc32fast::hash(&text))
+    }
+
+    /// What the tile jobs and the merge rely on: tile `i` and block `i` have id `i`, every
+    /// block a tile names exists, and every coordinate and box is finite.
+    fn check(&self) -> Result<(), String> {
+        let finite = |v: &[f64]| v.iter().all(|x| x.is_finite());
+        let exact = |v: &[ExactF64; 2]| v[0].0.is_finite() && v[1].0.is_finite();
+        if !exact(&self.transform_centre) || !exact(&self.frame_origin) {
+            return Err("transform_centre and frame_origin must be finite".into());
+        }
+        for (i, b) in self.blocks.iter().enumerate() {
+            if b.id as usize != i {
+                return Err(format!(
+                    "block {i} has id {} (block ids are their positions)",
+                    b.id
+                ));
+            }
+            if !b.rings.iter().flatten().all(exact) || !finite(&b.bounds) {
+                return Err(format!("block {i} has a coordinate that is not finite"));
+            }
+            if !b.building_bounds.is_none_or(|bb| finite(&bb)) {
+                return Err(format!("block {i} has building_bounds that are not finite"));
+            }
+        }
+        for (i, t) in self.tiles.iter().enumerate() {
+            if t.id != i {
+                return Err(format!(
+                    "tile {i} has id {} (tile ids are their positions)",
+                    t.id
+                ));
+            }
+            if let Some(&b) = t.blocks.iter().find(|&&b| b as usize >= self.blocks.len()) {
+                return Err(format!(
+                    "tile {i} names block {b}, but the plan has {} blocks",
+                    self.blocks.len()
+                ));
+            }
+            if !finite(&t.bounds) || !t.read_bounds.is_none_or(|rb| finite(&rb)) {
+                return Err(format!("tile {i} has bounds that are not finite"));
+            }
+        }
+        Ok(())
     }
 
     /// The local frame of the whole city.

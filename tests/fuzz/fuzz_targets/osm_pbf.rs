@@ -1,0 +1,8 @@
+#![no_main]
+//! An OSM PBF file through the OSM reader, buildings and streets.
+#[path = "common.rs"]
+mod common;
+
+libfuzzer_sys::fuzz_target!(|data: &[u8]| {
+    let _ = blockwalk_importers::fuzzing::check_osm(common::dir(), data);
+});
