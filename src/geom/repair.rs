@@ -866,14 +866,30 @@ fn overlay_repair(
             why: format!("{why}; {problem}"),
         });
     }
-    let empty = MultiPolygon::<f64>::new(vec![]);
-    let mut area =
-        closed_polygon(&ext).boolean_op_with_fill_rule(&empty, OpType::Union, FillRule::NonZero);
-    for (_, h) in &holes {
-        let hole =
-            closed_polygon(h).boolean_op_with_fill_rule(&empty, OpType::Union, FillRule::NonZero);
-        area = area.difference(&hole);
-    }
+    let overlay = || {
+        let empty = MultiPolygon::<f64>::new(vec![]);
+        let mut area = closed_polygon(&ext).boolean_op_with_fill_rule(
+            &empty,
+            OpType::Union,
+            FillRule::NonZero,
+        );
+        for (_, h) in &holes {
+            let hole = closed_polygon(h).boolean_op_with_fill_rule(
+                &empty,
+                OpType::Union,
+                FillRule::NonZero,
+            );
+            area = area.difference(&hole);
+        }
+        area
+    };
+    // The overlay library can fail an internal assertion on some self-crossing rings (found by
+    // fuzzing): that footprint is refused with the reason instead of ending the import.
+    let area = std::panic::catch_unwind(std::panic::AssertUnwindSafe(overlay)).map_err(|_| {
+        Refusal::Unrepairable {
+            why: format!("{why}; the polygon overlay failed on these rings"),
+        }
+    })?;
     let mut polygons = Vec::new();
     for part in area.0 {
         let inner: Vec<&[Coord<f64>]> = part.interiors().iter().map(|h| &h.0[..]).collect();
