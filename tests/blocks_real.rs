@@ -313,7 +313,7 @@ fn bubenec_city_pipeline_areas_in_input_units() {
     let missing = dir.path().join("no such dir").join("m.svg");
     let e = write_map(&missing, &l, &fps, 800).unwrap_err();
     assert!(
-        matches!(&e, ExportError::Draw { file, .. } if file == &missing),
+        matches!(&e, ExportError::Output(o) if o.path() == missing),
         "{e:?}"
     );
     assert!(std::error::Error::source(&e).is_some());
