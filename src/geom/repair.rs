@@ -10,8 +10,27 @@
 //! two edges meet except consecutive edges at their shared vertex), has non-zero area, the
 //! exterior is counter-clockwise and every hole clockwise, the rings do not touch or cross each
 //! other, and every hole lies inside the exterior and outside every other hole. This is
-//! stricter than the OGC rules (which let rings touch at a point) because the extruded prism of
-//! such a footprint would not be a 2-manifold.
+//! stricter than the OGC rules, which let a hole touch the exterior or another hole at a single
+//! point, because the extruded prism of such a footprint would not be a 2-manifold (four walls
+//! would meet along the vertical edge above the point).
+//!
+//! # Rings touching at a point
+//!
+//! Footprints whose rings touch at isolated points are still accepted: a courtyard hole that
+//! touches the exterior at one point, two holes that touch at a corner (both OGC-valid), and an
+//! exterior that touches itself at one point around a courtyard, the "inverted courtyard"
+//! (not OGC-valid, since OGC rings must be simple, but the form some GIS software writes for
+//! the same shape). Each touch is separated ([`RepairAction::SeparatedTouch`]). Of the visits of
+//! the point (a vertex there, or an edge passing through it) the one of the lowest ring stays
+//! as it is (the exterior before the holes; in a self-touching ring, its first visit), and every
+//! other visit is replaced by a notch (an edge first gets the point as a vertex): two points on
+//! its edges and one on the bisector of its angle, each [`TOUCH_SEPARATION_M`] (1 mm) from the
+//! point, cut into the region that ring bounds (the void of a hole, the inside of the exterior). The rings then no
+//! longer meet, the polygon is valid and its prism is a closed 2-manifold; the area changes by
+//! the notch's quadrilateral, at most δ² (1 mm²) per touch. The separation is only kept when all
+//! rings come out simple and apart; rings that cross, share an edge, or two lobes that meet at a
+//! point without one enclosing the other (a bow-tie, whose notch would cross the other lobe) go
+//! to the overlay below, as if nothing had been tried.
 //!
 //! Self-intersections and crossing rings are resolved with a polygon overlay (geo's
 //! `BooleanOps`, i.e. the `i_overlay` crate): the exterior is unioned with itself under the
@@ -884,8 +903,8 @@ fn separate_touches(ext: &[Coord<f64>], holes: &[(usize, Vec<Coord<f64>>)]) -> O
     let key = |c: Coord<f64>| ((c.x + 0.0).to_bits(), (c.y + 0.0).to_bits());
     // Per point, its visits (ring position, 0, vertex index) and (ring position, 1, index of an
     // edge through its inside).
-    let mut at: std::collections::BTreeMap<(u64, u64), Vec<(usize, u8, usize)>> =
-        Default::default();
+    type Visits = Vec<(usize, u8, usize)>;
+    let mut at: std::collections::BTreeMap<(u64, u64), Visits> = Default::default();
     for (r, ring) in rings.iter().enumerate() {
         for (i, &c) in ring.iter().enumerate() {
             at.entry(key(c)).or_default().push((r, 0, i));
