@@ -1374,6 +1374,72 @@ mod tests {
         }
     }
 
+    /// Checks a repair of a footprint with `touches` point touches and true area `area`: one
+    /// valid polygon, that many separations and nothing else but winding, area within Σ δ².
+    fn assert_separated(p: &Polygon<f64>, area: f64, touches: usize) -> Result<(), TestCaseError> {
+        let out = repair_polygon(p).map_err(|e| TestCaseError::fail(e.to_string()))?;
+        prop_assert_eq!(out.polygons.len(), 1);
+        prop_assert!(check_polygon(&out.polygons[0]).is_ok());
+        let mut bound = 0.0;
+        let mut n = 0;
+        for a in &out.actions {
+            match a {
+                RepairAction::SeparatedTouch { moved_m, .. } => {
+                    n += 1;
+                    bound += moved_m * moved_m;
+                }
+                RepairAction::Rewound { .. } | RepairAction::ClosedRing { .. } => {}
+                other => prop_assert!(false, "unexpected {other}"),
+            }
+        }
+        prop_assert_eq!(n, touches);
+        let got = polygon_area(&out.polygons[0]);
+        prop_assert!(got != area);
+        prop_assert!((got - area).abs() <= bound * (1.0 + 1e-9) + 1e-12 * area);
+        Ok(())
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(300))]
+
+        /// A triangular hole with one vertex on the shell's boundary (a corner or inside an
+        /// edge), the others well inside (at least 0.1 s from the shell); and, when the vertex
+        /// is the corner, the same courtyard written as a self-touching exterior.
+        #[test]
+        fn random_point_touches_are_separated(
+            s in 5.0f64..200.0,
+            t in 0.0f64..1.0,
+            corner in any::<bool>(),
+            q in prop::array::uniform4(0.1f64..0.9),
+            reverse in any::<bool>(),
+        ) {
+            let v = if corner { c(0., 0.) } else { c(t * s, 0.) };
+            let (q1, q2) = (c(q[0] * s, q[1] * s), c(q[2] * s, q[3] * s));
+            let tri = ring_signed_area(&[v, q1, q2]);
+            prop_assume!(tri.abs() > 0.01 * s * s);
+            let mut hole = vec![v, q1, q2];
+            if reverse {
+                hole.reverse();
+            }
+            let p = Polygon::new(
+                LineString::from(sq(0., 0., s)),
+                vec![LineString::from(hole)],
+            );
+            assert_separated(&p, s * s - tri.abs(), 1)?;
+            if corner {
+                // Exterior, then the courtyard clockwise from the same corner.
+                let (a, b) = if tri > 0.0 { (q2, q1) } else { (q1, q2) };
+                let mut ext = sq(0., 0., s);
+                ext.extend([c(0., 0.), a, b]);
+                if reverse {
+                    ext.reverse();
+                }
+                let p = Polygon::new(LineString::from(ext), vec![]);
+                assert_separated(&p, s * s - tri.abs(), 1)?;
+            }
+        }
+    }
+
     #[test]
     fn separated_touch_reads_clearly() {
         let a = RepairAction::SeparatedTouch {
