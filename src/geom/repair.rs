@@ -144,18 +144,26 @@ impl fmt::Display for RepairAction {
             RepairAction::Rewound { ring } => write!(f, "rewound ring {ring}"),
             RepairAction::DroppedHole { ring, why } => write!(f, "dropped hole {ring}: {why}"),
             RepairAction::SeparatedTouch { rings, at, moved_m } => {
-                let mm = moved_m * 1e3;
+                let mm = (moved_m * 1e6).round() / 1e3;
+                let into = if rings.1 == 0 {
+                    "the footprint"
+                } else {
+                    "the hole"
+                };
+                let (x, y) = (at[0], at[1]);
                 if rings.0 == rings.1 {
                     write!(
                         f,
-                        "ring {} touched itself at ({}, {}): one visit moved {mm} mm inwards",
-                        rings.0, at[0], at[1]
+                        "ring {} touched itself at ({x:.3}, {y:.3}): separated by moving one of \
+                         its two vertices there {mm} mm into {into}",
+                        rings.0
                     )
                 } else {
                     write!(
                         f,
-                        "ring {} touched ring {} at ({}, {}): ring {} moved {mm} mm inwards",
-                        rings.1, rings.0, at[0], at[1], rings.1
+                        "ring {} touched ring {} at ({x:.3}, {y:.3}): separated by moving ring \
+                         {}'s vertex there {mm} mm into {into}",
+                        rings.1, rings.0, rings.1
                     )
                 }
             }
@@ -1359,7 +1367,7 @@ mod tests {
                         assert!(d == 0.0 || d >= 0.5 * moved_m, "{name}: {v:?} at {d}");
                     }
                 }
-                assert!(a.to_string().contains("mm inwards"), "{a}");
+                assert!(a.to_string().contains(" mm into the "), "{a}");
             }
             // Independent of the notch formula: the area of the input, computed by hand.
             let got = polygon_area(q);
@@ -1449,7 +1457,8 @@ mod tests {
         };
         assert_eq!(
             a.to_string(),
-            "ring 2 touched ring 0 at (1.5, 2): ring 2 moved 1 mm inwards"
+            "ring 2 touched ring 0 at (1.500, 2.000): separated by moving ring 2's vertex there \
+             1 mm into the hole"
         );
         let s = RepairAction::SeparatedTouch {
             rings: (0, 0),
@@ -1458,7 +1467,8 @@ mod tests {
         };
         assert_eq!(
             s.to_string(),
-            "ring 0 touched itself at (0, 0): one visit moved 1 mm inwards"
+            "ring 0 touched itself at (0.000, 0.000): separated by moving one of its two \
+             vertices there 1 mm into the footprint"
         );
     }
 
