@@ -38,5 +38,6 @@ const _: () = assert!(ROUTE_NODE_GRID_M * std::f64::consts::SQRT_2 < STREET_SNAP
 /// for every purpose (the area moves by at most this squared, 1 mm², per touch), and above the
 /// f32 spacing of local coordinates within 4 km of the frame origin (under 0.5 mm), so the
 /// notch survives the conversion to the mesh's f32 positions and the prism stays 2-manifold.
-/// (Beyond about 16 km from the origin that spacing reaches 2 mm and the notch may round away.)
+/// (Beyond about 16 km from the origin that spacing reaches 2 mm; a notch whose points round onto
+/// the touch point is then refused by the extrusion, as any two vertices that round together are.)
 pub const TOUCH_SEPARATION_M: f64 = 1e-3;
