@@ -661,6 +661,28 @@ mod tests {
     }
 
     #[test]
+    fn footprints_touching_at_a_point_extrude_closed_after_repair() {
+        let frame = LocalFrame {
+            origin: DVec3::new(5.0, 5.0, 0.0),
+        };
+        for (name, p, area, _) in crate::geom::repair::touching_examples() {
+            // Unrepaired, the touch makes the prism non-manifold (or untriangulable).
+            let raw = try_extrude_building(&building(p.clone(), 12.0, 2.0), &frame);
+            assert!(raw.map_or(true, |m| check_closed(&m).is_err()), "{name}");
+            let q = repair_polygon(&p).unwrap().polygons.remove(0);
+            let m = try_extrude_building(&building(q.clone(), 12.0, 2.0), &frame)
+                .unwrap_or_else(|e| panic!("{name}: {e}"));
+            check_closed(&m).unwrap_or_else(|e| panic!("{name}: {e}"));
+            // Volume and roof are the repaired footprint's (within f32 rounding), which is
+            // within 1 mm² per touch of the input's.
+            let a = rounded_area(&q, &frame);
+            assert!((signed_volume(&m) - a * 10.0).abs() < 1e-3, "{name}");
+            assert!((roof_area(&m) - a).abs() < 1e-4, "{name}");
+            assert!((a - area).abs() < 1e-5, "{name}: {a} vs {area}");
+        }
+    }
+
+    #[test]
     fn far_away_city_gives_the_same_local_mesh() {
         let p = Polygon::new(square(3.0, 4.0, 17.0, true), vec![]);
         let f0 = LocalFrame {

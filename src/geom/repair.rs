@@ -10,8 +10,27 @@
 //! two edges meet except consecutive edges at their shared vertex), has non-zero area, the
 //! exterior is counter-clockwise and every hole clockwise, the rings do not touch or cross each
 //! other, and every hole lies inside the exterior and outside every other hole. This is
-//! stricter than the OGC rules (which let rings touch at a point) because the extruded prism of
-//! such a footprint would not be a 2-manifold.
+//! stricter than the OGC rules, which let a hole touch the exterior or another hole at a single
+//! point, because the extruded prism of such a footprint would not be a 2-manifold (four walls
+//! would meet along the vertical edge above the point).
+//!
+//! # Rings touching at a point
+//!
+//! Footprints whose rings touch at isolated points are still accepted: a courtyard hole that
+//! touches the exterior at one point, two holes that touch at a corner (both OGC-valid), and an
+//! exterior that touches itself at one point around a courtyard, the "inverted courtyard"
+//! (not OGC-valid, since OGC rings must be simple, but the form some GIS software writes for
+//! the same shape). Each touch is separated ([`RepairAction::SeparatedTouch`]). Of the visits of
+//! the point (a vertex there, or an edge passing through it) the one of the lowest ring stays
+//! as it is (the exterior before the holes; in a self-touching ring, its first visit), and every
+//! other visit is replaced by a notch (an edge first gets the point as a vertex): two points on
+//! its edges and one on the bisector of its angle, each [`TOUCH_SEPARATION_M`] (1 mm) from the
+//! point, cut into the region that ring bounds (the void of a hole, the inside of the exterior). The rings then no
+//! longer meet, the polygon is valid and its prism is a closed 2-manifold; the area changes by
+//! the notch's quadrilateral, at most δ² (1 mm²) per touch. The separation is only kept when all
+//! rings come out simple and apart; rings that cross, share an edge, or two lobes that meet at a
+//! point without one enclosing the other (a bow-tie, whose notch would cross the other lobe) go
+//! to the overlay below, as if nothing had been tried.
 //!
 //! Self-intersections and crossing rings are resolved with a polygon overlay (geo's
 //! `BooleanOps`, i.e. the `i_overlay` crate): the exterior is unioned with itself under the
@@ -46,6 +65,7 @@ use super::predicates::{
     on_segment, open_ring, orient2d, point_in_ring, ring_signed_area, segments_intersect, Location,
     Orientation, SegmentIntersection,
 };
+use super::tolerance::TOUCH_SEPARATION_M;
 
 /// One thing [`repair_polygon`] did. `ring` is 0 for the exterior and `k` for the k-th hole.
 #[derive(Clone, Debug, PartialEq)]
@@ -82,6 +102,17 @@ pub enum RepairAction {
         /// Why.
         why: String,
     },
+    /// Two rings that touched at one point, or a ring that touched itself there (`rings.0 ==
+    /// rings.1`), were separated: the vertex of ring `rings.1` at `at` was replaced by a notch
+    /// `moved_m` deep cut into the region that ring bounds (see the module doc).
+    SeparatedTouch {
+        /// The ring left as it was, and the ring that was notched (equal for a self-touch).
+        rings: (usize, usize),
+        /// Where they touched.
+        at: [f64; 2],
+        /// How far the vertex moved, in metres.
+        moved_m: f64,
+    },
     /// Self-intersecting or crossing rings were resolved by a polygon overlay into `parts`
     /// polygons.
     Overlay {
@@ -112,6 +143,30 @@ impl fmt::Display for RepairAction {
             }
             RepairAction::Rewound { ring } => write!(f, "rewound ring {ring}"),
             RepairAction::DroppedHole { ring, why } => write!(f, "dropped hole {ring}: {why}"),
+            RepairAction::SeparatedTouch { rings, at, moved_m } => {
+                let mm = (moved_m * 1e6).round() / 1e3;
+                let into = if rings.1 == 0 {
+                    "the footprint"
+                } else {
+                    "the hole"
+                };
+                let (x, y) = (at[0], at[1]);
+                if rings.0 == rings.1 {
+                    write!(
+                        f,
+                        "ring {} touched itself at ({x:.3}, {y:.3}): separated by moving one of \
+                         its two vertices there {mm} mm into {into}",
+                        rings.0
+                    )
+                } else {
+                    write!(
+                        f,
+                        "ring {} touched ring {} at ({x:.3}, {y:.3}): separated by moving ring \
+                         {}'s vertex there {mm} mm into {into}",
+                        rings.1, rings.0, rings.1
+                    )
+                }
+            }
             RepairAction::Overlay { why, parts } => {
                 write!(f, "{why}: resolved by overlay into {parts} polygon(s)")
             }
@@ -271,12 +326,19 @@ fn repair_rings_unchecked(
             problems.push(format!("ring {i} touches or crosses ring {j}"));
         }
     }
+    let mut ext = ext;
     if !problems.is_empty() {
-        return overlay_repair(ext, hs, problems.join("; "), actions);
+        match separate_touches(&ext, &hs) {
+            Some((e, h, separated)) => {
+                ext = e;
+                hs = h;
+                actions.extend(separated);
+            }
+            None => return overlay_repair(ext, hs, problems.join("; "), actions),
+        }
     }
     // Simple, non-touching rings: orient, then check that holes lie inside the exterior and
     // outside each other.
-    let mut ext = ext;
     if !simple_ring_is_ccw(&ext) {
         ext.reverse();
         actions.push(RepairAction::Rewound { ring: 0 });
@@ -822,6 +884,153 @@ fn closed_polygon(r: &[Coord<f64>]) -> Polygon<f64> {
     Polygon::new(LineString::from(r.to_vec()), vec![])
 }
 
+/// Rings after [`separate_touches`]: the exterior, the holes with their ring indices, and what
+/// was done.
+type Separated = (
+    Vec<Coord<f64>>,
+    Vec<(usize, Vec<Coord<f64>>)>,
+    Vec<RepairAction>,
+);
+
+/// Separates rings that touch at isolated points (see the module doc): `None` when there is no
+/// such point, or when the rings are still not simple and apart afterwards (they cross, share
+/// an edge, or the touch is a bow-tie's), so that the caller goes on as if nothing was tried.
+///
+/// A touch point is a vertex that another vertex repeats (of another ring, or of the same ring
+/// further on), or that lies inside an edge of another ring or of its own. One visit of the point
+/// stays (an edge through it, else the vertex of lowest ring and index); every other vertex at
+/// the point is notched ([`notch`]).
+fn separate_touches(ext: &[Coord<f64>], holes: &[(usize, Vec<Coord<f64>>)]) -> Option<Separated> {
+    let rings: Vec<&[Coord<f64>]> = std::iter::once(ext)
+        .chain(holes.iter().map(|(_, h)| &h[..]))
+        .collect();
+    let ids: Vec<usize> = std::iter::once(0)
+        .chain(holes.iter().map(|(k, _)| *k))
+        .collect();
+    // -0.0 and 0.0 are one point: `+ 0.0` turns the first into the second.
+    let key = |c: Coord<f64>| ((c.x + 0.0).to_bits(), (c.y + 0.0).to_bits());
+    // Per point, its visits (ring position, 0, vertex index) and (ring position, 1, index of an
+    // edge through its inside).
+    type Visits = Vec<(usize, u8, usize)>;
+    let mut at: std::collections::BTreeMap<(u64, u64), Visits> = Default::default();
+    for (r, ring) in rings.iter().enumerate() {
+        for (i, &c) in ring.iter().enumerate() {
+            at.entry(key(c)).or_default().push((r, 0, i));
+        }
+    }
+    let tree = edge_tree(&rings);
+    for ring in &rings {
+        for &p in ring.iter() {
+            let probe = AABB::from_point([p.x, p.y]);
+            for e in tree.locate_in_envelope_intersecting(&probe) {
+                let (er, ei) = (e.ring as usize, e.edge as usize);
+                let (a, b) = (rings[er][ei], rings[er][(ei + 1) % rings[er].len()]);
+                if a != p && b != p && on_segment(a, b, p) {
+                    let v = at.get_mut(&key(p)).expect("every vertex has an entry");
+                    if !v.contains(&(er, 1, ei)) {
+                        v.push((er, 1, ei));
+                    }
+                }
+            }
+        }
+    }
+    // Per ring position: (vertex index, 0) or (edge index, 1) → (position of the ring kept
+    // there, the point).
+    type Slots = std::collections::BTreeMap<(usize, u8), (usize, Coord<f64>)>;
+    let mut notched: Vec<Slots> = vec![Slots::new(); rings.len()];
+    for visits in at.values_mut() {
+        if visits.len() < 2 {
+            continue;
+        }
+        let edges = visits.iter().filter(|v| v.1 == 1).count();
+        if edges > 1 {
+            // Two edges through one point that is a vertex of neither: they cross there.
+            return None;
+        }
+        visits.sort_unstable();
+        let kept = visits[0].0;
+        // The point itself: every point here is some ring's vertex.
+        let &(vr, _, vi) = visits
+            .iter()
+            .find(|v| v.1 == 0)
+            .expect("points are keyed by vertices");
+        let p = rings[vr][vi];
+        for &(r, kind, i) in &visits[1..] {
+            if notched[r].insert((i, kind), (kept, p)).is_some() {
+                // Two touch points inside one edge: not separated here.
+                return None;
+            }
+        }
+    }
+    if notched.iter().all(|m| m.is_empty()) {
+        return None;
+    }
+    let mut actions = Vec::new();
+    let mut out: Vec<Vec<Coord<f64>>> = Vec::with_capacity(rings.len());
+    for (r, ring) in rings.iter().enumerate() {
+        if notched[r].is_empty() {
+            out.push(ring.to_vec());
+            continue;
+        }
+        let ccw = ring_signed_area(ring) > 0.0;
+        let n = ring.len();
+        let mut new = Vec::with_capacity(n + 3 * notched[r].len());
+        let mut cut = |kept: usize, p: Coord<f64>, prev, next, new: &mut Vec<Coord<f64>>| {
+            let (pts, moved_m) = notch(prev, p, next, ccw);
+            new.extend(pts);
+            actions.push(RepairAction::SeparatedTouch {
+                rings: (ids[kept], ids[r]),
+                at: [p.x, p.y],
+                moved_m,
+            });
+        };
+        for i in 0..n {
+            let (prev, next) = (ring[(i + n - 1) % n], ring[(i + 1) % n]);
+            match notched[r].get(&(i, 0)) {
+                Some(&(kept, p)) => cut(kept, p, prev, next, &mut new),
+                None => new.push(ring[i]),
+            }
+            if let Some(&(kept, p)) = notched[r].get(&(i, 1)) {
+                cut(kept, p, ring[i], next, &mut new);
+            }
+        }
+        out.push(new);
+    }
+    let all: Vec<&[Coord<f64>]> = out.iter().map(|r| &r[..]).collect();
+    if !all.iter().all(|r| ring_is_simple(r)) || first_interacting_rings(&all).is_some() {
+        return None;
+    }
+    let mut out = out.into_iter();
+    let ext = out.next().expect("the exterior is always there");
+    let holes = ids[1..].iter().copied().zip(out).collect();
+    Some((ext, holes, actions))
+}
+
+/// Replaces vertex `v` (between `prev` and `next`) of a ring by three points `a, m, b`: `a` and
+/// `b` on its two edges at distance δ from `v`, `m` at distance δ from `v` along the bisector of
+/// the angle the ring bounds there (left of the ring's direction when `ccw`, else right), with
+/// δ = [`TOUCH_SEPARATION_M`] or a quarter of the shorter edge if that is less. None of the
+/// three is `v`, and the ring's area changes by the quadrilateral `a, v, b, m`:
+/// |ΔA| = ½ |(b − a) × (m − v)| ≤ ½ · 2δ · δ = δ². Returns the points and δ.
+fn notch(prev: Coord<f64>, v: Coord<f64>, next: Coord<f64>, ccw: bool) -> ([Coord<f64>; 3], f64) {
+    let (din, dout) = (prev - v, next - v);
+    let (lin, lout) = (din.x.hypot(din.y), dout.x.hypot(dout.y));
+    let d = TOUCH_SEPARATION_M.min(0.25 * lin.min(lout));
+    let (start, end) = if ccw {
+        (dout.y.atan2(dout.x), din.y.atan2(din.x))
+    } else {
+        (din.y.atan2(din.x), dout.y.atan2(dout.x))
+    };
+    let mid = start + 0.5 * (end - start).rem_euclid(std::f64::consts::TAU);
+    let a = v + din * (d / lin);
+    let b = v + dout * (d / lout);
+    let m = v + Coord {
+        x: d * mid.cos(),
+        y: d * mid.sin(),
+    };
+    ([a, m, b], d)
+}
+
 /// Resolves self-intersections and crossing rings with the overlay (see the module doc).
 /// The smallest and largest extent (the larger side of a ring's bounding box) the overlay
 /// resolves. `i_overlay` maps the bounding box of each operation onto a 2³⁰ integer grid by a
@@ -938,6 +1147,103 @@ fn overlay_repair(
     Ok(Repaired { polygons, actions })
 }
 
+/// Footprints whose rings touch at single points, valid in OGC terms or in the self-touching
+/// ("inverted courtyard") form: (name, polygon, its area, how many touches), for the tests here
+/// and the extrusion's.
+#[cfg(test)]
+pub(crate) fn touching_examples() -> Vec<(&'static str, Polygon<f64>, f64, usize)> {
+    let ring = |v: &[(f64, f64)]| {
+        let mut v = v.to_vec();
+        v.push(v[0]);
+        LineString::from(v)
+    };
+    let shell = ring(&[(0., 0.), (10., 0.), (10., 10.), (0., 10.)]);
+    vec![
+        (
+            "hole touching a shell corner",
+            Polygon::new(shell.clone(), vec![ring(&[(0., 0.), (1., 3.), (3., 1.)])]),
+            100.0 - 4.0,
+            1,
+        ),
+        (
+            "hole vertex on a shell edge",
+            Polygon::new(shell.clone(), vec![ring(&[(5., 0.), (4., 2.), (6., 2.)])]),
+            100.0 - 2.0,
+            1,
+        ),
+        (
+            "shell vertex on a hole edge",
+            Polygon::new(
+                ring(&[(0., 0.), (10., 0.), (10., 10.), (5., 4.), (0., 10.)]),
+                vec![ring(&[(3., 4.), (7., 4.), (5., 2.)])],
+            ),
+            // Shell: 100 minus the notch triangle (0,10),(5,4),(10,10) of area 30.
+            70.0 - 4.0,
+            1,
+        ),
+        (
+            "two holes touching at a corner",
+            Polygon::new(
+                shell.clone(),
+                vec![
+                    ring(&[(2., 2.), (2., 4.), (4., 4.), (4., 2.)]),
+                    ring(&[(4., 4.), (4., 6.), (6., 6.), (6., 4.)]),
+                ],
+            ),
+            100.0 - 8.0,
+            1,
+        ),
+        (
+            "two holes each touching the shell and each other",
+            Polygon::new(
+                shell.clone(),
+                vec![
+                    ring(&[(0., 0.), (1., 5.), (5., 5.), (5., 1.)]),
+                    ring(&[(5., 5.), (5., 8.), (10., 10.), (8., 5.)]),
+                ],
+            ),
+            100.0 - 20.0 - 15.0,
+            3,
+        ),
+        (
+            "exterior touching itself (inverted courtyard)",
+            Polygon::new(
+                ring(&[
+                    (0., 0.),
+                    (10., 0.),
+                    (10., 10.),
+                    (0., 10.),
+                    (0., 0.),
+                    (2., 5.),
+                    (5., 5.),
+                    (5., 2.),
+                ]),
+                vec![],
+            ),
+            100.0 - 15.0,
+            1,
+        ),
+        (
+            "inverted courtyard, clockwise",
+            Polygon::new(
+                ring(&[
+                    (5., 2.),
+                    (5., 5.),
+                    (2., 5.),
+                    (0., 0.),
+                    (0., 10.),
+                    (10., 10.),
+                    (10., 0.),
+                    (0., 0.),
+                ]),
+                vec![],
+            ),
+            100.0 - 15.0,
+            1,
+        ),
+    ]
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -1022,6 +1328,193 @@ mod tests {
             repair_rings(&[c(0., 0.), c(f64::NAN, 0.), c(2., 1.)], &[]),
             Err(Refusal::NonFinite { ring: 0, index: 1 })
         ));
+    }
+
+    #[test]
+    fn point_touches_are_separated_within_the_area_bound() {
+        for (name, p, area, touches) in touching_examples() {
+            let out = repair_polygon(&p).unwrap_or_else(|e| panic!("{name}: {e}"));
+            assert_eq!(out.polygons.len(), 1, "{name}");
+            let q = &out.polygons[0];
+            check_polygon(q).unwrap_or_else(|e| panic!("{name}: {e}"));
+            let seps: Vec<&RepairAction> = out
+                .actions
+                .iter()
+                .filter(|a| matches!(a, RepairAction::SeparatedTouch { .. }))
+                .collect();
+            assert_eq!(seps.len(), touches, "{name}: {:?}", out.actions);
+            assert!(
+                !out.actions.iter().any(|a| matches!(
+                    a,
+                    RepairAction::Overlay { .. } | RepairAction::DroppedHole { .. }
+                )),
+                "{name}: {:?}",
+                out.actions
+            );
+            let mut bound = 0.0;
+            for a in &seps {
+                let RepairAction::SeparatedTouch { at, moved_m, .. } = a else {
+                    unreachable!()
+                };
+                assert!(*moved_m > 0.0 && *moved_m <= TOUCH_SEPARATION_M, "{name}");
+                bound += moved_m * moved_m;
+                // The point is still on the boundary (the ring kept there), and every vertex of
+                // the output is either the point itself or at least δ/2 away from it.
+                let pt = c(at[0], at[1]);
+                for r in std::iter::once(q.exterior()).chain(q.interiors()) {
+                    for v in &r.0 {
+                        let d = (v.x - pt.x).hypot(v.y - pt.y);
+                        assert!(d == 0.0 || d >= 0.5 * moved_m, "{name}: {v:?} at {d}");
+                    }
+                }
+                assert!(a.to_string().contains(" mm into the "), "{a}");
+            }
+            // Independent of the notch formula: the area of the input, computed by hand.
+            let got = polygon_area(q);
+            assert!(
+                (got - area).abs() <= bound * (1.0 + 1e-9),
+                "{name}: {got} vs {area}, bound {bound}"
+            );
+            assert!(got != area, "{name}: nothing moved");
+            // Repairing again changes nothing more.
+            let again = repair_polygon(q).unwrap();
+            assert!(!again.was_repaired(), "{name}: {:?}", again.actions);
+        }
+    }
+
+    /// Checks a repair of a footprint with `touches` point touches and true area `area`: one
+    /// valid polygon, that many separations and nothing else but winding, area within Σ δ².
+    fn assert_separated(p: &Polygon<f64>, area: f64, touches: usize) -> Result<(), TestCaseError> {
+        let out = repair_polygon(p).map_err(|e| TestCaseError::fail(e.to_string()))?;
+        prop_assert_eq!(out.polygons.len(), 1);
+        prop_assert!(check_polygon(&out.polygons[0]).is_ok());
+        let mut bound = 0.0;
+        let mut n = 0;
+        for a in &out.actions {
+            match a {
+                RepairAction::SeparatedTouch { moved_m, .. } => {
+                    n += 1;
+                    bound += moved_m * moved_m;
+                }
+                RepairAction::Rewound { .. } | RepairAction::ClosedRing { .. } => {}
+                other => prop_assert!(false, "unexpected {other}"),
+            }
+        }
+        prop_assert_eq!(n, touches);
+        let got = polygon_area(&out.polygons[0]);
+        prop_assert!(got != area);
+        prop_assert!((got - area).abs() <= bound * (1.0 + 1e-9) + 1e-12 * area);
+        Ok(())
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(300))]
+
+        /// A triangular hole with one vertex on the shell's boundary (a corner or inside an
+        /// edge), the others well inside (at least 0.1 s from the shell); and, when the vertex
+        /// is the corner, the same courtyard written as a self-touching exterior.
+        #[test]
+        fn random_point_touches_are_separated(
+            s in 5.0f64..200.0,
+            t in 0.0f64..1.0,
+            corner in any::<bool>(),
+            q in prop::array::uniform4(0.1f64..0.9),
+            reverse in any::<bool>(),
+        ) {
+            let v = if corner { c(0., 0.) } else { c(t * s, 0.) };
+            let (q1, q2) = (c(q[0] * s, q[1] * s), c(q[2] * s, q[3] * s));
+            let tri = ring_signed_area(&[v, q1, q2]);
+            prop_assume!(tri.abs() > 0.01 * s * s);
+            let mut hole = vec![v, q1, q2];
+            if reverse {
+                hole.reverse();
+            }
+            let p = Polygon::new(
+                LineString::from(sq(0., 0., s)),
+                vec![LineString::from(hole)],
+            );
+            assert_separated(&p, s * s - tri.abs(), 1)?;
+            if corner {
+                // Exterior, then the courtyard clockwise from the same corner.
+                let (a, b) = if tri > 0.0 { (q2, q1) } else { (q1, q2) };
+                let mut ext = sq(0., 0., s);
+                ext.extend([c(0., 0.), a, b]);
+                if reverse {
+                    ext.reverse();
+                }
+                let p = Polygon::new(LineString::from(ext), vec![]);
+                assert_separated(&p, s * s - tri.abs(), 1)?;
+            }
+        }
+    }
+
+    #[test]
+    fn separated_touch_reads_clearly() {
+        let a = RepairAction::SeparatedTouch {
+            rings: (0, 2),
+            at: [1.5, 2.0],
+            moved_m: 0.001,
+        };
+        assert_eq!(
+            a.to_string(),
+            "ring 2 touched ring 0 at (1.500, 2.000): separated by moving ring 2's vertex there \
+             1 mm into the hole"
+        );
+        let s = RepairAction::SeparatedTouch {
+            rings: (0, 0),
+            at: [0.0, 0.0],
+            moved_m: 0.001,
+        };
+        assert_eq!(
+            s.to_string(),
+            "ring 0 touched itself at (0.000, 0.000): separated by moving one of its two \
+             vertices there 1 mm into the footprint"
+        );
+    }
+
+    #[test]
+    fn bowtie_touching_at_a_vertex_is_still_two_lobes() {
+        // Two lobes that meet at (1, 1) without nesting: not a courtyard, so no notch; the
+        // overlay makes them two polygons, as for a crossing bow-tie.
+        let r = [
+            c(0., 0.),
+            c(1., 1.),
+            c(2., 0.),
+            c(2., 2.),
+            c(1., 1.),
+            c(0., 2.),
+            c(0., 0.),
+        ];
+        let out = repair_rings(&r, &[]);
+        eprintln!("{out:?}");
+        let out = out.unwrap();
+        assert!(!out
+            .actions
+            .iter()
+            .any(|a| matches!(a, RepairAction::SeparatedTouch { .. })));
+        assert_eq!(out.polygons.len(), 2, "{:?}", out.polygons);
+        let a: f64 = out.polygons.iter().map(polygon_area).sum();
+        assert!((a - 2.0).abs() < 1e-9, "{a}");
+        for p in &out.polygons {
+            check_polygon(p).unwrap();
+        }
+    }
+
+    #[test]
+    fn crossing_hole_is_not_notched() {
+        // A hole crossing the shell, and one sharing an edge with it: the overlay, as before.
+        let shell = sq(0., 0., 10.);
+        for h in [sq(8., 2., 4.), sq(6., 2., 4.)] {
+            let out = repair_rings(&shell, &[&h]).unwrap();
+            assert!(out
+                .actions
+                .iter()
+                .any(|a| matches!(a, RepairAction::Overlay { .. })));
+            assert!(!out
+                .actions
+                .iter()
+                .any(|a| matches!(a, RepairAction::SeparatedTouch { .. })));
+        }
     }
 
     #[test]

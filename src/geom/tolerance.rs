@@ -29,3 +29,15 @@ pub const ROUTE_NODE_GRID_M: f64 = 0.01;
 
 // The argument above, checked when the crate is compiled.
 const _: () = assert!(ROUTE_NODE_GRID_M * std::f64::consts::SQRT_2 < STREET_SNAP_M);
+
+/// How far [`crate::geom::repair`] moves a ring away from a point where it touches another ring
+/// (or itself): the touching vertex is replaced by a notch of this depth cut into the region
+/// the ring bounds (see that module's doc).
+///
+/// 1 mm is below the accuracy of any surveyed or digitised footprint, so the shape is unchanged
+/// for every purpose (the area moves by at most this squared, 1 mm², per touch), and above the
+/// f32 spacing of local coordinates within 4 km of the frame origin (under 0.5 mm), so the
+/// notch survives the conversion to the mesh's f32 positions and the prism stays 2-manifold.
+/// (Beyond about 16 km from the origin that spacing reaches 2 mm; a notch whose points round onto
+/// the touch point is then refused by the extrusion, as any two vertices that round together are.)
+pub const TOUCH_SEPARATION_M: f64 = 1e-3;
