@@ -418,24 +418,32 @@ fn a_tileset_over_another_citys_holds_only_the_new_city() {
     assert_eq!(std::fs::read(out.join("notes.txt")).unwrap(), b"mine");
 }
 
+/// A generated city (`buildings`, `seed`) in `dir/city` and its `jobs plan` (at most `max`
+/// buildings per tile) in `dir/plan`.
+fn generated_plan(dir: &Path, buildings: u32, seed: u32, max: u32) -> (PathBuf, PathBuf) {
+    let city = dir.join("city");
+    let o = run(bin()
+        .args(["generate", "--buildings", &buildings.to_string()])
+        .args(["--seed", &seed.to_string(), "-o"])
+        .arg(&city));
+    assert!(o.status.success(), "{}", stderr(&o));
+    let plan_dir = dir.join("plan");
+    let o = run(bin()
+        .args(["jobs", "plan"])
+        .arg(&city)
+        .args(["--max-buildings", &max.to_string(), "-o"])
+        .arg(&plan_dir));
+    assert!(o.status.success(), "{}", stderr(&o));
+    (city, plan_dir)
+}
+
 /// `jobs run` killed at several moments: a tile whose manifest exists is complete (merge takes
 /// it), one without is unfinished (merge says so, and names the command); the rerun and the
 /// merge then succeed, whatever moment it was killed at.
 #[test]
 fn a_killed_jobs_run_is_unfinished_or_complete_and_reruns() {
     let dir = tempfile::tempdir().unwrap();
-    let city = dir.path().join("city");
-    let o = run(bin()
-        .args(["generate", "--buildings", "4000", "--seed", "5", "-o"])
-        .arg(&city));
-    assert!(o.status.success(), "{}", stderr(&o));
-    let plan_dir = dir.path().join("plan");
-    let o = run(bin()
-        .args(["jobs", "plan"])
-        .arg(&city)
-        .args(["--max-buildings", "1500", "-o"])
-        .arg(&plan_dir));
-    assert!(o.status.success(), "{}", stderr(&o));
+    let (_, plan_dir) = generated_plan(dir.path(), 4000, 5, 1500);
     let plan = plan_dir.join("plan.json");
     let tiles = serde_json::from_slice::<serde_json::Value>(&std::fs::read(&plan).unwrap())
         .unwrap()["tiles"]
@@ -502,18 +510,7 @@ fn a_killed_jobs_run_is_unfinished_or_complete_and_reruns() {
 #[test]
 fn an_edited_plan_or_a_changed_input_is_refused() {
     let dir = tempfile::tempdir().unwrap();
-    let city = dir.path().join("city");
-    let o = run(bin()
-        .args(["generate", "--buildings", "600", "--seed", "2", "-o"])
-        .arg(&city));
-    assert!(o.status.success(), "{}", stderr(&o));
-    let plan_dir = dir.path().join("plan");
-    let o = run(bin()
-        .args(["jobs", "plan"])
-        .arg(&city)
-        .args(["-o"])
-        .arg(&plan_dir));
-    assert!(o.status.success(), "{}", stderr(&o));
+    let (city, plan_dir) = generated_plan(dir.path(), 600, 2, 50_000);
     let plan = plan_dir.join("plan.json");
     let tile0 = || run(bin().args(["jobs", "run"]).arg(&plan).args(["--tile", "0"]));
     // An edited frame origin: the plan no longer hashes to its id.
