@@ -1,9 +1,15 @@
 //! ESRI Shapefile reader (`.shp` + `.shx` + `.dbf` + `.prj`).
 //!
-//! Geometry comes from the `.shp` (read with the `shapefile` crate, through the `.shx` index when
-//! there is one), attributes from the `.dbf` (the `dbase` crate re-exported by `shapefile`), and
-//! the CRS from the `.prj` WKT ([`Crs::from_wkt`]).
+//! Geometry comes from the `.shp` (read with the `shapefile` crate), attributes from the `.dbf`
+//! (the `dbase` crate re-exported by `shapefile`), and the CRS from the `.prj` WKT
+//! ([`Crs::from_wkt`]). [`read`] and the bounded-memory [`read_streaming`] find the records the
+//! same way and give the same features, refusals and notes:
 //!
+//! - The `.shp`'s record headers are walked by their lengths. When they hold together, each
+//!   record is read at the offset they give, and a `.shx` that disagrees with them is named in a
+//!   note and not used. When they do not (a record length that lies), the `.shx` is used if every
+//!   shape reads through it, and the records are read one after the other otherwise; a note says
+//!   which.
 //! - Points and multipoints → `Point` / `MultiPoint`; polylines → `LineString` (one part) or
 //!   `MultiLineString`; polygons → `Polygon` or `MultiPolygon`. Z and M values are dropped.
 //! - Polygon rings: clockwise rings are outer rings, counter-clockwise rings are holes (the
@@ -13,11 +19,11 @@
 //! - DBF values: `Character` → text, `Numeric` → integer when the field has no decimals and the
 //!   value is integral, else float; `*****` and blanks → null; `Logical` → bool; `Date` → ISO text.
 //! - A missing `.dbf` is an error ([`ImportError::MissingCompanion`]): the attributes are part of
-//!   the data. A missing or damaged `.shx` is not: the records are read in sequence and a note
-//!   says so.
+//!   the data. A missing or damaged `.shx` is not: a note says so.
 //! - A truncated or corrupt `.shp` is an [`ImportError::Shapefile`] naming the file and the
-//!   record; an empty one is [`ImportError::Empty`]. A `.dbf` record that cannot be read (a bad
-//!   number, say) costs that feature only: it is refused with the reason. A null shape, an empty
+//!   record; an empty one is [`ImportError::Empty`]. A value of a numeric `.dbf` field that is
+//!   not a number is read as empty, with a note naming record, field and text; a `.dbf` record
+//!   that still cannot be read costs that feature only: it is refused with the reason. A null shape, an empty
 //!   shape, a MultiPatch or a record with NaN/infinite coordinates is refused in the report with
 //!   its record number.
 //! - A `.prj` that cannot be understood, or names an unknown EPSG code, is an
@@ -30,9 +36,14 @@ use geo_types::{Coord, Geometry, LineString, MultiLineString, MultiPoint, MultiP
 use rayon::prelude::*;
 use shapefile::dbase;
 use shapefile::{Shape, ShapeReader};
+use std::cell::RefCell;
 use std::collections::HashMap;
-use std::io::Cursor;
+use std::fs::File;
+use std::io::{BufReader, Cursor, Read, Seek};
 use std::path::{Path, PathBuf};
+use std::rc::Rc;
+
+mod dbf;
 
 /// Reads a Shapefile layer. `path` names the `.shp`; its companions are found beside it
 /// (`.shx`, `.dbf`, `.prj`, with lower- or upper-case extensions).
@@ -94,75 +105,41 @@ pub fn read_with_stated_crs(
     };
 
     // The record headers of the .shp, walked by their lengths, and the index checked against
-    // them: a lie in either is named with its record.
-    let walk = walk_records(&shp_bytes);
-    let walk_problem = walk.as_ref().err().cloned();
-    // Geometry (through the index when there is one and it is sound, else in sequence) and
-    // attributes, side by side.
+    // them: a lie in either is named with its record. Geometry (by the chosen way) and
+    // attributes are read side by side.
+    let walk = walk_records_by(shp_bytes.len(), |at| {
+        Ok(shp_bytes[at..at + 8].try_into().expect("8 bytes"))
+    })
+    .map_err(io(path))?;
     let (shapes, attributes) = rayon::join(
-        || -> Result<(Vec<Shape>, Option<String>), ImportError> {
-            let indexed = match (&shx_path, shx_bytes) {
-                (Some(shx), Some(bytes)) => match index_agrees(&bytes, &walk) {
-                    Err(why) => Err(format!(
-                        "{} is damaged, it disagrees with the .shp ({why}): it was ignored and the records were \
-                         read in sequence from the .shp",
-                        shx.display()
-                    )),
-                    Ok(()) => match read_shapes_indexed(&shp_bytes, bytes) {
-                        Ok(shapes) => Ok(shapes),
-                        Err(e) => Err(format!(
-                            "{} is damaged ({e}): it was ignored and the records were read in \
-                             sequence from the .shp",
-                            shx.display()
-                        )),
-                    },
+        || -> Result<Vec<Shape>, ImportError> {
+            let (order, notes) = record_order(
+                path,
+                shx_path.as_deref(),
+                shx_bytes,
+                &walk,
+                &shp_bytes,
+                |shx| {
+                    let mut reader =
+                        ShapeReader::with_shx(Cursor::new(&shp_bytes[..]), Cursor::new(shx))?;
+                    reader.iter_shapes().try_for_each(|s| s.map(drop))
                 },
-                _ => Err(format!(
-                    "no {} index: records were read in sequence from the .shp",
-                    path.with_extension("shx").display()
-                )),
-            };
-            match indexed {
-                // The shapes own their coordinates: the file's bytes are no longer needed.
-                Ok(s) => Ok((s, None)),
-                Err(note) => Ok((
-                    read_shapes_in_sequence(path, shp_bytes, walk_problem.as_deref())?,
-                    Some(note),
-                )),
+            );
+            report.notes.extend(notes);
+            let mut reader = order.reader(path, Cursor::new(&shp_bytes[..]))?;
+            let mut shapes = Vec::new();
+            for (i, s) in reader.iter_shapes().enumerate() {
+                shapes.push(s.map_err(|source| order.record_error(path, i, source))?);
             }
+            Ok(shapes)
         },
         || read_dbf(&dbf_path, columns),
     );
-    let (shapes, note) = shapes?;
-    report.notes.extend(note);
-    if let Err(problem) = &walk {
-        report.notes.push(format!(
-            "{}: its record headers disagree with its records ({problem}); the records were \
-             read from their content",
-            path.display()
-        ));
-    }
+    let shapes = shapes?;
+    drop(shp_bytes);
     // Attributes: a record that cannot be read costs its feature, not the layer.
     let (declared, records, blanked) = attributes?;
-    if !blanked.is_empty() {
-        let examples: Vec<String> = blanked
-            .iter()
-            .take(crate::report::GROUP_EXAMPLES)
-            .map(|(i, name, raw)| format!("record {i} {name} = {raw:?}"))
-            .collect();
-        report.notes.push(format!(
-            "{}: {} value(s) of numeric fields are not numbers and were read as empty (a height \
-             read so falls back to the default height): {}{}",
-            dbf_path.display(),
-            blanked.len(),
-            examples.join(", "),
-            if blanked.len() > examples.len() {
-                ", …"
-            } else {
-                ""
-            }
-        ));
-    }
+    report.notes.extend(blanked_note(&dbf_path, &blanked));
     let why = |walk: &Result<Vec<(usize, usize)>, String>| match walk {
         Err(e) => format!(" ({e})"),
         Ok(r) if r.len() != shapes.len() => {
@@ -274,18 +251,7 @@ fn read_dbf(
     ),
     ImportError,
 > {
-    let mut dbf_bytes = std::fs::read(dbf_path).map_err(|source| ImportError::Io {
-        file: dbf_path.to_path_buf(),
-        source,
-    })?;
-    let blanked = blank_bad_numbers(&mut dbf_bytes, columns);
-    let decimals = dbf_decimals(&dbf_bytes);
-    let mut dbf =
-        dbase::Reader::new(Cursor::new(dbf_bytes)).map_err(|source| ImportError::Dbase {
-            file: dbf_path.to_path_buf(),
-            what: "not a readable dBase table".into(),
-            source,
-        })?;
+    let (mut dbf, blanked, decimals) = open_dbf(dbf_path, columns)?;
     let declared = dbf.header().num_records as usize;
     let plan = FieldPlan {
         keep: dbf
@@ -321,60 +287,39 @@ fn read_dbf(
         records.push(r.map(|r| r.0));
     }
     PLAN.set(previous);
+    drop(dbf);
+    let blanked = std::mem::take(&mut *blanked.borrow_mut());
     Ok((declared, records, blanked))
 }
 
-/// Blanks (with spaces, which read as empty) every value of a numeric field (`N` or `F`, among
-/// the `columns` asked for) that is not a number (all `*`, the usual null, is left as it is), so that one bad value costs that value and not its record; returns
-/// (record, field, text) for each. A table whose header cannot be walked is left as it is (the
-/// dBase reader then says what is wrong).
-fn blank_bad_numbers(bytes: &mut [u8], columns: &Columns) -> Vec<(usize, String, String)> {
-    let mut out = Vec::new();
-    if bytes.len() < 32 {
-        return out;
-    }
-    let n_records = u32::from_le_bytes([bytes[4], bytes[5], bytes[6], bytes[7]]) as usize;
-    let header = u16::from_le_bytes([bytes[8], bytes[9]]) as usize;
-    let record = u16::from_le_bytes([bytes[10], bytes[11]]) as usize;
-    // (name, type, offset in the record after the deletion flag, length)
-    let mut fields: Vec<(String, u8, usize, usize)> = Vec::new();
-    let (mut off, mut at) = (32, 0usize);
-    while off + 32 <= bytes.len() && off + 32 <= header && bytes[off] != 0x0D {
-        let name_bytes = &bytes[off..off + 11];
-        let end = name_bytes.iter().position(|&b| b == 0).unwrap_or(11);
-        let name = String::from_utf8_lossy(&name_bytes[..end])
-            .trim()
-            .to_string();
-        let len = bytes[off + 16] as usize;
-        fields.push((name, bytes[off + 11], at, len));
-        at += len;
-        off += 32;
-    }
-    if record == 0 || at + 1 > record {
-        return out;
-    }
-    for i in 0..n_records {
-        let start = header + i * record + 1;
-        if start + at > bytes.len() {
-            break;
-        }
-        for (name, kind, f_at, len) in &fields {
-            if !matches!(kind, b'N' | b'F' | b'n' | b'f') || !columns.wants(name) {
-                continue;
-            }
-            let cell = &mut bytes[start + f_at..start + f_at + len];
-            let text = String::from_utf8_lossy(cell).trim().to_string();
-            if text.is_empty()
-                || text.bytes().all(|b| b == b'*')
-                || text.parse::<f64>().is_ok_and(f64::is_finite)
-            {
-                continue;
-            }
-            out.push((i, name.clone(), text));
-            cell.fill(b' ');
-        }
-    }
-    out
+/// The `.dbf` at `dbf_path` as a dBase reader over a [`dbf::BlankingSource`] (bad numbers in
+/// the `columns` asked for read as empty), with the list the blanked values are collected in
+/// and the fields' decimal counts.
+#[allow(clippy::type_complexity)]
+fn open_dbf(
+    dbf_path: &Path,
+    columns: &Columns,
+) -> Result<
+    (
+        dbase::Reader<dbf::BlankingSource<BufReader<File>>>,
+        Rc<RefCell<Vec<dbf::Blanked>>>,
+        HashMap<String, u8>,
+    ),
+    ImportError,
+> {
+    let io = |source| ImportError::Io {
+        file: dbf_path.to_path_buf(),
+        source,
+    };
+    let file = File::open(dbf_path).map_err(io)?;
+    let (source, blanked) = dbf::BlankingSource::new(BufReader::new(file), columns).map_err(io)?;
+    let decimals = dbf_decimals(source.head());
+    let reader = dbase::Reader::new(source).map_err(|source| ImportError::Dbase {
+        file: dbf_path.to_path_buf(),
+        what: "not a readable dBase table".into(),
+        source,
+    })?;
+    Ok((reader, blanked, decimals))
 }
 
 /// How the fields of the table being read are turned into attributes: per field (in the
@@ -425,24 +370,37 @@ impl dbase::ReadableRecord for ProjectedRecord {
 }
 
 /// The `.shp`'s records as (byte offset, content bytes), found by walking the record headers
-/// from the end of the 100-byte file header: each header holds its record's number (from 1) and
-/// its content length in 16-bit words. A length that runs past the end of the file, or a record
+/// from the end of the 100-byte file header (`header(at)` gives the 8 bytes at `at`): each holds
+/// its record's number (from 1) and its content length in 16-bit words. A file length in the
+/// header that is not the file's, a length that runs past the end of the file, or a record
 /// whose number is not the next one (the previous record's length is then wrong), is named.
-fn walk_records(shp: &[u8]) -> Result<Vec<(usize, usize)>, String> {
-    let be = |at: usize| i32::from_be_bytes([shp[at], shp[at + 1], shp[at + 2], shp[at + 3]]);
-    if shp.len() < 100 {
-        return Err(format!(
-            "{} bytes, shorter than the 100-byte header",
-            shp.len()
-        ));
+///
+/// # Errors
+/// Only those of `header`; the walk's own verdict is the inner result.
+fn walk_records_by(
+    len: usize,
+    mut header: impl FnMut(usize) -> std::io::Result<[u8; 8]>,
+) -> std::io::Result<Result<Vec<(usize, usize)>, String>> {
+    let be = |h: &[u8; 8], k: usize| i32::from_be_bytes([h[k], h[k + 1], h[k + 2], h[k + 3]]);
+    if len < 100 {
+        return Ok(Err(format!(
+            "{len} bytes, shorter than the 100-byte header"
+        )));
+    }
+    let stated = i64::from(be(&header(24)?, 0)) * 2;
+    if stated != len as i64 {
+        return Ok(Err(format!(
+            "the header gives a file length of {stated} bytes, the file holds {len}"
+        )));
     }
     let mut records: Vec<(usize, usize)> = Vec::new();
     let mut at = 100usize;
-    while at + 8 <= shp.len() {
-        let (number, words) = (be(at), be(at + 4));
+    while at + 8 <= len {
+        let h = header(at)?;
+        let (number, words) = (be(&h, 0), be(&h, 4));
         let k = records.len();
         if i64::from(number) != k as i64 + 1 {
-            return Err(match records.last() {
+            return Ok(Err(match records.last() {
                 Some(&(prev, len)) => format!(
                     "the record header at byte {at} is numbered {number}, not {}: the length \
                      of record {} ({len} bytes at byte {prev}) is wrong",
@@ -450,29 +408,31 @@ fn walk_records(shp: &[u8]) -> Result<Vec<(usize, usize)>, String> {
                     k - 1
                 ),
                 None => format!("the first record header (byte 100) is numbered {number}, not 1"),
-            });
+            }));
         }
-        let len = usize::try_from(words).map_err(|_| {
-            format!("record {k} (byte {at}) gives a negative length ({words} words)")
-        })? * 2;
-        if at + 8 + len > shp.len() {
-            return Err(format!(
-                "record {k} (byte {at}) gives a length of {len} bytes, past the end of the \
-                 .shp ({} bytes)",
-                shp.len()
-            ));
+        let Ok(words) = usize::try_from(words) else {
+            return Ok(Err(format!(
+                "record {k} (byte {at}) gives a negative length ({words} words)"
+            )));
+        };
+        let rec = words * 2;
+        if at + 8 + rec > len {
+            return Ok(Err(format!(
+                "record {k} (byte {at}) gives a length of {rec} bytes, past the end of the \
+                 .shp ({len} bytes)"
+            )));
         }
-        records.push((at, len));
-        at += 8 + len;
+        records.push((at, rec));
+        at += 8 + rec;
     }
-    if at != shp.len() {
-        return Err(format!(
+    if at != len {
+        return Ok(Err(format!(
             "{} stray bytes after record {} at the end of the .shp",
-            shp.len() - at,
+            len - at,
             records.len().saturating_sub(1)
-        ));
+        )));
     }
-    Ok(records)
+    Ok(Ok(records))
 }
 
 /// Whether the `.shx` index holds exactly the `.shp`'s records (offsets and lengths, in
@@ -484,12 +444,19 @@ fn index_agrees(shx: &[u8], walk: &Result<Vec<(usize, usize)>, String>) -> Resul
             shx.len()
         ));
     }
+    let word = |o: usize| i32::from_be_bytes([shx[o], shx[o + 1], shx[o + 2], shx[o + 3]]);
+    let stated = i64::from(word(24)) * 2;
+    if stated != shx.len() as i64 {
+        return Err(format!(
+            "its header gives a file length of {stated} bytes, it holds {}",
+            shx.len()
+        ));
+    }
     // A lie in the .shp's own headers: the index is checked by the shapes it leads to instead.
     let Ok(records) = walk else {
         return Ok(());
     };
     let n = (shx.len() - 100) / 8;
-    let word = |o: usize| i32::from_be_bytes([shx[o], shx[o + 1], shx[o + 2], shx[o + 3]]);
     for (i, &(at, len)) in records.iter().enumerate().take(n) {
         let e = 100 + 8 * i;
         let (off, bytes) = (i64::from(word(e)) * 2, i64::from(word(e + 4)) * 2);
@@ -509,37 +476,171 @@ fn index_agrees(shx: &[u8], walk: &Result<Vec<(usize, usize)>, String>) -> Resul
     Ok(())
 }
 
-/// Every shape, through the `.shx` index; any error (a bad header, an offset beyond the file,
-/// a record that does not parse) says the index cannot be trusted.
-fn read_shapes_indexed(shp: &[u8], shx: Vec<u8>) -> Result<Vec<Shape>, shapefile::Error> {
-    let mut reader = ShapeReader::with_shx(Cursor::new(shp), Cursor::new(shx))?;
-    reader.iter_shapes().collect()
+/// The way a `.shp`'s records are read, the same for [`read`] and [`read_streaming`].
+enum RecordOrder {
+    /// Through an index (the `.shx`'s bytes, or one made from the record headers): each record
+    /// is read at its offset.
+    Indexed { shx: Vec<u8> },
+    /// One after the other from the end of the header, each by its content (what is left when
+    /// neither the headers nor the `.shx` can be trusted), with the headers' problem.
+    Sequence { problem: Option<String> },
 }
 
-/// Every shape, read in sequence from the `.shp`.
-fn read_shapes_in_sequence(
-    path: &Path,
-    shp: Vec<u8>,
-    walk_problem: Option<&str>,
-) -> Result<Vec<Shape>, ImportError> {
-    let mut reader =
-        ShapeReader::new(Cursor::new(shp)).map_err(|source| ImportError::Shapefile {
+impl RecordOrder {
+    /// A shape reader over `shp` that reads in this order.
+    fn reader<R: std::io::Read + Seek>(
+        &self,
+        path: &Path,
+        shp: R,
+    ) -> Result<ShapeReader<R>, ImportError> {
+        match self {
+            RecordOrder::Indexed { shx } => ShapeReader::with_shx(shp, Cursor::new(shx)),
+            RecordOrder::Sequence { .. } => ShapeReader::new(shp),
+        }
+        .map_err(|source| ImportError::Shapefile {
             file: path.to_path_buf(),
             what: "not a readable Shapefile header".into(),
             source,
-        })?;
-    let mut shapes = Vec::new();
-    for (i, s) in reader.iter_shapes().enumerate() {
-        shapes.push(s.map_err(|source| ImportError::Shapefile {
-            file: path.to_path_buf(),
-            what: match walk_problem {
-                Some(w) => format!("record {i} cannot be read (truncated or corrupt file; {w})"),
-                None => format!("record {i} cannot be read (truncated or corrupt file)"),
-            },
-            source,
-        })?);
+        })
     }
-    Ok(shapes)
+
+    /// The error for record `i`, which cannot be read.
+    fn record_error(&self, path: &Path, i: usize, source: shapefile::Error) -> ImportError {
+        let what = match self {
+            RecordOrder::Indexed { .. } => format!("record {i} cannot be read (corrupt record)"),
+            RecordOrder::Sequence { problem: Some(w) } => {
+                format!("record {i} cannot be read (truncated or corrupt file; {w})")
+            }
+            RecordOrder::Sequence { problem: None } => {
+                format!("record {i} cannot be read (truncated or corrupt file)")
+            }
+        };
+        ImportError::Shapefile {
+            file: path.to_path_buf(),
+            what,
+            source,
+        }
+    }
+}
+
+/// How the records of the `.shp` at `path` are to be read, with the notes that say so.
+///
+/// When the record headers walk cleanly (`walk` is `Ok`), they are the index: each record is
+/// read at its offset, and a `.shx` that disagrees with them is named in a note and not used.
+/// When they do not, the `.shx` is used if every shape reads through it (`reads_through`
+/// tries), and the records are read one after the other otherwise.
+fn record_order(
+    path: &Path,
+    shx_path: Option<&Path>,
+    shx: Option<Vec<u8>>,
+    walk: &Result<Vec<(usize, usize)>, String>,
+    shp_head: &[u8],
+    reads_through: impl FnOnce(&[u8]) -> Result<(), shapefile::Error>,
+) -> (RecordOrder, Vec<String>) {
+    let mut notes = Vec::new();
+    let shx = match (shx_path, shx) {
+        (Some(p), Some(bytes)) => match index_agrees(&bytes, walk) {
+            Ok(()) => Some(bytes),
+            Err(why) => {
+                notes.push(format!(
+                    "{} is damaged, it disagrees with the .shp ({why}): it was ignored",
+                    p.display()
+                ));
+                None
+            }
+        },
+        _ => {
+            notes.push(format!(
+                "no {} index: the records were found by their headers in the .shp",
+                path.with_extension("shx").display()
+            ));
+            None
+        }
+    };
+    match walk {
+        Ok(records) => (
+            RecordOrder::Indexed {
+                shx: shx.unwrap_or_else(|| index_of(shp_head, records)),
+            },
+            notes,
+        ),
+        Err(problem) => {
+            notes.push(format!(
+                "{}: its record headers disagree with its records ({problem})",
+                path.display()
+            ));
+            match shx {
+                Some(shx) => match reads_through(&shx) {
+                    Ok(()) => {
+                        notes.push(format!(
+                            "the records were read through {}",
+                            shx_path.map(Path::display).expect("an index has a path")
+                        ));
+                        (RecordOrder::Indexed { shx }, notes)
+                    }
+                    Err(e) => {
+                        notes.push(format!(
+                            "{} is damaged ({e}): it was ignored and the records were read in \
+                             sequence from the .shp",
+                            shx_path.map(Path::display).expect("an index has a path")
+                        ));
+                        (
+                            RecordOrder::Sequence {
+                                problem: Some(problem.clone()),
+                            },
+                            notes,
+                        )
+                    }
+                },
+                None => {
+                    notes.push("the records were read in sequence from the .shp".into());
+                    (
+                        RecordOrder::Sequence {
+                            problem: Some(problem.clone()),
+                        },
+                        notes,
+                    )
+                }
+            }
+        }
+    }
+}
+
+/// A `.shx` index for `records` (offset, content bytes) under the `.shp`'s header `shp_head`.
+fn index_of(shp_head: &[u8], records: &[(usize, usize)]) -> Vec<u8> {
+    let mut shx = Vec::with_capacity(100 + 8 * records.len());
+    shx.extend_from_slice(&shp_head[..100]);
+    let words = |n: usize| i32::try_from(n / 2).unwrap_or(i32::MAX).to_be_bytes();
+    shx[24..28].copy_from_slice(&words(100 + 8 * records.len()));
+    for &(at, len) in records {
+        shx.extend_from_slice(&words(at));
+        shx.extend_from_slice(&words(len));
+    }
+    shx
+}
+
+/// The note for the values of numeric fields in the `.dbf` that were not numbers, if any.
+fn blanked_note(dbf_path: &Path, blanked: &[dbf::Blanked]) -> Option<String> {
+    if blanked.is_empty() {
+        return None;
+    }
+    let examples: Vec<String> = blanked
+        .iter()
+        .take(crate::report::GROUP_EXAMPLES)
+        .map(|(i, name, raw)| format!("record {i} {name} = {raw:?}"))
+        .collect();
+    Some(format!(
+        "{}: {} value(s) of numeric fields are not numbers and were read as empty (a height \
+         read so falls back to the default height): {}{}",
+        dbf_path.display(),
+        blanked.len(),
+        examples.join(", "),
+        if blanked.len() > examples.len() {
+            ", …"
+        } else {
+            ""
+        }
+    ))
 }
 
 /// The companion file with extension `ext` (lower or upper case), if it exists.
@@ -772,36 +873,76 @@ pub fn read_streaming(
         missing: path.with_extension("dbf"),
         why: "the .dbf holds the attribute table of the features".into(),
     })?;
+    let io = |file: &Path| {
+        let file = file.to_path_buf();
+        move |source| ImportError::Io { file, source }
+    };
     let mut head = ImportReport::default();
     let crs = read_prj(path, &mut head)?;
-    let dbf_bytes_head = {
-        use std::io::Read;
-        let mut f = std::fs::File::open(&dbf_path).map_err(|source| ImportError::Io {
-            file: dbf_path.clone(),
-            source,
-        })?;
-        let mut b = Vec::new();
-        f.by_ref()
-            .take(32 * 1024)
-            .read_to_end(&mut b)
-            .map_err(|source| ImportError::Io {
-                file: dbf_path.clone(),
-                source,
-            })?;
-        b
-    };
-    let decimals = dbf_decimals(&dbf_bytes_head);
-    let mut dbf = dbase::Reader::from_path(&dbf_path).map_err(|source| ImportError::Dbase {
-        file: dbf_path.clone(),
-        what: "not a readable dBase table".into(),
-        source,
-    })?;
+    let (mut dbf, blanked, decimals) = open_dbf(&dbf_path, &Columns::All)?;
     let declared = dbf.header().num_records as usize;
-    let mut shp = ShapeReader::from_path(path).map_err(|source| ImportError::Shapefile {
-        file: path.to_path_buf(),
-        what: "not a readable Shapefile header".into(),
-        source,
-    })?;
+
+    // The record headers walked, the index chosen, as [`read`] does, without holding the file.
+    let shp_len = std::fs::metadata(path).map_err(io(path))?.len();
+    if shp_len == 0 {
+        return Err(ImportError::Empty {
+            file: path.to_path_buf(),
+            what: "a Shapefile starts with a 100-byte header".into(),
+        });
+    }
+    let open_shp = || File::open(path).map(BufReader::new);
+    let open = || open_shp().map_err(io(path));
+    let mut file = open()?;
+    let mut shp_head = Vec::with_capacity(100);
+    (&mut file)
+        .take(100)
+        .read_to_end(&mut shp_head)
+        .map_err(io(path))?;
+    let mut at = shp_head.len() as u64;
+    let walk = walk_records_by(usize::try_from(shp_len).unwrap_or(usize::MAX), |to| {
+        let to = to as u64;
+        if to < 100 {
+            let k = to as usize;
+            return Ok(shp_head[k..k + 8].try_into().expect("8 bytes"));
+        }
+        file.seek_relative(to as i64 - at as i64)?;
+        let mut h = [0u8; 8];
+        file.read_exact(&mut h)?;
+        at = to + 8;
+        Ok(h)
+    })
+    .map_err(io(path))?;
+    drop(file);
+    if let Ok(records) = &walk {
+        if records.len() != declared {
+            return Err(ImportError::Format {
+                file: path.to_path_buf(),
+                message: format!(
+                    "{} shapes in the .shp but {declared} records in {}",
+                    records.len(),
+                    dbf_path.display()
+                ),
+            });
+        }
+    }
+    let shx_path = companion(path, "shx");
+    let shx_bytes = match &shx_path {
+        Some(shx) => Some(std::fs::read(shx).map_err(io(shx))?),
+        None => None,
+    };
+    let (order, notes) = record_order(
+        path,
+        shx_path.as_deref(),
+        shx_bytes,
+        &walk,
+        &shp_head,
+        |shx| {
+            let mut reader = ShapeReader::with_shx(open_shp()?, Cursor::new(shx))?;
+            reader.iter_shapes().try_for_each(|s| s.map(drop))
+        },
+    );
+    head.notes.extend(notes);
+    let mut shp = order.reader(path, open()?)?;
     let name = path
         .file_stem()
         .map(|s| s.to_string_lossy().into_owned())
@@ -823,11 +964,7 @@ pub fn read_streaming(
         sink(done);
     };
     for (i, s) in shp.iter_shapes().enumerate() {
-        let shape = s.map_err(|source| ImportError::Shapefile {
-            file: path.to_path_buf(),
-            what: format!("record {i} cannot be read (truncated or corrupt file)"),
-            source,
-        })?;
+        let shape = s.map_err(|source| order.record_error(path, i, source))?;
         count = i + 1;
         let fid = i as u64;
         layer.report.read += 1;
@@ -900,6 +1037,11 @@ pub fn read_streaming(
             ),
         });
     }
+    drop(dbf);
+    layer
+        .report
+        .notes
+        .extend(blanked_note(&dbf_path, &blanked.borrow()));
     if !layer.features.is_empty() || layer.report.read > 0 || !layer.report.notes.is_empty() {
         flush(&mut layer, sink);
     }

@@ -130,6 +130,18 @@ fn shx_and_record_length_lies_are_named_by_record() {
             .collect()
     };
     assert_eq!(geoms(&l), geoms(&reference));
+    // The streaming reader chooses the same way: the same shapes, the same note.
+    let mut chunks = Vec::new();
+    shp::read_streaming(&p, &mut |_, _| true, 4, &mut |c| chunks.push(c)).unwrap();
+    let streamed: Vec<_> = chunks
+        .iter()
+        .flat_map(|c| c.features.iter().map(|f| (f.fid, f.geometry.clone())))
+        .collect();
+    assert_eq!(streamed, geoms(&reference));
+    assert!(chunks
+        .iter()
+        .flat_map(|c| &c.report.notes)
+        .any(|n| n.contains("record 5: the .shx gives offset")));
     let note = l.report.notes.join("\n");
     let at5 = 2 * be(&good_shx, 100 + 8 * 5);
     let at6 = 2 * be(&good_shx, 100 + 8 * 6);
@@ -233,6 +245,25 @@ fn an_unparsable_height_is_read_as_empty_with_the_feature_named() {
         "{note}"
     );
     assert!(note.contains("default height"), "{note}");
+    // The streaming reader (what `jobs` reads with) keeps the feature too, with the same note.
+    let mut streamed = Vec::new();
+    let n = shp::read_streaming(&p, &mut |_, _| true, 5, &mut |c| streamed.push(c)).unwrap();
+    assert_eq!(n, reference.features.len());
+    let s7 = streamed
+        .iter()
+        .flat_map(|c| &c.features)
+        .find(|f| f.fid == 7)
+        .unwrap();
+    assert_eq!(s7.attributes.get("height"), f7.attributes.get("height"));
+    assert_eq!(s7.attributes.get("osm_id"), r7.attributes.get("osm_id"));
+    let notes: Vec<&String> = streamed.iter().flat_map(|c| &c.report.notes).collect();
+    assert!(
+        notes
+            .iter()
+            .any(|n| n.contains("record 7 height = \"twelve metre\"")),
+        "{notes:?}"
+    );
+    assert!(streamed.iter().all(|c| c.report.refused.is_empty()));
 }
 
 #[test]
