@@ -22,6 +22,7 @@ use crate::geom::predicates::{
     on_segment, orient2d, polygon_area, segments_intersect, Orientation, SegmentIntersection,
 };
 use crate::geom::repair::{check_polygon, repair_polygon, COORD_RANGE};
+use crate::geom::tolerance::MAX_WORLD_COORD_M;
 use crate::jobs::{write_plan, Plan};
 use crate::route::{check_frames, RouteChoice, RouteContext};
 
@@ -160,10 +161,11 @@ pub fn check_repair(data: &[u8]) -> Outcome {
     }
 }
 
-/// Zero, or a magnitude inside [`COORD_RANGE`]: the coordinates a city's streets can have (the
-/// build checks them against their CRS), where the exact predicates stay exact.
+/// Zero, or a magnitude from the bottom of [`COORD_RANGE`] (where the exact predicates stay
+/// exact) to [`MAX_WORLD_COORD_M`]: the coordinates a city's streets can have (the build checks
+/// them against their CRS and refuses a vertex beyond the world's bound).
 fn in_range(v: f64) -> bool {
-    v == 0.0 || (COORD_RANGE.0..=COORD_RANGE.1).contains(&v.abs())
+    v == 0.0 || (COORD_RANGE.0..=MAX_WORLD_COORD_M).contains(&v.abs())
 }
 
 /// Most segments [`check_faces`] decodes (its planarity check is quadratic).
@@ -172,7 +174,7 @@ pub const FACES_MAX_SEGMENTS: usize = 96;
 /// Street noding and faces ([`node_lines`], [`faces`]): lines decoded from `data` (a header byte:
 /// bits 0–1 the snap tolerance 1 mm, 5 cm, 0.5 m or 3 m, bit 2 raw `f64` coordinates; then each
 /// line as a point count byte and its points; points that are not finite or outside
-/// [`COORD_RANGE`] are dropped, as the city build refuses them)
+/// [`COORD_RANGE`] at the bottom or [`MAX_WORLD_COORD_M`] at the top are dropped, as the city build refuses them)
 /// are noded into a graph whose edges are distinct, ordered, of non-zero length and meet only
 /// at shared nodes (checked pairwise, exactly); its faces satisfy Euler's formula on the edges
 /// that bound faces (nodes − edges + bounded faces = connected pieces), every bounded face has a
@@ -271,9 +273,19 @@ pub fn check_faces(data: &[u8]) -> Outcome {
     assert_eq!(
         v as i64 - fs.core_edges.len() as i64 + bounded.len() as i64,
         pieces as i64,
-        "Euler's formula fails: {v} nodes, {} edges, {} bounded faces, {pieces} pieces",
+        "Euler's formula fails: {v} nodes, {} edges, {} bounded faces, {pieces} pieces{}",
         fs.core_edges.len(),
-        bounded.len()
+        bounded.len(),
+        if g.edges.len() <= 8 {
+            format!(
+                " (nodes {:?}, edges {:?}, face ring areas {:?})",
+                g.nodes,
+                g.edges,
+                fs.faces.iter().map(|f| f.ring_area).collect::<Vec<_>>()
+            )
+        } else {
+            String::new()
+        }
     );
     for &i in &bounded {
         let f = &fs.faces[i];

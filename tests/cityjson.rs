@@ -496,3 +496,63 @@ fn validate_given_file() {
         assert!(failures.is_empty());
     }
 }
+
+/// WGS 84 / UTM zone 33N with US survey feet as its unit (no such EPSG entry exists: the name
+/// says UTM zone 33N, the unit says it is not EPSG:32633).
+const UTM33N_FEET: &str = r#"PROJCS["WGS 84 / UTM zone 33N (US survey feet)",GEOGCS["WGS 84",DATUM["WGS_1984",SPHEROID["WGS 84",6378137,298.257223563]],PRIMEM["Greenwich",0],UNIT["degree",0.0174532925199433]],PROJECTION["Transverse_Mercator"],PARAMETER["latitude_of_origin",0],PARAMETER["central_meridian",15],PARAMETER["scale_factor",0.9996],PARAMETER["false_easting",1640416.666666667],PARAMETER["false_northing",0],UNIT["US survey foot",0.3048006096012192]]"#;
+
+/// Bubeneč's UTM 33N footprints rewritten in US survey feet: imported into ground metres, they
+/// are exported in EPSG:32633 at the metre copy's own coordinates, and their ground areas are
+/// the Web Mercator copy's (both in a local transverse Mercator), not UTM's (scale 0.9996).
+#[test]
+fn a_city_in_us_feet_is_written_where_its_metre_copy_is() {
+    use blockwalk::city::build::{build_city, BuildOptions};
+    use blockwalk::importers::{read_layer, Crs, Theme};
+    use support::data::data;
+    let us_ft = 1200.0 / 3937.0;
+    let metres = read_layer(&data("bubenec_utm33n/buildings.shp"), &Theme::Buildings).unwrap();
+    let mut feet = metres.clone();
+    for f in &mut feet.features {
+        f.geometry = f.geometry.map_coords(|c| geo_types::Coord {
+            x: c.x / us_ft,
+            y: c.y / us_ft,
+        });
+    }
+    feet.crs = Crs::from_wkt(UTM33N_FEET).unwrap();
+    assert!(
+        matches!(feet.crs, Crs::Projected { epsg: None, .. }),
+        "{:?}",
+        feet.crs
+    );
+    let opts = BuildOptions::default();
+    let m_city = build_city(&metres, None, None, &opts).unwrap();
+    let f_city = build_city(&feet, None, None, &opts).unwrap();
+    assert_eq!(f_city.buildings.len(), m_city.buildings.len());
+    let area = |c: &City| -> f64 { c.buildings.iter().map(|b| polygon_area(&b.footprint)).sum() };
+    let wm_city = load_city(Path::new("data/bubenec/buildings.shp"), None);
+    let (fa, ma, wa) = (area(&f_city), area(&m_city), area(&wm_city));
+    assert!(
+        (fa / wa - 1.0).abs() < 1e-4,
+        "feet {fa} m², Web Mercator {wa} m²"
+    );
+    assert!(
+        (fa / ma - 1.0).abs() > 5e-4,
+        "UTM's scale error is gone: {fa} vs {ma} m²"
+    );
+    let fdoc = check_city(&f_city, "Bubeneč in feet");
+    let mdoc = check_city(&m_city, "Bubeneč in UTM");
+    for doc in [&fdoc, &mdoc] {
+        assert_eq!(
+            doc["metadata"]["referenceSystem"],
+            "https://www.opengis.net/def/crs/EPSG/0/32633"
+        );
+    }
+    let (fe, me) = (
+        fdoc["metadata"]["geographicalExtent"].as_array().unwrap(),
+        mdoc["metadata"]["geographicalExtent"].as_array().unwrap(),
+    );
+    for k in [0, 1, 3, 4] {
+        let (a, b) = (fe[k].as_f64().unwrap(), me[k].as_f64().unwrap());
+        assert!((a - b).abs() < 0.002, "extent {k}: {a} vs {b}");
+    }
+}

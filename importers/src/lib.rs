@@ -361,15 +361,8 @@ pub fn read_layer_with(
 }
 
 /// What a user can do about a CRS that cannot be used.
-fn crs_hint(e: &CrsError) -> &'static str {
-    match e {
-        CrsError::NotMetres { .. } => {
-            "blockwalk works in metres: reproject the file to a metric CRS (e.g. `ogr2ogr -t_srs \
-             EPSG:XXXX out.shp in.shp`); `--crs EPSG:XXXX` overrides the file's CRS only for \
-             coordinates already in that CRS"
-        }
-        _ => "state the CRS instead: `--crs EPSG:XXXX` on the command line overrides the file's",
-    }
+fn crs_hint(_: &CrsError) -> &'static str {
+    "state the CRS instead: `--crs EPSG:XXXX` on the command line overrides the file's"
 }
 
 /// [`read_layer_with`] with a CRS `stated` by the caller: a Shapefile's `.prj` is then not read

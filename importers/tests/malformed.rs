@@ -341,26 +341,30 @@ fn prj_with_an_unknown_epsg_code_is_an_error() {
 }
 
 #[test]
-fn prj_in_feet_is_refused() {
+fn prj_in_feet_is_read_in_its_unit() {
     let dir = tempfile::tempdir().unwrap();
     let p = copy_shp("bubenec/streets", dir.path());
+    // An ESRI .prj without authority: the unit is the WKT's UNIT, whatever the converter keeps.
     write(
         dir.path(),
         "l.prj",
         r#"PROJCS["NAD_1983_StatePlane_New_York_Long_Island_FIPS_3104_Feet",GEOGCS["GCS_North_American_1983",DATUM["D_North_American_1983",SPHEROID["GRS_1980",6378137.0,298.257222101]],PRIMEM["Greenwich",0.0],UNIT["Degree",0.0174532925199433]],PROJECTION["Lambert_Conformal_Conic"],PARAMETER["False_Easting",984250.0],PARAMETER["False_Northing",0.0],PARAMETER["Central_Meridian",-74.0],PARAMETER["Standard_Parallel_1",40.66666666666666],PARAMETER["Standard_Parallel_2",41.03333333333333],PARAMETER["Latitude_Of_Origin",40.16666666666666],UNIT["Foot_US",0.3048006096012192]]"#,
     );
-    let e = shp::read(&p).unwrap_err();
-    assert!(
-        matches!(
-            e,
-            ImportError::Crs {
-                source: CrsError::NotMetres { .. },
-                ..
-            }
-        ),
-        "{e:?}"
+    let crs = shp::read_crs(&p).unwrap();
+    assert!(!crs.is_metric_projected(), "{crs:?}");
+    assert!((crs.metres_per_unit().unwrap() - 0.3048006096012192).abs() < 1e-12);
+    // The same point as EPSG:2263 (the registry's definition of this system) is the same place.
+    let reg = blockwalk_importers::Crs::from_epsg(2263).unwrap();
+    let pt = [990_000.0, 200_000.0];
+    let (a, b) = (crs.metric_transform(pt), reg.metric_transform(pt));
+    let (la, lb) = (
+        a.to_wgs84_lonlat(a.to_metric(pt)).unwrap(),
+        b.to_wgs84_lonlat(b.to_metric(pt)).unwrap(),
     );
-    assert!(e.to_string().contains("--crs EPSG:XXXX"), "{e}");
+    assert!(
+        (la[0] - lb[0]).abs() < 1e-8 && (la[1] - lb[1]).abs() < 1e-8,
+        "{la:?} {lb:?}"
+    );
 }
 
 #[test]

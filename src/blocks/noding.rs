@@ -10,6 +10,14 @@
 //! with the nodes on each segment, not with the segments crossing it; the pairs themselves are
 //! still all tested, so `n` lines through one point (every pair crossing there) cost `n²` tests
 //! (10,000 such lines: 16 s, 10 MB in the test profile; `cargo bench -p blockwalk --bench blocks`).
+//! That term stays: the `n(n − 1)/2` crossing pairs are the output-sensitive `k` of any pairwise
+//! or sweep-line noder (Bentley–Ottmann runs in O((n + k) log n)), and a street junction joins a
+//! handful of lines, not thousands.
+//!
+//! Snapping is repeated until it settles. With a tolerance as large as the features (0.5 m
+//! between streets 0.1 m apart), a crossing can snap to a node whose new edges cross again, pass
+//! after pass; the crossings left then are split exactly at their computed points, so the graph
+//! is planar, and near those points nodes closer than the tolerance can remain.
 
 use crate::geom::predicates::{orient2d, segments_intersect, Orientation, SegmentIntersection};
 use crate::geom::segment::point_segment_distance;
@@ -234,12 +242,18 @@ fn node_once(segs: &[[Coord<f64>; 2]], tol: f64) -> (PlanarGraph, bool) {
                 continue;
             }
             if segments_intersect(a, b, c, d) == SegmentIntersection::Proper {
-                // Proper crossing: the point, computed relative to `a` for precision.
-                let r = b - a;
-                let q = d - c;
-                let den = r.x * q.y - r.y * q.x;
-                let w = c - a;
-                let t = ((w.x * q.y - w.y * q.x) / den).clamp(0.0, 1.0);
+                // Proper crossing: the point, computed relative to `a` for precision, with the
+                // three vectors scaled by one power of two (exactly) so that the products
+                // neither underflow nor overflow (their ratio `t` is unchanged).
+                let (r, q, w) = (b - a, d - c, c - a);
+                let m = [r.x, r.y, q.x, q.y, w.x, w.y]
+                    .iter()
+                    .fold(0.0f64, |m, v| m.max(v.abs()));
+                let k = 2f64.powi(-(m.log2().floor() as i32));
+                let (rs, qs, ws) = (r * k, q * k, w * k);
+                let den = rs.x * qs.y - rs.y * qs.x;
+                let t = ((ws.x * qs.y - ws.y * qs.x) / den).clamp(0.0, 1.0);
+                let t = if t.is_finite() { t } else { 0.5 };
                 let p = Coord {
                     x: a.x + t * r.x,
                     y: a.y + t * r.y,
@@ -297,30 +311,58 @@ fn node_once(segs: &[[Coord<f64>; 2]], tol: f64) -> (PlanarGraph, bool) {
 /// Nodes line strings into a planar graph (see the module docs). `tol` is the snap tolerance in
 /// the lines' units ([`DEFAULT_SNAP_TOLERANCE`] metres by default; 0 nodes exactly).
 ///
-/// Passes repeat (at most four) while a pass still splits something, since snapping moves points
-/// by up to `tol` and may create a new crossing; the result is then exact: its edges meet only at
-/// nodes. Unused nodes are removed. Non-finite coordinates must be filtered by the caller.
+/// Passes repeat (at most [`SNAP_PASSES`]) while a pass still splits something, since snapping
+/// moves points by up to `tol` and may create a new crossing. Where snapping does not settle (a
+/// tolerance as large as the features, so that a crossing snaps to a node whose new edges cross
+/// again, pass after pass), passes at tolerance 0 follow (at most [`SNAP_PASSES`] more), which
+/// split the crossings that remain at their computed points. Unused nodes are removed.
+/// Non-finite coordinates must be filtered by the caller.
 pub fn node_lines(lines: &[LineString<f64>], tol: f64) -> PlanarGraph {
     let mut segs: Vec<[Coord<f64>; 2]> = lines
         .iter()
         .flat_map(|l| l.0.windows(2).map(|w| [w[0], w[1]]))
         .filter(|s| s[0] != s[1])
         .collect();
-    let mut graph = PlanarGraph::default();
-    for _ in 0..4 {
+    let edges_of = |g: &PlanarGraph| -> Vec<[Coord<f64>; 2]> {
+        g.edges
+            .iter()
+            .map(|e| [g.nodes[e[0] as usize], g.nodes[e[1] as usize]])
+            .collect()
+    };
+    // Snapping passes, until one splits nothing or gives back the graph it was given.
+    let mut graph: Option<PlanarGraph> = None;
+    let mut unsettled = true;
+    for _ in 0..SNAP_PASSES {
         let (g, changed) = node_once(&segs, tol);
-        graph = g;
+        let cycle = graph
+            .as_ref()
+            .is_some_and(|p| p.nodes == g.nodes && p.edges == g.edges);
+        segs = edges_of(&g);
+        graph = Some(g);
         if !changed {
+            unsettled = false;
             break;
         }
-        segs = graph
-            .edges
-            .iter()
-            .map(|e| [graph.nodes[e[0] as usize], graph.nodes[e[1] as usize]])
-            .collect();
+        if cycle {
+            break;
+        }
+    }
+    let mut graph = graph.unwrap_or_default();
+    if unsettled && tol > 0.0 {
+        for _ in 0..SNAP_PASSES {
+            let (g, changed) = node_once(&segs, 0.0);
+            segs = edges_of(&g);
+            graph = g;
+            if !changed {
+                break;
+            }
+        }
     }
     compact(graph)
 }
+
+/// Most noding passes at the snap tolerance, and then at tolerance 0 (see [`node_lines`]).
+pub const SNAP_PASSES: usize = 8;
 
 /// Removes nodes no edge uses, renumbering in order of first use.
 fn compact(g: PlanarGraph) -> PlanarGraph {

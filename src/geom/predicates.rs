@@ -74,9 +74,12 @@ fn same_point<P: Xy>(a: P, b: P) -> bool {
 
 /// Signed area of a ring (shoelace formula): positive when counter-clockwise.
 ///
-/// Coordinates are taken relative to the first vertex before multiplying, so that rings far
-/// from the origin (UTM northings of 6e6 m) lose no precision, and the terms are summed with
-/// Neumaier's compensated summation.
+/// The ring is fanned from its first vertex and each triangle's doubled area is the adaptive
+/// exact-sign determinant [`orient2d_det`], so that neither a ring far from the origin (UTM
+/// northings of 6e6 m) nor one whose vertices differ in magnitude by many orders (a vertex
+/// 1e47 m out, two others a few kilometres apart near the origin, whose differences to it round
+/// to the same number) loses its area; the triangles are summed with Neumaier's compensated
+/// summation.
 pub fn ring_signed_area<P: Xy>(ring: &[P]) -> f64 {
     let r = open_ring(ring);
     if r.len() < 3 {
@@ -86,9 +89,7 @@ pub fn ring_signed_area<P: Xy>(ring: &[P]) -> f64 {
     let mut sum = 0.0f64;
     let mut comp = 0.0f64;
     for i in 1..r.len() - 1 {
-        let (ax, ay) = (r[i].x() - o.x(), r[i].y() - o.y());
-        let (bx, by) = (r[i + 1].x() - o.x(), r[i + 1].y() - o.y());
-        let term = ax * by - bx * ay;
+        let term = orient2d_det(o, r[i], r[i + 1]);
         let t = sum + term;
         if sum.abs() >= term.abs() {
             comp += (sum - t) + term;
@@ -406,6 +407,22 @@ mod tests {
         assert_eq!(orient2d(a, b, c), Orientation::CounterClockwise);
         let c2 = coord! {x: 5.0e5 + 1.0, y: 5.4e6 + 1.0};
         assert_eq!(orient2d(a, b, c2), Orientation::Collinear);
+    }
+
+    /// A face found by fuzzing the street noder: from its far vertex, the other two differ
+    /// by 7 km, far below the rounding of 1e47, and relative coordinates made the area 0.
+    /// The doubled area is |a × b| about the near vertex, where nothing rounds away.
+    #[test]
+    fn area_of_a_triangle_with_a_far_vertex() {
+        let far = coord! {x: -2.8544953854119198e47, y: -4.492944253233375e42};
+        let a = coord! {x: -7167.24915933568, y: -0.1128117112625216};
+        let b = coord! {x: -1.3785177045934016e-49, y: 7167.992199527515};
+        let want = 0.5 * ((b.x - a.x) * (far.y - a.y) - (b.y - a.y) * (far.x - a.x));
+        for ring in [[far, a, b], [a, b, far], [b, far, a]] {
+            let got = ring_signed_area(&ring);
+            assert!((got / want - 1.0).abs() < 1e-12, "{got} vs {want}");
+            assert!(got > 1e51);
+        }
     }
 
     #[test]

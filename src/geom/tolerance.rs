@@ -41,3 +41,11 @@ const _: () = assert!(ROUTE_NODE_GRID_M * std::f64::consts::SQRT_2 < STREET_SNAP
 /// (Beyond about 16 km from the origin that spacing reaches 2 mm; a notch whose points round onto
 /// the touch point is then refused by the extrusion, as any two vertices that round together are.)
 pub const TOUCH_SEPARATION_M: f64 = 1e-3;
+
+/// The largest magnitude a coordinate of the metric world may have: 10⁹ m, a million
+/// kilometres, 25 times the Earth's circumference. No footprint or street on Earth lies further
+/// from any frame's origin, so a vertex beyond it is data in the wrong unit or garbage, and is
+/// refused with its feature. Within it the snap tolerance is far above the rounding of the
+/// computed crossings (10⁹ m × 2⁻⁵² ≈ 0.2 µm, against a 5 cm snap), which the street noder
+/// needs to leave only crossings at nodes.
+pub const MAX_WORLD_COORD_M: f64 = 1e9;

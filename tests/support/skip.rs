@@ -1,7 +1,8 @@
 //! Skips that everyone sees, and one switch that turns them into failures.
 //!
 //! A test that needs something the machine may lack (a GPU adapter, the Node validators and
-//! Chromium, the Astana data, the right to mount file systems, an X server) asks [`or_skip`].
+//! Chromium, the Astana data, the right to mount file systems, an X server) asks [`or_skip`];
+//! `tests/fuzz/ci.sh` logs its own skip (no nightly toolchain or `cargo-fuzz`) the same way.
 //! Without it, the skip is written straight to the process's standard error, which the test
 //! harness does not capture (it captures only `print!` and `eprint!`), and appended to the skip
 //! log, from which `tests/run` prints the count of skipped tests by reason at the end of the run.
@@ -27,16 +28,20 @@ pub enum Need {
     Mounts,
     /// An X server for a real window (`xvfb-run`).
     Display,
+    /// The nightly toolchain and `cargo-fuzz`, for the brief fuzz runs of `tests/fuzz/ci.sh`
+    /// (which `tests/run` starts after the tests).
+    Fuzz,
 }
 
 impl Need {
     /// Every need, in the order the summary lists them.
-    pub const ALL: [Need; 5] = [
+    pub const ALL: [Need; 6] = [
         Need::Gpu,
         Need::Validators,
         Need::Astana,
         Need::Mounts,
         Need::Display,
+        Need::Fuzz,
     ];
 
     /// Its name in `BLOCKWALK_REQUIRE` and in the skip log.
@@ -47,6 +52,7 @@ impl Need {
             Need::Astana => "astana",
             Need::Mounts => "mounts",
             Need::Display => "display",
+            Need::Fuzz => "fuzz",
         }
     }
 

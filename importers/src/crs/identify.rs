@@ -67,8 +67,9 @@ impl Crs {
     /// [`Crs::Projected`] with the registry's name and PROJ string.
     ///
     /// # Errors
-    /// [`CrsError::UnknownEpsg`] for a code that is not in the registry; [`CrsError::NotMetres`]
-    /// for a projected system whose unit is not the metre (US feet, say).
+    /// [`CrsError::UnknownEpsg`] for a code that is not in the registry. A projected system
+    /// whose unit is not the metre (US survey feet, say) is taken: [`Crs::metres_per_unit`]
+    /// tells, and the metric frame reprojects it.
     pub fn from_epsg(code: u32) -> Result<Crs, CrsError> {
         if WEB_MERCATOR_CODES.contains(&code) {
             return Ok(Crs::WebMercator);
@@ -81,14 +82,6 @@ impl Crs {
         let p = proj(def.proj4)?;
         if p.is_latlong() {
             return Ok(Crs::Geographic { epsg: Some(code) });
-        }
-        let factor = p.to_meter();
-        if (factor - 1.0).abs() > 1e-9 {
-            return Err(CrsError::NotMetres {
-                name,
-                unit: p.units().to_string(),
-                factor,
-            });
         }
         Ok(Crs::Projected {
             epsg: Some(code),
@@ -108,7 +101,8 @@ impl Crs {
     /// # Errors
     /// [`CrsError::NotWkt`] when the text is not WKT, [`CrsError::UnknownEpsg`] for an authority
     /// code not in the registry, [`CrsError::WktConversion`] or [`CrsError::Projection`] for a
-    /// projection `proj4rs` does not have, [`CrsError::NotMetres`] for a unit other than the metre.
+    /// projection `proj4rs` does not have (a unit other than the metre is taken, as in
+    /// [`Crs::from_epsg`]).
     pub fn from_wkt(text: &str) -> Result<Crs, CrsError> {
         let text = text.trim().trim_start_matches('\u{feff}');
         let root = wkt::parse(text).ok_or_else(|| CrsError::NotWkt {
@@ -150,16 +144,31 @@ impl Crs {
                 if is_webmerc {
                     return Ok(Crs::WebMercator);
                 }
-                if let Some((unit, factor)) = linear_unit(&root) {
-                    if (factor - 1.0).abs() > 1e-9 {
-                        return Err(CrsError::NotMetres { name, unit, factor });
-                    }
-                }
                 let mut proj4 =
                     proj4wkt::wkt_to_projstring(text).map_err(|e| CrsError::WktConversion {
                         name: name.clone(),
                         source: e.into(),
                     })?;
+                // The linear unit (US survey feet, say) is the WKT's, whether or not the
+                // conversion kept it.
+                if let Some((_, factor)) = linear_unit(&root) {
+                    if !(factor.is_finite() && factor > 0.0) {
+                        return Err(CrsError::WktConversion {
+                            name,
+                            source: format!("the linear unit's factor {factor} is not a length")
+                                .into(),
+                        });
+                    }
+                    let stated = proj(&proj4).map(|p| p.to_meter()).unwrap_or(1.0);
+                    if (stated - factor).abs() > 1e-12 * factor {
+                        proj4 = proj4
+                            .split_whitespace()
+                            .filter(|t| !t.starts_with("+units=") && !t.starts_with("+to_meter="))
+                            .collect::<Vec<_>>()
+                            .join(" ");
+                        proj4.push_str(&format!(" +to_meter={factor}"));
+                    }
+                }
                 if !proj4.contains("+towgs84=") && !proj4.contains("+datum=") {
                     let datum = root.find("DATUM").and_then(|d| d.name()).unwrap_or("");
                     if let Some(shift) = datum_shift_for(datum) {
@@ -168,7 +177,9 @@ impl Crs {
                     }
                 }
                 proj(&proj4)?;
-                let epsg = infer_epsg(&root, &lname, &method);
+                // A UTM zone or TM35FIN in another unit is not that EPSG system.
+                let metric = linear_unit(&root).is_none_or(|(_, f)| (f - 1.0).abs() <= 1e-12);
+                let epsg = infer_epsg(&root, &lname, &method).filter(|_| metric);
                 let name = if name.is_empty() {
                     epsg.and_then(epsg_name)
                         .unwrap_or_else(|| "unnamed projected CRS".into())
@@ -199,6 +210,25 @@ impl Crs {
                 why: format!("{other} is not a coordinate system keyword"),
             }),
         }
+    }
+
+    /// Metres per coordinate unit: 1 for metric projected systems and for Web Mercator, the
+    /// unit's length for a projected system in another unit (0.3048006096 for US survey
+    /// feet); `None` for geographic and unknown systems.
+    pub fn metres_per_unit(&self) -> Option<f64> {
+        match self {
+            Crs::Projected { proj4, .. } => Some(proj(proj4).map_or(1.0, |p| p.to_meter())),
+            Crs::WebMercator => Some(1.0),
+            Crs::Geographic { .. } | Crs::Unknown => None,
+        }
+    }
+
+    /// True for a projected system in metres, whose coordinates are used as they are.
+    pub fn is_metric_projected(&self) -> bool {
+        matches!(self, Crs::Projected { .. })
+            && self
+                .metres_per_unit()
+                .is_some_and(|f| (f - 1.0).abs() <= 1e-12)
     }
 
     /// One short human phrase, e.g. `EPSG:3067 ETRS89 / TM35FIN`.

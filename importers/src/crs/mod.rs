@@ -88,16 +88,6 @@ pub enum CrsError {
         #[source]
         source: Box<dyn std::error::Error + Send + Sync>,
     },
-    /// The linear unit is not metres.
-    #[error("{name}: the linear unit is {unit} ({factor} m), not metres")]
-    NotMetres {
-        /// The CRS name.
-        name: String,
-        /// The unit's name.
-        unit: String,
-        /// Metres per unit.
-        factor: f64,
-    },
     /// `proj4rs` cannot set up the projection.
     #[error("projection {definition:?} cannot be set up: {source}")]
     Projection {

@@ -82,11 +82,47 @@ fn geographic_authority_unknown_codes_and_garbage() {
         Crs::from_epsg(32633).unwrap().describe(),
         "EPSG:32633 WGS 84 / UTM zone 33N"
     );
-    // US survey feet are refused, not taken as metres.
-    assert!(matches!(
-        Crs::from_epsg(2263),
-        Err(CrsError::NotMetres { .. })
-    ));
+    // US survey feet are taken in their unit, not as metres.
+    let feet = Crs::from_epsg(2263).unwrap();
+    assert!(!feet.is_metric_projected());
+    assert!((feet.metres_per_unit().unwrap() - 1200.0 / 3937.0).abs() < 1e-12);
+    assert!(Crs::from_epsg(32118).unwrap().is_metric_projected());
+}
+
+/// EPSG:2263 (NAD83 / New York Long Island, US survey feet) and EPSG:32118 (the same projection
+/// in metres, false easting 300 000 m = 984 250 ft) are two registry entries: the same point
+/// written in each lands on the same ground, and 1000 ft on the map are 304.8 m on the ground
+/// up to the projection's scale error.
+#[test]
+fn us_survey_feet_are_ground_metres_in_the_frame() {
+    let us_ft = 1200.0 / 3937.0;
+    let feet = Crs::from_epsg(2263).unwrap();
+    let metres = Crs::from_epsg(32118).unwrap();
+    let p_ft = [988_000.0, 190_000.0];
+    let p_m = [p_ft[0] * us_ft, p_ft[1] * us_ft];
+    let tf = feet.metric_transform(p_ft);
+    let tm = metres.metric_transform(p_m);
+    assert!(tm.is_identity() && !tf.is_identity());
+    let (a, b) = (
+        tf.to_wgs84_lonlat(tf.to_metric(p_ft)).unwrap(),
+        tm.to_wgs84_lonlat(p_m).unwrap(),
+    );
+    assert!(
+        (a[0] - b[0]).abs() < 1e-9 && (a[1] - b[1]).abs() < 1e-9,
+        "{a:?} {b:?}"
+    );
+    let q = tf.to_metric([p_ft[0] + 1000.0, p_ft[1]]);
+    let o = tf.to_metric(p_ft);
+    let d = ((q[0] - o[0]).powi(2) + (q[1] - o[1]).powi(2)).sqrt();
+    assert!((d / (1000.0 * us_ft) - 1.0).abs() < 2e-4, "{d} m");
+    // Back to feet within a micrometre, and the summary says what was done.
+    let back = tf.from_metric(o);
+    assert!((back[0] - p_ft[0]).abs() < 1e-5 && (back[1] - p_ft[1]).abs() < 1e-5);
+    assert!(
+        tf.describe().contains("local transverse Mercator"),
+        "{}",
+        tf.describe()
+    );
 }
 
 /// The textbook spherical formula, written independently: lat = 2·atan(e^(y/R)) − π/2.

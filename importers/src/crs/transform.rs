@@ -81,15 +81,16 @@ fn lonlat_on_same_datum(definition: &str) -> String {
 /// Maps a layer's own coordinates to a metric ground frame and back, checking them against
 /// their CRS on the way.
 ///
-/// For a projected CRS the map is the identity. For Web Mercator and geographic coordinates it
-/// is a local transverse Mercator on WGS84 centred on the data, so that distances and areas are
-/// ground metres. [`MetricTransform::for_layer`] gives the map of another layer (in its own
+/// For a projected CRS in metres the map is the identity. For Web Mercator, geographic
+/// coordinates and projected systems in other units (US survey feet) it is a local transverse
+/// Mercator on WGS84 centred on the data, so that distances and areas are ground metres. [`MetricTransform::for_layer`] gives the map of another layer (in its own
 /// CRS) into the same frame.
 #[derive(Clone, Debug, Serialize)]
 pub struct MetricTransform {
     /// The CRS it maps from.
     pub crs: Crs,
-    /// Longitude/latitude (degrees) of the local projection's centre, for non-projected CRS.
+    /// Longitude/latitude (degrees) of the local projection's centre, when there is one (every
+    /// CRS but a projected one in metres).
     pub center_lonlat: Option<[f64; 2]>,
     /// The metric frame's own CRS, when the layer was reprojected into another layer's frame.
     pub frame_crs: Option<Crs>,
@@ -324,6 +325,12 @@ impl MetricTransform {
                 "{}: projected to a local transverse Mercator at {centre} (ground metres)",
                 self.crs.describe()
             ),
+            Crs::Projected { .. } if !self.crs.is_metric_projected() => format!(
+                "{}: projected, in units of {} m, reprojected to a local transverse Mercator \
+                 at {centre} (ground metres)",
+                self.crs.describe(),
+                self.crs.metres_per_unit().unwrap_or(1.0)
+            ),
             Crs::Projected { .. } => {
                 format!(
                     "{}: projected metres, used as they are",
@@ -361,7 +368,7 @@ impl Crs {
         };
         let source = Frame::new(&def)?;
         let source_lonlat = Frame::new(&lonlat_on_same_datum(&def))?;
-        if let Crs::Projected { .. } = self {
+        if self.is_metric_projected() {
             return Ok(MetricTransform {
                 crs: self.clone(),
                 center_lonlat: None,

@@ -9,6 +9,7 @@ use std::borrow::Cow;
 
 use geo_types::{Coord, Geometry, LineString, Polygon};
 
+use crate::geom::tolerance::MAX_WORLD_COORD_M;
 use crate::geom::Rect;
 
 /// The polygons of a geometry (borrowed where the geometry holds them); `None` for a kind
@@ -175,6 +176,9 @@ fn to_metric_rings_by_box<'a>(
     if !fits {
         return None;
     }
+    if t.is_identity() && b.iter().any(|v| v.abs() > MAX_WORLD_COORD_M) {
+        return None;
+    }
     if t.is_identity() {
         return Some(rings.into_iter().map(|r| r.0.clone()).collect());
     }
@@ -195,7 +199,8 @@ fn to_metric_rings_by_box<'a>(
 /// box fits the CRS as a whole is checked by the box, see [`MetricTransform::box_fits`]).
 ///
 /// # Errors
-/// The first vertex that does not fit, in words (`vertex 3: latitude 95° is beyond ±90° in …`).
+/// The first vertex that does not fit, in words (`vertex 3: latitude 95° is beyond ±90° in …`),
+/// or that lies beyond [`MAX_WORLD_COORD_M`].
 pub(crate) fn to_metric_line(
     l: &LineString<f64>,
     t: &MetricTransform,
@@ -206,9 +211,17 @@ pub(crate) fn to_metric_line(
     l.0.iter()
         .enumerate()
         .map(|(k, c)| {
-            t.try_to_metric([c.x, c.y])
-                .map(|[x, y]| Coord { x, y })
-                .map_err(|e| format!("vertex {k}: {e}"))
+            let [x, y] = t
+                .try_to_metric([c.x, c.y])
+                .map_err(|e| format!("vertex {k}: {e}"))?;
+            if x.abs() > MAX_WORLD_COORD_M || y.abs() > MAX_WORLD_COORD_M {
+                return Err(format!(
+                    "vertex {k}: ({x:e}, {y:e}) m is more than {MAX_WORLD_COORD_M:e} m from the \
+                     frame's origin, further than any place on Earth (coordinates in another \
+                     unit?)"
+                ));
+            }
+            Ok(Coord { x, y })
         })
         .collect()
 }
@@ -264,6 +277,23 @@ mod tests {
             LineString::from(vec![(x, y), (x + s, y), (x + s, y + s), (x, y + s), (x, y)]),
             vec![],
         )
+    }
+
+    /// In a frame without a CRS nothing else bounds a coordinate: a vertex beyond a million
+    /// kilometres is refused by its number, one just inside is kept, by box and by vertex.
+    #[test]
+    fn a_vertex_beyond_the_world_is_refused() {
+        let t = Crs::Unknown.metric_transform([0.0, 0.0]);
+        let far = LineString::from(vec![(0.0, 0.0), (10.0, 0.0), (2.0e9, 5.0)]);
+        let e = to_metric_line(&far, &t).unwrap_err();
+        assert!(
+            e.starts_with("vertex 2: (2e9, 5e0) m is more than 1e9 m"),
+            "{e}"
+        );
+        let near = LineString::from(vec![(0.0, 0.0), (-9.9e8, 5.0)]);
+        assert_eq!(to_metric_line(&near, &t).unwrap(), near.0);
+        let e = to_metric_polygon(&square(1.5e9, 0.0, 10.0), &t).unwrap_err();
+        assert!(e.starts_with("outer ring vertex 0:"), "{e}");
     }
 
     /// Checking footprints by the blocks of a grid, by their own boxes, and vertex by vertex

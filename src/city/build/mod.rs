@@ -92,12 +92,12 @@ pub fn city_name(footprint_file: &std::path::Path, layer_name: &str) -> String {
     }
 }
 
-/// A CRS from text: `EPSG:NNNN`, a PROJ string (`+proj=… `, projected, in metres), WKT, or the
-/// path of a file holding WKT (a `.prj`).
+/// A CRS from text: `EPSG:NNNN`, a PROJ string (`+proj=… `, projected, in metres or another
+/// linear unit such as `+units=us-ft`), WKT, or the path of a file holding WKT (a `.prj`).
 ///
 /// # Errors
-/// [`BuildError::Options`] naming the text and the problem (an unknown code, a unit other than
-/// the metre, a file that cannot be read, …).
+/// [`BuildError::Options`] naming the text and the problem (an unknown code, a projection that
+/// cannot be set up, a file that cannot be read, …).
 pub fn parse_crs(text: &str) -> Result<crate::importers::Crs, BuildError> {
     use crate::importers::Crs;
     let t = text.trim();
@@ -115,14 +115,14 @@ pub fn parse_crs(text: &str) -> Result<crate::importers::Crs, BuildError> {
                 "geographic PROJ strings are not taken: give EPSG:4326 or the code".into(),
             ));
         }
-        if t.contains("+units=") && !t.contains("+units=m ") && !t.ends_with("+units=m") {
-            return Err(bad("the unit is not the metre".into()));
-        }
-        return Ok(Crs::Projected {
+        let crs = Crs::Projected {
             epsg: None,
             name: t.to_string(),
             proj4: t.to_string(),
-        });
+        };
+        crs.try_metric_transform([0.0, 0.0])
+            .map_err(|e| bad(e.to_string()))?;
+        return Ok(crs);
     }
     let wkt = if std::path::Path::new(t).is_file() {
         std::fs::read_to_string(t).map_err(|e| bad(e.to_string()))?
@@ -397,11 +397,14 @@ mod tests {
             parse_crs("+proj=utm +zone=35 +ellps=GRS80 +units=m").unwrap(),
             Crs::Projected { epsg: None, .. }
         ));
+        let feet = parse_crs("+proj=tmerc +lat_0=40 +lon_0=-74 +datum=NAD83 +units=us-ft").unwrap();
+        assert!((feet.metres_per_unit().unwrap() - 1200.0 / 3937.0).abs() < 1e-12);
+        assert!(!feet.is_metric_projected());
         for bad in [
             "EPSG:x",
             "EPSG:1",
             "+proj=longlat",
-            "+proj=tmerc +units=us-ft",
+            "+proj=nosuchprojection +units=m",
             "nonsense",
         ] {
             let e = parse_crs(bad).unwrap_err().to_string();

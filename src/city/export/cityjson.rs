@@ -21,8 +21,9 @@
 //! - CRS: `metadata.referenceSystem` is always an EPSG code
 //!   (`https://www.opengis.net/def/crs/EPSG/0/<code>`) when the city has a place on the globe,
 //!   so that readers can place it. A city whose metric frame is a projected CRS with an EPSG code
-//!   is written in that CRS, coordinates unchanged. Footprints in Web Mercator or
-//!   longitude/latitude are imported into a local transverse Mercator centred on the data, which
+//!   is written in that CRS, coordinates unchanged. Footprints in Web Mercator,
+//!   longitude/latitude or a projected CRS in feet are imported into a local transverse Mercator
+//!   centred on the data, which
 //!   has no EPSG code; such a city (and one in a projected CRS known only by its definition) is
 //!   written in the WGS 84 UTM zone of its centre (EPSG 326zz north, 327zz south), each vertex
 //!   reprojected through longitude/latitude ([`ExportFrame`]). Beyond 84° of latitude, where UTM
@@ -120,7 +121,7 @@ pub fn export_frame(t: &MetricTransform) -> ExportFrame {
         to_utm: None,
     };
     match frame {
-        Crs::Projected { epsg: Some(e), .. } => {
+        Crs::Projected { epsg: Some(e), .. } if frame.is_metric_projected() => {
             return ExportFrame {
                 reference_system: Some(epsg_url(*e)),
                 local_projection: None,
@@ -182,6 +183,9 @@ pub fn reference_system(t: &MetricTransform) -> Option<String> {
 fn local_projection_of(t: &MetricTransform, frame: &Crs) -> Option<String> {
     match (frame, t.center_lonlat) {
         (Crs::WebMercator | Crs::Geographic { .. }, Some([lon, lat])) => Some(format!(
+            "+proj=tmerc +lat_0={lat} +lon_0={lon} +k=1 +x_0=0 +y_0=0 +datum=WGS84 +units=m +no_defs"
+        )),
+        (Crs::Projected { .. }, Some([lon, lat])) if !frame.is_metric_projected() => Some(format!(
             "+proj=tmerc +lat_0={lat} +lon_0={lon} +k=1 +x_0=0 +y_0=0 +datum=WGS84 +units=m +no_defs"
         )),
         (Crs::Projected { proj4, .. }, _) => Some(proj4.clone()),

@@ -1,6 +1,9 @@
 #![no_main]
 //! A decoded polygon repaired and extruded.
 
-libfuzzer_sys::fuzz_target!(|data: &[u8]| {
+#[path = "common.rs"]
+mod common;
+
+libfuzzer_sys::fuzz_target!(init: common::let_caught_overlay_panics_unwind(), |data: &[u8]| {
     let _ = blockwalk::fuzzing::check_extrude(data);
 });
