@@ -12,6 +12,7 @@
 //! | spatial structures (BqR-tree, VAMSplit R-tree, flat, none, rstar) | [`index`] | 003 §4 |
 //! | occlusion culling (occluder shadows, cull map) and the visibility oracle | [`visibility`] | 004 §3.2 |
 //! | far field: BlockMaps, their construction, reference ray caster, error bound | [`blockmap`] | 000 §3–5, 002 ch. 4 |
+//! | far field: multi-level relief impostors (the tree over building groups) | [`relief`] | 001 §3–4 |
 //! | 3D Tiles 1.1 export: the block quadtree as a tileset (BlockMap height fields, building meshes) | [`tiles`] | 000 §4 |
 //! | a city in tiles for batch engines: plan, one tile per job, merge | [`jobs`] | 003 §3–4 |
 //! | one scene: city, blocks, meshes, bounds, structures, culler | [`scene`] | |
@@ -35,6 +36,7 @@ pub mod geom;
 pub mod index;
 pub mod jobs;
 pub mod output;
+pub mod relief;
 #[cfg(feature = "render")]
 pub mod render;
 pub mod report;

@@ -15,7 +15,11 @@
 //!   O(n) per triangle, O(n²) in all. For a valid footprint both give the same triangles (a
 //!   test compares them); the flood fill also stays right for slivers whose rounded centroid
 //!   falls on or across an edge.
-//! - Coordinates: the frame origin is subtracted in f64 before the one conversion to f32.
+//! - Coordinates: the frame origin is subtracted in f64 before the one conversion to f32. A
+//!   footprint with a detail finer than f32 resolves at its distance from the origin is refused
+//!   with the building named: two vertices that round to one point
+//!   ([`ExtrudeError::BelowPrecision`]), or a ring so thin that rounding turns it over
+//!   ([`ExtrudeError::Sliver`]), either of which would leave the prism open or inside out.
 
 use std::collections::HashMap;
 
@@ -26,7 +30,7 @@ use super::appearance::building_style;
 use super::mesh::{Mesh, VertexAppearance};
 use super::model::{Building, City, LocalFrame};
 use crate::geom::predicates::{
-    open_ring, orient2d, segments_intersect, Orientation, SegmentIntersection,
+    open_ring, orient2d, ring_signed_area, segments_intersect, Orientation, SegmentIntersection,
 };
 
 /// Why a building could not be extruded.
@@ -71,6 +75,24 @@ pub enum ExtrudeError {
         /// The first vertex's distance from the local origin, metres.
         from_origin: f64,
     },
+    /// A ring is so thin that rounding its vertices to f32 turns it over (or flattens it): the
+    /// prism would be inside out.
+    #[error(
+        "building {id}: ring {ring} ({area_m2:e} m², {from_origin:.0} m from the local origin) is \
+         thinner than f32 resolves there: rounded to f32 its area is {rounded_m2:e} m²"
+    )]
+    Sliver {
+        /// Source id.
+        id: String,
+        /// The ring (0 is the exterior).
+        ring: usize,
+        /// Its signed area in f64, m².
+        area_m2: f64,
+        /// Its signed area after rounding to f32, m².
+        rounded_m2: f64,
+        /// Its farthest vertex's distance from the local origin, metres.
+        from_origin: f64,
+    },
     /// Heights are not finite or the top is not above the bottom.
     #[error("building {id}: top {top} m is not above bottom {bottom} m")]
     Heights {
@@ -90,6 +112,8 @@ struct Scratch {
     /// The footprint's rings in local f64 coordinates, open (no repeated closing point), one
     /// after the other.
     local: Vec<DVec2>,
+    /// One ring of `local` rounded to f32.
+    rounded_ring: Vec<DVec2>,
     /// Where each ring starts in `local`, plus its end.
     starts: Vec<usize>,
     /// Face classification of the flood fill: 0 unknown, 1 outside, 2 inside.
@@ -179,6 +203,26 @@ fn extrude_with(b: &Building, frame: &LocalFrame, s: &mut Scratch) -> Result<Mes
             gap: s.local[i].distance(s.local[j]),
             from_origin: s.local[i].length(),
         });
+    }
+
+    // A ring thinner than f32 resolves (a sliver kilometres from the origin) can turn over when
+    // rounded, though no two vertices meet: its prism would be inside out.
+    for (ring, w) in s.starts.windows(2).enumerate() {
+        let local = &s.local[w[0]..w[1]];
+        let area = ring_signed_area(local);
+        s.rounded_ring.clear();
+        s.rounded_ring
+            .extend(local.iter().map(|p| p.as_vec2().as_dvec2()));
+        let rounded = ring_signed_area(&s.rounded_ring);
+        if area != 0.0 && (rounded == 0.0 || (rounded > 0.0) != (area > 0.0)) {
+            return Err(ExtrudeError::Sliver {
+                id: b.source_id.clone(),
+                ring,
+                area_m2: area,
+                rounded_m2: rounded,
+                from_origin: local.iter().map(|p| p.length()).fold(0.0, f64::max),
+            });
+        }
     }
 
     // A simple footprint without holes and with few vertices (most buildings) is ear-clipped
@@ -639,6 +683,49 @@ mod tests {
             r(p.exterior()),
             p.interiors().iter().map(r).collect(),
         ))
+    }
+
+    /// A sliver 1.7e-5 m wide and 550 m long whose far end is 550 m from the local origin
+    /// (found by fuzzing): no two vertices round together, but rounded to f32 the ring turns
+    /// over, and its prism would be inside out. It is refused, naming the ring; the same ring
+    /// widened to 1 mm extrudes closed and outward.
+    #[test]
+    fn a_sliver_that_f32_turns_over_is_refused() {
+        let v = [
+            DVec2::new(110.4180908203125, 2007.9095458984375),
+            DVec2::new(2.3634490966796875, 2548.182746887207),
+            DVec2::new(2.3634567260742188, 2548.1827087402344),
+            DVec2::new(110.41810607910156, 2007.909439086914),
+        ];
+        let poly = |v: &[DVec2]| {
+            let mut r: Vec<(f64, f64)> = v.iter().map(|p| (p.x, p.y)).collect();
+            r.push(r[0]);
+            Polygon::new(LineString::from(r), vec![])
+        };
+        let frame = LocalFrame {
+            origin: DVec3::new(v[0].x, v[0].y, 0.0),
+        };
+        match try_extrude_building(&building(poly(&v), 10.0, 0.0), &frame) {
+            Err(ExtrudeError::Sliver {
+                ring: 0,
+                rounded_m2,
+                area_m2,
+                ..
+            }) => assert!(area_m2 != 0.0 && rounded_m2 * area_m2 <= 0.0),
+            other => panic!("{other:?}"),
+        }
+        // Widened: the return side moved 1 mm away from the outward side.
+        let n = (v[1] - v[0]).perp().normalize();
+        let wide = |s: f64| [v[0], v[1], v[2] + s * 1e-3 * n, v[3] + s * 1e-3 * n];
+        let (a, b) = (wide(1.0), wide(-1.0));
+        let w = if ring_signed_area(&a).abs() > ring_signed_area(&b).abs() {
+            a
+        } else {
+            b
+        };
+        let m = try_extrude_building(&building(poly(&w), 10.0, 0.0), &frame).unwrap();
+        check_closed(&m).unwrap();
+        assert!(signed_volume(&m) > 0.0);
     }
 
     #[test]
