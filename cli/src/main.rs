@@ -44,6 +44,7 @@ mod generate;
 mod import;
 mod jobs;
 mod occlusion_bench;
+mod relief_tree;
 mod tileset;
 mod view;
 mod walk;
@@ -66,6 +67,8 @@ enum Command {
     Blocks(blocks::Args),
     /// BlockMaps for the block quadtree's nodes, with their measured error.
     Blockmaps(blockmaps::Args),
+    /// The relief-impostor tree over the buildings: groups, levels, overlap ratio, formulas.
+    ReliefTree(relief_tree::Args),
     /// The city as a 3D Tiles 1.1 tileset (block quadtree, BlockMap height fields, building meshes).
     Tileset(tileset::Args),
     /// Compare spatial structures on frustum culling.
@@ -178,6 +181,7 @@ fn dispatch(command: Command) -> anyhow::Result<()> {
         Command::Generate(a) => generate::run(a),
         Command::Blocks(a) => blocks::run(a),
         Command::Blockmaps(a) => blockmaps::run(a),
+        Command::ReliefTree(a) => relief_tree::run(a),
         Command::Tileset(a) => tileset::run(a),
         Command::CullBench(a) => cull_bench::run(a),
         Command::CullProof(a) => cull_proof::run(a),

@@ -1,4 +1,4 @@
-//! Multi-level relief impostors: the second far field (Andujar, Brunet, Chica and Navazo,
+//! Multi-level relief impostors: the second far field (its tree so far) (Andujar, Brunet, Chica and Navazo,
 //! *Visualization of Large-Scale Urban Models through Multi-Level Relief Impostors*, Computer
 //! Graphics Forum 29(8), 2010).
 //!
@@ -9,4 +9,4 @@
 
 pub mod tree;
 
-pub use tree::{Formulas, LevelStats, ReliefNode, ReliefTree, TreeError, TreeParams};
+pub use tree::{Formulas, LevelStats, ReliefNode, ReliefTree, TreeError, TreeParams, TreeReport};

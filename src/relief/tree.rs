@@ -584,3 +584,73 @@ mod tests {
         }
     }
 }
+
+/// Everything `blockwalk relief-tree` reports: the tree's size, its levels and the formulas.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct TreeReport {
+    /// How the tree was built.
+    pub params: TreeParams,
+    /// Buildings in the city.
+    pub buildings: usize,
+    /// Groups after merging.
+    pub groups: usize,
+    /// Nodes, and the deepest level.
+    pub nodes: usize,
+    /// The deepest level.
+    pub depth: u32,
+    /// Splits made about the median barycentre.
+    pub median_splits: usize,
+    /// Per level.
+    pub levels: Vec<LevelStats>,
+    /// Formulas (3)–(9).
+    pub formulas: Formulas,
+}
+
+/// The largest block's size `b` of formula (9): the longer side of the largest box of the
+/// layout's blocks (outskirts groups left out); the largest group's when there is no block.
+pub fn largest_block_m(layout: &crate::blocks::BlockLayout, tree: &ReliefTree) -> f64 {
+    let side = |r: Rect| (r.max[0] - r.min[0]).max(r.max[1] - r.min[1]);
+    let blocks = layout
+        .blocks
+        .iter()
+        .filter(|b| b.kind == crate::blocks::BlockKind::Block)
+        .filter_map(|b| footprint_box(&b.polygon))
+        .map(side)
+        .fold(0.0, f64::max);
+    if blocks > 0.0 {
+        blocks
+    } else {
+        tree.groups
+            .iter()
+            .map(|g| side(g.bounds))
+            .fold(0.0, f64::max)
+    }
+}
+
+impl TreeReport {
+    /// The tree of `city` with `params`, and its formulas for the texel size `texel_m` and the
+    /// largest block of `layout`.
+    ///
+    /// # Errors
+    /// [`TreeError`] for an empty city or a texel size that is not finite and positive.
+    pub fn new(
+        city: &City,
+        layout: &crate::blocks::BlockLayout,
+        params: TreeParams,
+        texel_m: f64,
+    ) -> Result<Self, TreeError> {
+        let tree = ReliefTree::build(city, params)?;
+        let b = largest_block_m(layout, &tree).max(texel_m);
+        let formulas = Formulas::new(&tree, texel_m, b)?;
+        Ok(Self {
+            params,
+            buildings: city.buildings.len(),
+            groups: tree.groups.len(),
+            nodes: tree.nodes.len(),
+            depth: tree.depth(),
+            median_splits: tree.median_splits,
+            levels: tree.levels(),
+            formulas,
+        })
+    }
+}
