@@ -69,8 +69,17 @@ fn t_junctions_missing_by_a_millimetre_join() {
         (a[0] - 10_000.0).abs() < 0.2 && (a[1] - 10_000.0).abs() < 0.2,
         "{a:?}"
     );
-    // Exact noding keeps them apart: one face.
-    assert_eq!(face_areas(&streets(&lines, &[], 0.0)).len(), 1);
+    // Noding without snapping keeps them apart: one face.
+    assert_eq!(exact_face_areas(&lines).len(), 1);
+}
+
+/// Areas of the bounded faces of `lines` noded at tolerance 0 (exact for lines whose crossings
+/// need no computing; `detect_geometry` takes at least `MIN_SNAP_TOLERANCE`), sorted.
+fn exact_face_areas(lines: &[LineString<f64>]) -> Vec<f64> {
+    let fs = blockwalk::blocks::faces::faces(&node_lines(lines, 0.0));
+    let mut a: Vec<f64> = fs.bounded().map(|i| fs.area(i)).collect();
+    a.sort_by(f64::total_cmp);
+    a
 }
 
 #[test]
@@ -80,8 +89,7 @@ fn streets_at_1e9_angles_are_ordered_exactly() {
         line_string![(x: 0., y: 0.), (x: 100., y: 0.), (x: 100., y: 100.), (x: 0., y: 100.), (x: 0., y: 0.)],
         line_string![(x: 0., y: 0.), (x: 100., y: 1e-7)],
     ];
-    let exact = streets(&lines, &[], 0.0);
-    let a = face_areas(&exact);
+    let a = exact_face_areas(&lines);
     assert_eq!(a.len(), 2, "{a:?}");
     assert!((a[0] - 5e-6).abs() < 1e-12);
     assert!((a[0] + a[1] - 10_000.0).abs() < 1e-9);
@@ -168,7 +176,7 @@ fn empty_street_layer_gives_only_outskirts() {
 
 #[test]
 fn bad_options_are_errors() {
-    for snap in [5.01, 1e9] {
+    for (snap, says) in [(5.01, "5 m"), (1e9, "5 m"), (0.0, "1 mm"), (0.000_999, "1 mm")] {
         let opts = BlockOptions {
             snap_tolerance: snap,
             ..BlockOptions::default()
@@ -178,13 +186,18 @@ fn bad_options_are_errors() {
             matches!(e, BlockError::BadOption { name: "snap_tolerance", value, .. } if value == snap),
             "{e:?}"
         );
-        assert!(e.to_string().contains("5 m"), "{e}");
+        assert!(e.to_string().contains(says), "{e}");
     }
-    let at_bound = BlockOptions {
-        snap_tolerance: blockwalk::blocks::noding::MAX_SNAP_TOLERANCE,
-        ..BlockOptions::default()
-    };
-    assert!(detect_geometry(BlockSource::Streets, &[], &[], &[], &at_bound).is_ok());
+    for bound in [
+        blockwalk::blocks::noding::MIN_SNAP_TOLERANCE,
+        blockwalk::blocks::noding::MAX_SNAP_TOLERANCE,
+    ] {
+        let at_bound = BlockOptions {
+            snap_tolerance: bound,
+            ..BlockOptions::default()
+        };
+        assert!(detect_geometry(BlockSource::Streets, &[], &[], &[], &at_bound).is_ok());
+    }
     let opts = BlockOptions {
         snap_tolerance: f64::NAN,
         ..BlockOptions::default()

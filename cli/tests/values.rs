@@ -21,15 +21,19 @@ fn out_of_range_values_are_refused_with_the_range() {
     let city = "no-such-city/buildings.shp";
     refused(
         &["blocks", city, "-o", "b.geojson", "--snap", "1e9"],
-        &["--snap", "out of range", "0 to 5"],
+        &["--snap", "out of range", "0.001 to 5"],
     );
     refused(
         &["blocks", city, "-o", "b.geojson", "--snap=-1"],
-        &["--snap", "0 to 5"],
+        &["--snap", "0.001 to 5"],
+    );
+    refused(
+        &["blocks", city, "-o", "b.geojson", "--snap", "0"],
+        &["--snap", "0.001 to 5", "below 1 mm"],
     );
     refused(
         &["blocks", city, "-o", "b.geojson", "--snap", "NaN"],
-        &["--snap", "0 to 5"],
+        &["--snap", "0.001 to 5"],
     );
     refused(
         &["walk", city, "--out", "w", "--image-every", "0"],

@@ -153,8 +153,8 @@ pub fn detect(city: &City, opts: &BlockOptions) -> Result<BlockLayout, BlockErro
 /// the buildings, `BuildingId(i)` for `footprints[i]`.
 ///
 /// # Errors
-/// [`BlockError::BadOption`] for a negative or non-finite length, or a snap tolerance above
-/// [`super::noding::MAX_SNAP_TOLERANCE`].
+/// [`BlockError::BadOption`] for a negative or non-finite length, or a snap tolerance outside
+/// [`super::noding::MIN_SNAP_TOLERANCE`]..=[`super::noding::MAX_SNAP_TOLERANCE`].
 pub fn detect_geometry(
     source: BlockSource,
     lines: &[LineString<f64>],
@@ -168,6 +168,13 @@ pub fn detect_geometry(
             name: "snap_tolerance",
             value: opts.snap_tolerance,
             why: "at most MAX_SNAP_TOLERANCE = 5 m: larger tolerances merge street corners and collapse blocks",
+        });
+    }
+    if opts.snap_tolerance.is_finite() && opts.snap_tolerance < super::noding::MIN_SNAP_TOLERANCE {
+        return Err(BlockError::BadOption {
+            name: "snap_tolerance",
+            value: opts.snap_tolerance,
+            why: "at least MIN_SNAP_TOLERANCE = 1 mm: computed crossings are rounded, so a smaller tolerance cannot promise a planar street graph",
         });
     }
     for (name, value) in [

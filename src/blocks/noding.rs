@@ -32,6 +32,15 @@ use std::hash::{BuildHasherDefault, Hasher};
 /// [`crate::geom::tolerance::STREET_SNAP_M`] (5 cm), where its reason is given.
 pub const DEFAULT_SNAP_TOLERANCE: f64 = STREET_SNAP_M;
 
+/// Smallest snap tolerance a city's blocks are detected with: 1 mm. A crossing computed in
+/// floating point is rounded, and a rounded point can fall an ulp beside another line's end or
+/// on the wrong side of a third line, so noding at tolerance 0 cannot promise a planar graph
+/// for arbitrary input; a millimetre absorbs that rounding up to the largest coordinate a city
+/// accepts ([`crate::geom::tolerance::MAX_WORLD_COORD_M`]), and is below the accuracy of any
+/// street centre line. [`node_lines`] itself still takes 0, which is exact for lines that are
+/// already noded (no crossing to compute), and is used that way to check a noded graph.
+pub const MIN_SNAP_TOLERANCE: f64 = 0.001;
+
 /// Largest snap tolerance accepted, in the lines' units (metres for a city): 5 m. Snapping
 /// merges every pair of points closer than the tolerance, so beyond a few metres it closes
 /// streets and collapses small blocks (at 1 km a whole district is one node and no block is left).
@@ -309,7 +318,8 @@ fn node_once(segs: &[[Coord<f64>; 2]], tol: f64) -> (PlanarGraph, bool) {
 }
 
 /// Nodes line strings into a planar graph (see the module docs). `tol` is the snap tolerance in
-/// the lines' units ([`DEFAULT_SNAP_TOLERANCE`] metres by default; 0 nodes exactly).
+/// the lines' units ([`DEFAULT_SNAP_TOLERANCE`] metres by default; 0 merges only equal points,
+/// which is exact for lines already noded, see [`MIN_SNAP_TOLERANCE`]).
 ///
 /// Passes repeat (at most [`SNAP_PASSES`]) while a pass still splits something, since snapping
 /// moves points by up to `tol` and may create a new crossing. Where snapping does not settle (a
