@@ -176,7 +176,12 @@ fn empty_street_layer_gives_only_outskirts() {
 
 #[test]
 fn bad_options_are_errors() {
-    for (snap, says) in [(5.01, "5 m"), (1e9, "5 m"), (0.0, "1 mm"), (0.000_999, "1 mm")] {
+    for (snap, says) in [
+        (5.01, "5 m"),
+        (1e9, "5 m"),
+        (0.0, "1 mm"),
+        (0.000_999, "1 mm"),
+    ] {
         let opts = BlockOptions {
             snap_tolerance: snap,
             ..BlockOptions::default()

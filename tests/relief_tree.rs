@@ -17,7 +17,7 @@ use support::data::load_city;
 /// Every pair closer than the gap shares a group, and every group is connected by such pairs:
 /// the groups are the connected components, by brute force.
 fn check_merge(city: &City, gap: f64) -> usize {
-    let groups = merge(city, gap);
+    let groups = merge(city, gap, None);
     let mut group_of = vec![usize::MAX; city.buildings.len()];
     for (g, grp) in groups.iter().enumerate() {
         for b in &grp.buildings {

@@ -229,13 +229,17 @@ pub fn peak_memory_bytes() -> Option<u64> {
     Some(kb * 1024)
 }
 
-/// The far-field options `walk` and `view` share: BlockMaps or none, τ, K and the hysteresis.
+/// The far-field options `walk` and `view` share: the representation, τ, K, the relief
+/// impostors' settings and the hysteresis.
 #[derive(clap::Args, Debug, Clone)]
 pub struct FarArgs {
     /// Far field: `blockmaps` draws far nodes of the block quadtree as ray-cast BlockMaps (Cignoni
-    /// et al., §4–5) and near blocks as meshes; `none` draws meshes only.
+    /// et al., §4–5), `relief` far nodes of the relief tree as multi-level relief impostors
+    /// (Andujar et al., §3–5), near blocks as meshes; `none` draws meshes only.
     #[arg(long = "far", value_parser = choice::<blockwalk::walk::FarMode>(), default_value_t = blockwalk::walk::FarMode::None)]
     pub mode: blockwalk::walk::FarMode,
+    #[command(flatten)]
+    pub relief: ReliefArgs,
     /// Largest projected error of a drawn BlockMap, pixels (τ).
     #[arg(long, default_value_t = 1.0)]
     pub tau: f64,
@@ -248,18 +252,72 @@ pub struct FarArgs {
 }
 
 impl FarArgs {
-    /// τ and the hysteresis as selection settings, with K checked too (the library refuses
-    /// each with the reason).
+    /// τ and the hysteresis as selection settings, with K and the relief settings checked too
+    /// (the library refuses each with the reason).
     pub fn select(&self) -> anyhow::Result<blockwalk::blockmap::SelectOptions> {
         blockwalk::blockmap::BuildOptions {
             k: self.k,
             ..Default::default()
         }
         .validate()?;
+        self.relief.options()?;
         Ok(blockwalk::blockmap::SelectOptions::new(
             self.tau,
             self.hysteresis,
         )?)
+    }
+
+    /// How BlockMaps are built.
+    pub fn blockmaps(&self) -> blockwalk::walk::BlockMapsOptions {
+        blockwalk::walk::BlockMapsOptions {
+            build: blockwalk::blockmap::BuildOptions {
+                k: self.k,
+                ..Default::default()
+            },
+        }
+    }
+}
+
+/// How relief impostors are built (Andujar et al., §3–4).
+#[derive(clap::Args, Debug, Clone)]
+pub struct ReliefArgs {
+    /// Relief impostors: texel size asked for, metres (`ts`; the map side M follows from
+    /// formula (9) with the city's largest block).
+    #[arg(long = "relief-texel", default_value_t = blockwalk::relief::build::DEFAULT_TEXEL_M)]
+    pub texel: f64,
+    /// Relief impostors: map side M (a power of two), instead of formula (9).
+    #[arg(long = "relief-map-size")]
+    pub map_size: Option<u32>,
+    /// Relief impostors: the largest M formula (9) may give (a power of two).
+    #[arg(long = "relief-max-map-size", default_value_t = blockwalk::relief::build::DEFAULT_MAX_MAP_SIZE)]
+    pub max_map_size: u32,
+    /// Relief impostors: footprints at most this far apart (metres) are merged into one group.
+    #[arg(long = "relief-gap", default_value_t = blockwalk::relief::tree::DEFAULT_GAP_M, allow_hyphen_values = true)]
+    pub gap: f64,
+    /// Relief impostors: share of the seeable wall area the oblique maps must see, in (0, 1].
+    #[arg(long = "relief-coverage", default_value_t = blockwalk::relief::build::DEFAULT_COVERAGE, allow_hyphen_values = true)]
+    pub coverage: f64,
+    /// Relief impostors: most oblique maps per node.
+    #[arg(long = "relief-max-obliques", default_value_t = blockwalk::relief::build::DEFAULT_MAX_OBLIQUES)]
+    pub max_obliques: usize,
+}
+
+impl ReliefArgs {
+    /// The settings, checked by the library.
+    pub fn options(&self) -> anyhow::Result<blockwalk::relief::ReliefOptions> {
+        let o = blockwalk::relief::ReliefOptions {
+            tree: blockwalk::relief::TreeParams {
+                gap_m: self.gap,
+                ..Default::default()
+            },
+            texel_m: self.texel,
+            map_size: self.map_size,
+            max_map_size: self.max_map_size,
+            coverage_target: self.coverage,
+            max_obliques: self.max_obliques,
+        };
+        o.validate()?;
+        Ok(o)
     }
 }
 

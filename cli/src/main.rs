@@ -44,6 +44,7 @@ mod generate;
 mod import;
 mod jobs;
 mod occlusion_bench;
+mod relief;
 mod relief_tree;
 mod tileset;
 mod view;
@@ -69,6 +70,8 @@ enum Command {
     Blockmaps(blockmaps::Args),
     /// The relief-impostor tree over the buildings: groups, levels, overlap ratio, formulas.
     ReliefTree(relief_tree::Args),
+    /// Multi-level relief impostors: every node's maps, their cost and coverage error.
+    Relief(relief::Args),
     /// The city as a 3D Tiles 1.1 tileset (block quadtree, BlockMap height fields, building meshes).
     Tileset(tileset::Args),
     /// Compare spatial structures on frustum culling.
@@ -182,6 +185,7 @@ fn dispatch(command: Command) -> anyhow::Result<()> {
         Command::Blocks(a) => blocks::run(a),
         Command::Blockmaps(a) => blockmaps::run(a),
         Command::ReliefTree(a) => relief_tree::run(a),
+        Command::Relief(a) => relief::run(a),
         Command::Tileset(a) => tileset::run(a),
         Command::CullBench(a) => cull_bench::run(a),
         Command::CullProof(a) => cull_proof::run(a),

@@ -114,17 +114,17 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let name = scene.name.clone();
     let far = match args.far.mode {
         FarMode::None => None,
-        FarMode::Blockmaps => Some(ViewerFar {
+        mode => Some(ViewerFar {
             field: {
                 let progress = super::common::Progress::new(args.json);
-                let opts = blockwalk::walk::BlockMapsOptions {
-                    build: blockwalk::blockmap::BuildOptions {
-                        k: args.far.k,
-                        ..Default::default()
-                    },
-                };
-                let f = blockwalk::walk::job::build_far(&scene, args.far.mode, &opts, &progress)?
-                    .ok_or_else(|| anyhow::anyhow!("no far field was asked for"))?;
+                let f = blockwalk::walk::job::build_far(
+                    &scene,
+                    mode,
+                    &args.far.blockmaps(),
+                    &args.far.relief.options()?,
+                    &progress,
+                )?
+                .ok_or_else(|| anyhow::anyhow!("no far field was asked for"))?;
                 progress.finish();
                 f
             },

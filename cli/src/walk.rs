@@ -7,9 +7,7 @@ use blockwalk::report;
 use blockwalk::route::RouteChoice;
 use blockwalk::scene::{BuildingsMode, SceneOptions};
 use blockwalk::visibility::CullerOptions;
-use blockwalk::walk::{
-    run_job, BlockMapsOptions, FarJob, FarMode, GpuRenderers, OcclusionMode, WalkJob, WalkRecord,
-};
+use blockwalk::walk::{run_job, FarJob, FarMode, GpuRenderers, OcclusionMode, WalkJob, WalkRecord};
 use std::path::PathBuf;
 
 use blockwalk::route::MAX_FRAMES;
@@ -105,12 +103,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         FarMode::None => None,
         mode => Some(FarJob {
             mode,
-            maps: BlockMapsOptions {
-                build: blockwalk::blockmap::BuildOptions {
-                    k: args.far.k,
-                    ..Default::default()
-                },
-            },
+            maps: args.far.blockmaps(),
+            relief: args.far.relief.options()?,
             select: args.far.select()?,
             reference: args.reference,
             keep: args.keep_far,

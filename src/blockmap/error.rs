@@ -100,9 +100,24 @@ pub struct BuildingGrid<'a> {
 impl<'a> BuildingGrid<'a> {
     /// Buckets `buildings` (indices into `source.buildings`) over the map's square.
     pub fn new(map: &BlockMap, source: &'a Source, buildings: &[u32]) -> Self {
-        let k = map.k() as usize;
-        let min = DVec2::new(map.meta.min[0], map.meta.min[1]);
-        let s = map.texel_m();
+        Self::over_square(
+            DVec2::new(map.meta.min[0], map.meta.min[1]),
+            map.texel_m(),
+            map.k() as usize,
+            source,
+            buildings,
+        )
+    }
+
+    /// Buckets `buildings` over the `k × k` cells of side `s` from `min` (local frame): the
+    /// square of any far-field node.
+    pub fn over_square(
+        min: DVec2,
+        s: f64,
+        k: usize,
+        source: &'a Source,
+        buildings: &[u32],
+    ) -> Self {
         let all: Vec<&SourceBuilding> = buildings
             .iter()
             .filter_map(|&i| source.buildings.get(i as usize).and_then(|b| b.as_ref()))

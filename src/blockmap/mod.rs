@@ -47,7 +47,7 @@ pub use error::{measure, ErrorReport, ThinFeature, ThinKind};
 pub use image::{cast_image, CpuHybridRenderer, FrameRays, MapImage, MapXform};
 pub use layout::{BlockMap, BlockMapMeta, Edge};
 pub use select::{
-    projected_error_px, SelectError, SelectOptions, SelectStats, Selection, Selector,
+    projected_error_px, SelectError, SelectNode, SelectOptions, SelectStats, Selection, Selector,
 };
 pub use source::{Source, SourceBuilding};
 pub use tree::{

@@ -159,6 +159,21 @@ pub enum SelectError {
     },
 }
 
+/// A far-field node as a representation hands it to [`Selector::from_nodes`].
+#[derive(Clone, Debug, PartialEq)]
+pub struct SelectNode {
+    /// A key naming it in errors and ordering ties.
+    pub key: u64,
+    /// Declared world-space error, metres: the node is drawn where it projects to at most τ.
+    pub eps_m: f64,
+    /// The representation's own box (joined with its blocks' boxes for culling).
+    pub aabb: Aabb3,
+    /// Its parent's index (parents come first).
+    pub parent: Option<usize>,
+    /// Its blocks; a child's blocks are its parent's, siblings share none.
+    pub blocks: Vec<BlockId>,
+}
+
 /// One map node as the selector sees it.
 #[derive(Clone, Debug)]
 struct Node {
@@ -223,12 +238,37 @@ impl Selector {
         bounds: &[BlockBounds],
         opts: SelectOptions,
     ) -> Result<Self, SelectError> {
+        let nodes: Vec<SelectNode> = tree
+            .maps
+            .iter()
+            .map(|m| SelectNode {
+                key: m.key,
+                eps_m: m.map.meta.eps_m,
+                aabb: m.map.aabb(),
+                parent: m.parent,
+                blocks: m.blocks.clone(),
+            })
+            .collect();
+        Self::from_nodes(&nodes, bounds, opts)
+    }
+
+    /// A selector over any far-field nodes `tree` (parents first), whose blocks are blocks of
+    /// `bounds`: what [`Selector::new`] makes of a [`MapTree`], and what other far-field
+    /// representations give it.
+    ///
+    /// # Errors
+    /// As [`Selector::new`].
+    pub fn from_nodes(
+        tree: &[SelectNode],
+        bounds: &[BlockBounds],
+        opts: SelectOptions,
+    ) -> Result<Self, SelectError> {
         let slot: HashMap<BlockId, usize> =
             bounds.iter().enumerate().map(|(i, b)| (b.id, i)).collect();
-        let n = tree.maps.len();
+        let n = tree.len();
         let mut children = vec![Vec::new(); n];
         let mut roots = Vec::new();
-        for (i, m) in tree.maps.iter().enumerate() {
+        for (i, m) in tree.iter().enumerate() {
             match m.parent {
                 Some(p) if p >= i => {
                     return Err(SelectError::BadParent {
@@ -244,7 +284,7 @@ impl Selector {
         let owner_check = |group: &[usize]| -> Result<HashMap<usize, usize>, SelectError> {
             let mut owner: HashMap<usize, usize> = HashMap::new();
             for &c in group {
-                let m = &tree.maps[c];
+                let m = &tree[c];
                 for b in &m.blocks {
                     let Some(&s) = slot.get(b) else {
                         return Err(SelectError::UnknownBlock {
@@ -254,7 +294,7 @@ impl Selector {
                     };
                     if let Some(&o) = owner.get(&s) {
                         return Err(SelectError::Shared {
-                            a: tree.maps[o].key,
+                            a: tree[o].key,
                             b: m.key,
                             block: b.0,
                         });
@@ -265,7 +305,7 @@ impl Selector {
             Ok(owner)
         };
         let mut nodes = Vec::with_capacity(n);
-        for (i, m) in tree.maps.iter().enumerate() {
+        for (i, m) in tree.iter().enumerate() {
             let taken = owner_check(&children[i])?;
             let mine: Vec<usize> = m
                 .blocks
@@ -280,7 +320,7 @@ impl Selector {
             let set: std::collections::HashSet<usize> = mine.iter().copied().collect();
             if let Some((&s, &c)) = taken.iter().find(|(s, _)| !set.contains(s)) {
                 return Err(SelectError::NotInParent {
-                    child: tree.maps[c].key,
+                    child: tree[c].key,
                     parent: m.key,
                     block: bounds[s].id.0,
                 });
@@ -294,10 +334,10 @@ impl Selector {
                 .blocks
                 .iter()
                 .filter_map(|b| slot.get(b))
-                .fold(m.map.aabb(), |a, &s| a.union(bounds[s].aabb));
+                .fold(m.aabb, |a, &s| a.union(bounds[s].aabb));
             nodes.push(Node {
                 key: m.key,
-                eps_m: m.map.meta.eps_m,
+                eps_m: m.eps_m,
                 center: cull_box.center(),
                 radius: cull_box.extent().length() * 0.5,
                 cull_box,

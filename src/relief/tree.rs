@@ -69,6 +69,10 @@ pub struct TreeParams {
     pub gap_m: f64,
     /// Nodes at this depth are leaves whatever they hold (the root is depth 0).
     pub max_depth: u32,
+    /// A node whose cell edge is at most this (metres) is a leaf whatever it holds: its maps
+    /// already reach the texel size asked for, and splitting it would only add nodes (0: split
+    /// down to single groups).
+    pub leaf_edge_m: f64,
 }
 
 impl TreeParams {
@@ -92,7 +96,29 @@ impl TreeParams {
                 why: "1 to 32",
             });
         }
-        Ok(Self { gap_m, max_depth })
+        Ok(Self {
+            gap_m,
+            max_depth,
+            leaf_edge_m: 0.0,
+        })
+    }
+
+    /// These parameters with nodes of edge at most `edge_m` made leaves.
+    ///
+    /// # Errors
+    /// [`TreeError::BadParameter`] for an edge that is not finite and ≥ 0.
+    pub fn with_leaf_edge(self, edge_m: f64) -> Result<Self, TreeError> {
+        if !(edge_m.is_finite() && edge_m >= 0.0) {
+            return Err(TreeError::BadParameter {
+                name: "leaf_edge_m",
+                value: edge_m,
+                why: "a finite length >= 0",
+            });
+        }
+        Ok(Self {
+            leaf_edge_m: edge_m,
+            ..self
+        })
     }
 }
 
@@ -101,6 +127,7 @@ impl Default for TreeParams {
         Self {
             gap_m: DEFAULT_GAP_M,
             max_depth: DEFAULT_MAX_DEPTH,
+            leaf_edge_m: 0.0,
         }
     }
 }
@@ -199,8 +226,10 @@ fn footprint_box(p: &geo_types::Polygon<f64>) -> Option<Rect> {
 }
 
 /// The buildings of `city` merged into groups: footprints at most `gap` apart (plan view,
-/// exact) are in one group, transitively. Buildings without a footprint point are left out.
-pub fn merge(city: &City, gap: f64) -> Vec<Group> {
+/// exact) are in one group, transitively, and, with `block_of` (each building's block, indexed
+/// like `city.buildings`), so are the buildings of one block, so that no group cuts a block.
+/// Buildings without a footprint point are left out.
+pub fn merge(city: &City, gap: f64, block_of: Option<&[u32]>) -> Vec<Group> {
     let items: Vec<(usize, Rect)> = city
         .buildings
         .iter()
@@ -241,6 +270,23 @@ pub fn merge(city: &City, gap: f64) -> Vec<Group> {
             let d = Euclidean.distance(&city.buildings[*i].footprint, &city.buildings[j].footprint);
             if d <= gap {
                 parent[rk.max(rm)] = rk.min(rm);
+            }
+        }
+    }
+    if let Some(block_of) = block_of {
+        let mut first_of_block: std::collections::HashMap<u32, usize> = Default::default();
+        for (k, (i, _)) in items.iter().enumerate() {
+            let Some(&b) = block_of.get(*i) else { continue };
+            match first_of_block.get(&b) {
+                None => {
+                    first_of_block.insert(b, k);
+                }
+                Some(&f) => {
+                    let (rk, rf) = (find(&mut parent, k), find(&mut parent, f));
+                    if rk != rf {
+                        parent[rk.max(rf)] = rk.min(rf);
+                    }
+                }
             }
         }
     }
@@ -287,7 +333,21 @@ impl ReliefTree {
     /// # Errors
     /// [`TreeError::Empty`] for a city without buildings.
     pub fn build(city: &City, params: TreeParams) -> Result<Self, TreeError> {
-        let groups = merge(city, params.gap_m);
+        Self::build_with_blocks(city, params, None)
+    }
+
+    /// [`ReliefTree::build`], with the buildings of one block (`block_of`, each building's block
+    /// indexed like `city.buildings`) always in one group: the far field's nodes then hold whole
+    /// blocks, as the near field draws them.
+    ///
+    /// # Errors
+    /// [`TreeError::Empty`] for a city without buildings.
+    pub fn build_with_blocks(
+        city: &City,
+        params: TreeParams,
+        block_of: Option<&[u32]>,
+    ) -> Result<Self, TreeError> {
+        let groups = merge(city, params.gap_m, block_of);
         if groups.is_empty() {
             return Err(TreeError::Empty);
         }
@@ -310,7 +370,10 @@ impl ReliefTree {
         while next < nodes.len() {
             let n = next;
             next += 1;
-            if nodes[n].groups.len() <= 1 || nodes[n].depth >= params.max_depth {
+            if nodes[n].groups.len() <= 1
+                || nodes[n].depth >= params.max_depth
+                || nodes[n].edge() <= params.leaf_edge_m
+            {
                 continue;
             }
             let bary = |g: u32| groups[g as usize].barycentre;

@@ -123,6 +123,10 @@ impl GpuFrameRenderer {
     pub fn with_far(self, far: &dyn crate::walk::FarField) -> Result<Self, RenderError> {
         match far.gpu() {
             crate::walk::FarGpu::BlockMaps(maps) => self.with_far_field(&maps),
+            crate::walk::FarGpu::Relief(_) => Err(RenderError::FarField {
+                adapter: String::new(),
+                what: "relief impostors are not drawn on the GPU yet".into(),
+            }),
         }
     }
 

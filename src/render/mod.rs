@@ -63,6 +63,15 @@ pub enum RenderError {
         /// The downlevel capabilities it lacks.
         missing: wgpu::DownlevelFlags,
     },
+    /// The far field cannot be uploaded to this device (a map larger than its texture limit,
+    /// say).
+    #[error("the far field cannot be drawn on {adapter}: {what}")]
+    FarField {
+        /// Adapter name and backend.
+        adapter: String,
+        /// What is wrong.
+        what: String,
+    },
     /// The adapter refused to create a device.
     #[error("GPU device request on {adapter} failed: {source}")]
     Device {

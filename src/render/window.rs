@@ -466,6 +466,10 @@ impl App {
         };
         match f.field.gpu() {
             FarGpu::BlockMaps(maps) => BlockMapRenderer::new(gpu, &maps, (width, height)).map(Some),
+            FarGpu::Relief(_) => Err(RenderError::FarField {
+                adapter: String::new(),
+                what: "relief impostors are not drawn on the GPU yet".into(),
+            }),
         }
     }
 

@@ -383,6 +383,20 @@ pub fn render_ids_clip(
     render_clip(&block_layers(blocks), clip_from_world, width, height, false).0
 }
 
+/// Lit colours, ids and depths of `meshes` (an id and a mesh each, local frame) through any
+/// `clip_from_world` (orthographic included; depth `z/w` in `[0, 1]`, nearer is smaller), as
+/// [`shade_with_ground`] shades them but with no ground: pixels nothing covers keep [`SKY`] and
+/// colour `[0, 0, 0]`. Pixel row 0 is clip `y = +1`. What far-field maps are captured with.
+pub fn shade_ids_clip(
+    meshes: &[(u32, &Mesh)],
+    clip_from_world: &DMat4,
+    width: u32,
+    height: u32,
+) -> (IdBuffer, Vec<[u8; 3]>) {
+    let layers: Vec<Layer<'_>> = meshes.iter().map(|&(id, m)| (id, false, m)).collect();
+    render_clip(&layers, clip_from_world, width, height, true)
+}
+
 /// The blocks with at least one pixel in a `width × height` image from `camera`: the visibility
 /// ground truth at that resolution.
 pub fn visible_blocks(

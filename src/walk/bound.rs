@@ -50,16 +50,121 @@ use crate::blockmap::diagnose::ray_prism;
 use crate::blockmap::error::{BuildingGrid, Scratch};
 use crate::blockmap::image::{twin_ray, FrameRays, MapXform};
 use crate::blockmap::{MapTree, Selection, Source};
+use crate::geom::Aabb3;
 use crate::geom::Camera;
 use glam::{DMat4, DVec3, DVec4};
 use rayon::prelude::*;
 use serde::Serialize;
 
+/// What the second look needs of a far field's nodes ("maps" below): their boxes, buildings,
+/// declared buildings and error, the GPU's `f32` cast through any image point and its `f64`
+/// twin through a pixel centre. BlockMaps ([`MapTree`]) and relief impostors implement it.
+pub trait BoundMaps: Sync {
+    /// Nodes.
+    fn count(&self) -> usize;
+    /// Node `m`'s own box (local frame).
+    fn aabb(&self, m: usize) -> Aabb3;
+    /// Its buildings (indices into `City::buildings`).
+    fn buildings(&self, m: usize) -> &[u32];
+    /// The buildings it declares it draws unfaithfully (thin or dropped), sorted.
+    fn declared(&self, m: usize) -> Vec<u32>;
+    /// Its declared world-space error, metres.
+    fn eps_m(&self, m: usize) -> f64;
+    /// Its casts from `camera` in a `w × h` frame, as the frame draws it.
+    fn frame_caster<'s>(
+        &'s self,
+        m: usize,
+        camera: &Camera,
+        w: u32,
+        h: u32,
+    ) -> Box<dyn FrameCaster + 's>;
+    /// The buildings of node `m` bucketed over its square, for the twin's surface distance.
+    fn building_grid<'s>(&self, m: usize, source: &'s Source<'s>) -> BuildingGrid<'s>;
+}
+
+/// One node's casts in one frame.
+pub trait FrameCaster: Sync + Send {
+    /// Depth written by the GPU's `f32` cast through the image point `(px, py)` (pixels from
+    /// the top-left corner), when it hits.
+    fn hit_depth(&self, px: f64, py: f64) -> Option<f32>;
+    /// The `f64` twin's hit point (local frame) through the centre of pixel `(x, y)`.
+    fn twin_point(&self, x: u32, y: u32) -> Option<DVec3>;
+}
+
+/// A BlockMap's casts in one frame.
+struct MapCaster<'s> {
+    map: &'s crate::blockmap::BlockMap,
+    xform: MapXform,
+    rays: FrameRays,
+    camera: Camera,
+    w: u32,
+    h: u32,
+}
+
+impl FrameCaster for MapCaster<'_> {
+    fn hit_depth(&self, px: f64, py: f64) -> Option<f32> {
+        let fr = &self.rays;
+        let v = [px as f32 * fr.sx + fr.cx, py as f32 * fr.sy + fr.cy];
+        let c = cast_f32(
+            self.map,
+            &self.xform.ray(v, fr.near),
+            &CastOptions::default(),
+        );
+        c.hit.t().map(|t| fr.depth(t as f32))
+    }
+    fn twin_point(&self, x: u32, y: u32) -> Option<DVec3> {
+        let ray = twin_ray(self.map, &self.camera, self.w, self.h, x, y);
+        cast_f64(self.map, &ray, &CastOptions::default())
+            .hit
+            .t()
+            .map(|t| self.map.local_point(&ray, t))
+    }
+}
+
+impl BoundMaps for MapTree {
+    fn count(&self) -> usize {
+        self.maps.len()
+    }
+    fn aabb(&self, m: usize) -> Aabb3 {
+        self.maps[m].map.aabb()
+    }
+    fn buildings(&self, m: usize) -> &[u32] {
+        &self.maps[m].buildings
+    }
+    fn declared(&self, m: usize) -> Vec<u32> {
+        self.maps[m].declared_buildings()
+    }
+    fn eps_m(&self, m: usize) -> f64 {
+        self.maps[m].map.meta.eps_m
+    }
+    fn frame_caster<'s>(
+        &'s self,
+        m: usize,
+        camera: &Camera,
+        w: u32,
+        h: u32,
+    ) -> Box<dyn FrameCaster + 's> {
+        let map = &self.maps[m].map;
+        Box::new(MapCaster {
+            map,
+            xform: MapXform::new(map, camera),
+            rays: FrameRays::new(camera, w, h),
+            camera: *camera,
+            w,
+            h,
+        })
+    }
+    fn building_grid<'s>(&self, m: usize, source: &'s Source<'s>) -> BuildingGrid<'s> {
+        let nm = &self.maps[m];
+        BuildingGrid::new(&nm.map, source, &nm.buildings)
+    }
+}
+
 /// The geometry a walk checks its hybrid frames with: the buildings (f64 prisms, local frame),
 /// their blocks, and per map the buildings it declares (thin or dropped).
 pub struct BoundGeometry<'a> {
     source: &'a Source<'a>,
-    tree: &'a MapTree,
+    tree: &'a dyn BoundMaps,
     by_block: Vec<Vec<u32>>,
     declared: Vec<Vec<u32>>,
 }
@@ -67,7 +172,7 @@ pub struct BoundGeometry<'a> {
 impl<'a> BoundGeometry<'a> {
     /// The geometry of `source` (the city's buildings, `blockmap::Source::new`) for the maps of
     /// `tree` (built from the same city).
-    pub fn new(source: &'a Source<'a>, tree: &'a MapTree) -> Self {
+    pub fn new(source: &'a Source<'a>, tree: &'a dyn BoundMaps) -> Self {
         let mut by_block: Vec<Vec<u32>> = Vec::new();
         for (i, b) in source.buildings.iter().enumerate() {
             if let Some(b) = b {
@@ -78,7 +183,7 @@ impl<'a> BoundGeometry<'a> {
                 by_block[k].push(i as u32);
             }
         }
-        let declared = tree.maps.iter().map(|m| m.declared_buildings()).collect();
+        let declared = (0..tree.count()).map(|m| tree.declared(m)).collect();
         Self {
             source,
             tree,
@@ -287,13 +392,7 @@ impl<'g, 'a> FrameBound<'g, 'a> {
         let tree = self.geometry.tree;
         let grids: Vec<(usize, BuildingGrid)> = twin_maps
             .par_iter()
-            .map(|&m| {
-                let nm = &tree.maps[m];
-                (
-                    m,
-                    BuildingGrid::new(&nm.map, self.geometry.source, &nm.buildings),
-                )
-            })
+            .map(|&m| (m, tree.building_grid(m, self.geometry.source)))
             .collect();
         let settled: Vec<Verdict> = beyond
             .par_iter()
@@ -335,9 +434,8 @@ struct Look<'f, 'g, 'a> {
     h: u32,
     inv: DMat4,
     forward: DVec3,
-    rays: FrameRays,
-    /// Per map of the tree, its texture-space ray constants when the frame draws it.
-    xforms: Vec<Option<MapXform>>,
+    /// Per map of the tree, its casts when the frame draws it.
+    xforms: Vec<Option<Box<dyn FrameCaster + 'g>>>,
     grid: ScreenGrid,
     /// Quarter-pixel lattice offsets `(dx, dy, d)` within the largest `r`, nearest first.
     lattice: Vec<(f64, f64, f64)>,
@@ -353,11 +451,12 @@ impl<'f, 'g, 'a> Look<'f, 'g, 'a> {
                 .then(a.1.total_cmp(&b.1))
                 .then(a.0.total_cmp(&b.0))
         });
-        let maps = &frame.geometry.tree.maps;
-        let mut xforms = vec![None; maps.len()];
+        let maps = frame.geometry.tree;
+        let mut xforms: Vec<Option<Box<dyn FrameCaster + 'g>>> =
+            (0..maps.count()).map(|_| None).collect();
         for &m in &frame.selection.maps {
-            if let Some(nm) = maps.get(m) {
-                xforms[m] = Some(MapXform::new(&nm.map, cam));
+            if m < maps.count() {
+                xforms[m] = Some(maps.frame_caster(m, cam, w, h));
             }
         }
         let mut look = Self {
@@ -366,7 +465,6 @@ impl<'f, 'g, 'a> Look<'f, 'g, 'a> {
             h,
             inv: cam.clip_from_world().inverse(),
             forward: cam.forward(),
-            rays: FrameRays::new(cam, w, h),
             xforms,
             grid: ScreenGrid {
                 cols: 0,
@@ -392,10 +490,12 @@ impl<'f, 'g, 'a> Look<'f, 'g, 'a> {
         let mut kinds: Vec<(Kind, DVec3, DVec3)> = Vec::new();
         let tree = g.tree;
         for &m in &sel.maps {
-            let Some(nm) = tree.maps.get(m) else { continue };
-            let b = nm.map.aabb();
+            if m >= tree.count() {
+                continue;
+            }
+            let b = tree.aabb(m);
             kinds.push((Kind::Map(m), b.min, b.max));
-            for &bi in &nm.buildings {
+            for &bi in tree.buildings(m) {
                 if let Some(Some(sb)) = g.source.buildings.get(bi as usize) {
                     kinds.push((
                         Kind::Building { b: bi, near: false },
@@ -532,18 +632,13 @@ impl<'f, 'g, 'a> Look<'f, 'g, 'a> {
     /// The nearest drawn map the GPU's f32 cast hits through image point `(px, py)` (as
     /// `blockmap::cast_image` chooses it: least depth, below 1): (map, depth).
     fn map_hit(&self, px: f64, py: f64) -> Option<(usize, f32)> {
-        let fr = &self.rays;
-        let v = [px as f32 * fr.sx + fr.cx, py as f32 * fr.sy + fr.cy];
-        let maps = &self.frame.geometry.tree.maps;
         let mut best: Option<(usize, f32)> = None;
         for it in self.grid.at(px, py) {
             let Kind::Map(m) = it.kind else { continue };
             let Some(x) = self.xforms.get(m).and_then(|x| x.as_ref()) else {
                 continue;
             };
-            let c = cast_f32(&maps[m].map, &x.ray(v, fr.near), &CastOptions::default());
-            if let Some(t) = c.hit.t() {
-                let depth = fr.depth(t as f32);
+            if let Some(depth) = x.hit_depth(px, py) {
                 if depth < 1.0 && best.is_none_or(|(_, bd)| depth < bd) {
                     best = Some((m, depth));
                 }
@@ -577,10 +672,9 @@ impl<'f, 'g, 'a> Look<'f, 'g, 'a> {
             // The map that drew the pixel, and its f64 twin's hit.
             let (cx, cy) = (p.x as f64 + 0.5, p.y as f64 + 0.5);
             if let Some((m, _)) = self.map_hit(cx, cy) {
-                let map = &self.frame.geometry.tree.maps[m].map;
-                let ray = twin_ray(map, self.frame.camera, self.w, self.h, p.x, p.y);
-                if let Some(t) = cast_f64(map, &ray, &CastOptions::default()).hit.t() {
-                    return Verdict::Twin(m, map.local_point(&ray, t));
+                let twin = self.xforms[m].as_ref().and_then(|x| x.twin_point(p.x, p.y));
+                if let Some(point) = twin {
+                    return Verdict::Twin(m, point);
                 }
             }
             Verdict::Violation
@@ -636,8 +730,7 @@ impl<'f, 'g, 'a> Look<'f, 'g, 'a> {
         grid: &BuildingGrid,
         scratch: &mut Scratch,
     ) -> Option<f64> {
-        let map = &self.frame.geometry.tree.maps[m].map;
-        let eps = map.meta.eps_m;
+        let eps = self.frame.geometry.tree.eps_m(m);
         let e = grid.surface_distance(point, scratch);
         // The ground is nearer than (or as near as) every prism: nothing of the mesh frame.
         let on_ground = point.z <= e;
@@ -645,7 +738,7 @@ impl<'f, 'g, 'a> Look<'f, 'g, 'a> {
             return None;
         }
         let cam = self.frame.camera;
-        let b = map.aabb();
+        let b = self.frame.geometry.tree.aabb(m);
         let d = ((cam.position - b.center()).length() - 0.5 * b.extent().length()).max(cam.near);
         let f = self.h as f64 / (2.0 * (0.5 * cam.fov_y).tan());
         let e_px = eps * f / d;

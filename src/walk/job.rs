@@ -8,6 +8,7 @@ use super::far::{BlockMapsOptions, BuildFar, FarField, FarMode, FarSetup};
 use super::{run_walk_with_far, Drawing, OcclusionMode, WalkError, WalkParams, WalkRecord};
 use crate::blockmap::{MapTree, SelectOptions, Source};
 use crate::index::SceneGraphParams;
+use crate::relief::{ReliefField, ReliefOptions};
 use crate::route::{CameraRoute, RouteChoice, RouteContext, RouteError};
 use crate::scene::{BuildingsMode, Scene, SceneError};
 use crate::visibility::FrameRenderer;
@@ -70,6 +71,8 @@ pub struct FarJob {
     pub mode: FarMode,
     /// How BlockMaps are built (the side K is `maps.build.k`).
     pub maps: BlockMapsOptions,
+    /// How relief impostors are built.
+    pub relief: ReliefOptions,
     /// τ and hysteresis.
     pub select: SelectOptions,
     /// Compare every hybrid frame with the mesh-only frame (needs drawing), with the silhouette
@@ -154,6 +157,9 @@ impl WalkJob {
             check_select(&f.select)?;
             f.maps
                 .build
+                .validate()
+                .map_err(|e| JobError::Parameter(e.to_string()))?;
+            f.relief
                 .validate()
                 .map_err(|e| JobError::Parameter(e.to_string()))?;
         }
@@ -243,30 +249,44 @@ pub fn resolve_route(
         })
 }
 
-/// The far field `mode` of `scene` built with `opts` (none for [`FarMode::None`]).
+/// The far field `mode` of `scene` built with `maps` (BlockMaps) or `relief` (relief
+/// impostors); none for [`FarMode::None`].
 ///
 /// # Errors
 /// [`JobError::Far`] naming the city.
 pub fn build_far(
     scene: &Scene,
     mode: FarMode,
-    opts: &BlockMapsOptions,
+    maps: &BlockMapsOptions,
+    relief: &ReliefOptions,
     progress: &dyn JobProgress,
 ) -> Result<Option<Box<dyn FarField + Send>>, JobError> {
+    let count = |done, total| progress.count(done, total);
     match mode {
         FarMode::None => Ok(None),
         FarMode::Blockmaps => {
             progress.stage(&format!(
                 "building the BlockMaps of {} (K = {})",
-                scene.name, opts.build.k
+                scene.name, maps.build.k
             ));
-            let maps = MapTree::build(scene, opts, &|done, total| progress.count(done, total))
-                .map_err(|e| JobError::Far {
-                    what: "BlockMaps",
-                    city: scene.name.clone(),
-                    source: Box::new(e),
-                })?;
-            Ok(Some(Box::new(maps)))
+            let built = MapTree::build(scene, maps, &count).map_err(|e| JobError::Far {
+                what: "BlockMaps",
+                city: scene.name.clone(),
+                source: Box::new(e),
+            })?;
+            Ok(Some(Box::new(built)))
+        }
+        FarMode::Relief => {
+            progress.stage(&format!(
+                "building the relief impostors of {} (texel {} m)",
+                scene.name, relief.texel_m
+            ));
+            let built = ReliefField::build(scene, relief, &count).map_err(|e| JobError::Far {
+                what: "relief impostors",
+                city: scene.name.clone(),
+                source: Box::new(e),
+            })?;
+            Ok(Some(Box::new(built)))
         }
     }
 }
@@ -302,7 +322,7 @@ pub fn run_job(
     };
     let far_job = job.far.filter(|f| f.mode != FarMode::None);
     let field = match &far_job {
-        Some(f) => build_far(scene, f.mode, &f.maps, progress)?,
+        Some(f) => build_far(scene, f.mode, &f.maps, &f.relief, progress)?,
         None => None,
     };
     let field_ref: Option<&dyn FarField> = field.as_deref().map(|f| f as &dyn FarField);
@@ -357,6 +377,7 @@ mod tests {
         let far = FarJob {
             mode: FarMode::Blockmaps,
             maps: BlockMapsOptions::default(),
+            relief: ReliefOptions::default(),
             select: SelectOptions::default(),
             reference: false,
             keep: false,
@@ -449,6 +470,7 @@ mod tests {
             far: Some(FarJob {
                 mode: FarMode::Blockmaps,
                 maps: BlockMapsOptions::default(),
+                relief: ReliefOptions::default(),
                 select: SelectOptions {
                     tau_px: 8.0,
                     ..SelectOptions::default()

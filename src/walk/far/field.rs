@@ -12,9 +12,10 @@
 //! - the exact-geometry check of the silhouette bound ([`FarField::silhouette_bound`]), which
 //!   measures a hybrid frame against the mesh frame of the same camera.
 //!
-//! BlockMaps ([`crate::blockmap::MapTree`]) are the first implementation. A second representation
-//! is a module that implements [`FarField`] (and [`BuildFar`] to be built from a scene), plus its
-//! GPU pass behind [`FarGpu`].
+//! BlockMaps ([`crate::blockmap::MapTree`]) are the first implementation, relief impostors
+//! ([`crate::relief::ReliefField`], [`super::relief`]) the second. A representation is a module
+//! that implements [`FarField`] (and [`BuildFar`] to be built from a scene), its GPU pass behind
+//! [`FarGpu`], and [`crate::walk::bound::BoundMaps`] for the silhouette bound's second look.
 
 use crate::blockmap::{BlockMap, MapTree, SelectError, SelectOptions, Selection, Selector, Source};
 use crate::blocks::BlockId;
@@ -95,6 +96,8 @@ pub trait BuildFar: FarField + Sized {
 pub enum FarGpu<'a> {
     /// BlockMaps, ray-cast in WGSL: the maps in node order.
     BlockMaps(Vec<&'a BlockMap>),
+    /// Relief impostors, ray-cast in WGSL over each node's max pyramid.
+    Relief(&'a crate::relief::ReliefField),
 }
 
 /// What a far field holds, as the walk report and the sweep state it.

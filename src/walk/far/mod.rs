@@ -24,6 +24,7 @@
 //!   from the meshes' nearly everywhere, so this counts every pixel of a switched node).
 
 pub mod field;
+pub mod relief;
 mod summary;
 
 pub use field::{
@@ -59,11 +60,14 @@ pub enum FarMode {
     None,
     /// Near meshes and far BlockMaps.
     Blockmaps,
+    /// Near meshes and far relief impostors.
+    Relief,
 }
 
 crate::choice::choices!(FarMode, "far-field mode",
     None => "none", "Meshes only";
     Blockmaps => "blockmaps", "Near meshes and far BlockMaps";
+    Relief => "relief", "Near meshes and far multi-level relief impostors";
 );
 
 /// The far field of a walk and how the walk uses it.

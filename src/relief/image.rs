@@ -1,0 +1,342 @@
+//! Images of relief impostors as the GPU draws them, on the CPU: the reference the WGSL caster
+//! (`render/relief.wgsl`) is tested against, and the CPU fallback of hybrid frames.
+//!
+//! Rays are made exactly as for BlockMaps ([`crate::blockmap::image`]): the pixel's view
+//! direction from [`FrameRays`], taken into the node's texture space by per-node, per-frame
+//! constants ([`node_xform`], a [`MapXform`] computed in `f64` and rounded), starting on the near
+//! plane; the depth written is [`FrameRays::depth`]. What a frame draws of each node
+//! ([`frame_nodes`]): whether it is a horizon node (its height projects under
+//! [`FLAT_PX`] pixels: the flat quad) and which three obliques colour its walls, decided once
+//! per frame on the CPU in `f64` and handed to both renderers. Several nodes: the nearest depth
+//! wins, the first listed on equal depth.
+
+use super::build::ReliefField;
+use super::cast::{cast_f32, cast_flat, Hit};
+use super::node::{shade, NodeFrameInfo, ObliqueXform, CHOSEN};
+use crate::blockmap::{FrameRays, MapXform};
+use crate::blocks::BlockId;
+use crate::city::Mesh;
+use crate::geom::Camera;
+use crate::visibility::{oracle, CpuFrameRenderer, DrawError, DrawnFrame, FrameRenderer};
+use glam::{DVec3, DVec4};
+use rayon::prelude::*;
+use std::time::Instant;
+
+/// A node whose height projects to fewer pixels than this is drawn as a flat quad (the paper's
+/// two pixels).
+pub const FLAT_PX: f64 = 2.0;
+
+/// What a frame draws of one node.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct FrameNode {
+    /// The node (index into [`ReliefField::nodes`]).
+    pub node: usize,
+    /// Drawn as the flat quad.
+    pub flat: bool,
+    /// The obliques colouring its walls.
+    pub chosen: [Option<u32>; CHOSEN],
+    /// Its ray constants.
+    pub xform: MapXform,
+}
+
+/// The texture-space ray constants of a node (its texture space `p = origin + scale ⊙ q`)
+/// seen from `camera` (see the module doc).
+pub fn node_xform(origin: DVec3, scale: DVec3, camera: &Camera) -> MapXform {
+    let inv = DVec3::ONE / scale;
+    let f = camera.forward();
+    let u = camera.up();
+    let r = f.cross(u);
+    let v = |x: DVec3| x.as_vec3().to_array();
+    MapXform {
+        ax: v(r * inv),
+        ay: v(u * inv),
+        af: v(f * inv),
+        b: v((camera.position - origin) * inv),
+    }
+}
+
+/// What a frame draws of each node of `far` (indices into `nodes`) from `camera` on an image
+/// `height_px` high: the one decision both renderers use.
+pub fn frame_nodes(
+    nodes: &[NodeFrameInfo],
+    far: &[usize],
+    camera: &Camera,
+    height_px: u32,
+) -> Vec<FrameNode> {
+    far.iter()
+        .map(|&i| {
+            let n = &nodes[i];
+            FrameNode {
+                node: i,
+                flat: n.is_flat(camera, height_px, FLAT_PX),
+                chosen: n.choose(camera.position),
+                xform: node_xform(n.tex_origin, n.tex_scale, camera),
+            }
+        })
+        .collect()
+}
+
+/// The ray-cast image of some nodes. Pixels without a hit: `hit = None`, depth 1, colour 0,
+/// node `u32::MAX`.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ReliefImage {
+    /// Width, pixels.
+    pub width: u32,
+    /// Height, pixels.
+    pub height: u32,
+    /// The hit per pixel (row-major from the top-left).
+    pub hit: Vec<Option<Hit>>,
+    /// The depth the GPU writes.
+    pub depth: Vec<f32>,
+    /// RGBA8 (alpha 255 on a hit).
+    pub color: Vec<[u8; 4]>,
+    /// The node hit, `u32::MAX` where none.
+    pub node: Vec<u32>,
+}
+
+impl ReliefImage {
+    /// Pixels with a hit.
+    pub fn hits(&self) -> usize {
+        self.hit.iter().filter(|h| h.is_some()).count()
+    }
+}
+
+/// Per-node data the casts read, prepared once per field.
+pub struct Prepared<'a> {
+    levels: Vec<Vec<&'a [u16]>>,
+    xforms: Vec<Vec<ObliqueXform>>,
+    infos: Vec<NodeFrameInfo>,
+}
+
+impl<'a> Prepared<'a> {
+    /// Pyramid slices and oblique constants of every node of `field`.
+    pub fn new(field: &'a ReliefField) -> Self {
+        Self {
+            levels: field.nodes.iter().map(|n| n.levels()).collect(),
+            xforms: field.nodes.iter().map(|n| n.oblique_xforms()).collect(),
+            infos: field.nodes.iter().map(|n| n.frame_info()).collect(),
+        }
+    }
+
+    /// What the per-frame decisions need of every node.
+    pub fn infos(&self) -> &[NodeFrameInfo] {
+        &self.infos
+    }
+
+    /// The oblique constants of node `i`.
+    pub fn xforms(&self, i: usize) -> &[ObliqueXform] {
+        &self.xforms[i]
+    }
+
+    /// The pyramid of node `i`, level 0 first.
+    pub fn levels(&self, i: usize) -> &[&'a [u16]] {
+        &self.levels[i]
+    }
+}
+
+/// The pixel rectangle `[x0, x1) × [y0, y1)` a box may cover (the whole image when it reaches
+/// behind the near plane); `None` when it is off the image.
+fn screen_rect(min: DVec3, max: DVec3, camera: &Camera, w: u32, h: u32) -> Option<[i64; 4]> {
+    let cfw = camera.clip_from_world();
+    let (wf, hf) = (f64::from(w), f64::from(h));
+    let (mut a, mut b) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
+    for c in crate::geom::Aabb3::new(min, max).corners() {
+        let q = cfw * DVec4::new(c.x, c.y, c.z, 1.0);
+        if q.w < camera.near {
+            return Some([0, 0, i64::from(w), i64::from(h)]);
+        }
+        let px = (q.x / q.w + 1.0) * 0.5 * wf;
+        let py = (1.0 - q.y / q.w) * 0.5 * hf;
+        a = [a[0].min(px), a[1].min(py)];
+        b = [b[0].max(px), b[1].max(py)];
+    }
+    let r = [
+        (a[0] - 1.0).floor().max(0.0) as i64,
+        (a[1] - 1.0).floor().max(0.0) as i64,
+        (b[0] + 2.0).ceil().min(wf) as i64,
+        (b[1] + 2.0).ceil().min(hf) as i64,
+    ];
+    (r[0] < r[2] && r[1] < r[3]).then_some(r)
+}
+
+/// Casts, per pixel of a `width × height` image from `camera`, the `f32` caster through the
+/// frame's nodes `nodes` and keeps the nearest hit, coloured as the shader colours it. Parallel
+/// over rows, deterministic.
+pub fn cast_image(
+    field: &ReliefField,
+    prepared: &Prepared<'_>,
+    nodes: &[FrameNode],
+    camera: &Camera,
+    width: u32,
+    height: u32,
+) -> ReliefImage {
+    let fr = FrameRays::new(camera, width, height);
+    let rects: Vec<Option<[i64; 4]>> = nodes
+        .iter()
+        .map(|f| {
+            let a = &field.nodes[f.node].aabb;
+            screen_rect(a.min, a.max, camera, width, height)
+        })
+        .collect();
+    type Px = (Option<Hit>, f32, [u8; 4], u32);
+    let rows: Vec<Vec<Px>> = (0..height)
+        .into_par_iter()
+        .map(|y| {
+            let live: Vec<usize> = (0..nodes.len())
+                .filter(|&k| rects[k].is_some_and(|r| r[1] <= i64::from(y) && i64::from(y) < r[3]))
+                .collect();
+            (0..width)
+                .map(|x| {
+                    let v = fr.view_dir(x, y);
+                    let mut best: Option<(f32, usize, Hit, crate::blockmap::TexRay<f32>)> = None;
+                    for &k in &live {
+                        let r = rects[k].expect("live");
+                        if i64::from(x) < r[0] || i64::from(x) >= r[2] {
+                            continue;
+                        }
+                        let f = &nodes[k];
+                        let n = &field.nodes[f.node];
+                        let ray = f.xform.ray(v, fr.near);
+                        let levels = prepared.levels(f.node);
+                        let c = if f.flat {
+                            cast_flat(levels, n.m(), &ray)
+                        } else {
+                            cast_f32(levels, n.m(), &ray)
+                        };
+                        if let Some(h) = c.hit {
+                            let depth = fr.depth(h.t as f32);
+                            if depth < 1.0 && best.as_ref().is_none_or(|b| depth < b.0) {
+                                best = Some((depth, k, h, ray));
+                            }
+                        }
+                    }
+                    match best {
+                        None => (None, 1.0, [0; 4], u32::MAX),
+                        Some((depth, k, h, ray)) => {
+                            let f = &nodes[k];
+                            let n = &field.nodes[f.node];
+                            let c = shade(n, prepared.xforms(f.node), &f.chosen, &ray, &h);
+                            (Some(h), depth, c, f.node as u32)
+                        }
+                    }
+                })
+                .collect()
+        })
+        .collect();
+    let n = (width * height) as usize;
+    let mut img = ReliefImage {
+        width,
+        height,
+        hit: Vec::with_capacity(n),
+        depth: Vec::with_capacity(n),
+        color: Vec::with_capacity(n),
+        node: Vec::with_capacity(n),
+    };
+    for (h, d, c, k) in rows.into_iter().flatten() {
+        img.hit.push(h);
+        img.depth.push(d);
+        img.color.push(c);
+        img.node.push(k);
+    }
+    img
+}
+
+/// The CPU fallback of hybrid frames with relief impostors: block meshes through the oracle's
+/// shaded z-buffer and the frame's nodes through [`cast_image`], composited per pixel by depth
+/// (the GPU's `Less` test). Wall time.
+pub struct CpuReliefRenderer<'a> {
+    meshes: &'a [(BlockId, Mesh)],
+    ground: &'a Mesh,
+    field: &'a ReliefField,
+    prepared: Prepared<'a>,
+    size: (u32, u32),
+}
+
+impl<'a> CpuReliefRenderer<'a> {
+    /// A renderer of `meshes` on the ground layers `ground` and of `field`'s nodes.
+    pub fn new(
+        meshes: &'a [(BlockId, Mesh)],
+        ground: &'a Mesh,
+        field: &'a ReliefField,
+        size: (u32, u32),
+    ) -> Self {
+        Self {
+            meshes,
+            ground,
+            field,
+            prepared: Prepared::new(field),
+            size,
+        }
+    }
+}
+
+impl FrameRenderer for CpuReliefRenderer<'_> {
+    fn describe(&self) -> String {
+        format!(
+            "CPU hybrid: z-buffer meshes (visibility::oracle) + f32 reference relief caster, \
+             {} nodes, wall time, {}x{}",
+            self.field.nodes.len(),
+            self.size.0,
+            self.size.1
+        )
+    }
+    fn size(&self) -> (u32, u32) {
+        self.size
+    }
+    fn draw(
+        &self,
+        camera: &Camera,
+        visible: &[BlockId],
+        want_image: bool,
+    ) -> Result<DrawnFrame, DrawError> {
+        CpuFrameRenderer::new(self.meshes, self.size)
+            .with_ground(self.ground)
+            .draw(camera, visible, want_image)
+    }
+    fn draw_with_far(
+        &self,
+        camera: &Camera,
+        visible: &[BlockId],
+        far: &[usize],
+        want_image: bool,
+    ) -> Result<DrawnFrame, DrawError> {
+        if let Some(&bad) = far.iter().find(|&&m| m >= self.field.nodes.len()) {
+            return Err(format!(
+                "{}: relief node {bad} does not exist ({} nodes)",
+                self.describe(),
+                self.field.nodes.len()
+            )
+            .into());
+        }
+        let (w, h) = self.size;
+        let t0 = Instant::now();
+        let keep: std::collections::HashSet<BlockId> = visible.iter().copied().collect();
+        let list: Vec<(BlockId, &Mesh)> = self
+            .meshes
+            .iter()
+            .filter(|(b, _)| keep.contains(b))
+            .map(|(b, m)| (*b, m))
+            .collect();
+        let (mut img, mesh_depth) =
+            oracle::shade_with_ground_depth(&list, self.ground, camera, w, h);
+        let meshes_s = t0.elapsed().as_secs_f64();
+        let t1 = Instant::now();
+        let nodes = frame_nodes(self.prepared.infos(), far, camera, h);
+        let relief = cast_image(self.field, &self.prepared, &nodes, camera, w, h);
+        let mut won = 0u64;
+        for (k, px) in img.pixels_mut().enumerate() {
+            if relief.hit[k].is_some() && relief.depth[k] < mesh_depth[k] {
+                *px = image::Rgba(relief.color[k]);
+                won += 1;
+            }
+        }
+        let far_s = t1.elapsed().as_secs_f64();
+        Ok(DrawnFrame {
+            seconds: meshes_s + far_s,
+            gpu_time: false,
+            image: want_image.then_some(img),
+            passes: vec![("meshes", meshes_s), ("far", far_s)],
+            far_pixels: Some(won),
+        })
+    }
+}

@@ -1,0 +1,201 @@
+//! Relief impostors ([`crate::relief`], Andujar et al.) behind the far-field interface: the
+//! selector over the relief tree's nodes (each holds whole blocks; drawn where its texel, its
+//! declared error, projects to at most τ pixels: the paper's §5.1 test), the CPU renderer, the
+//! GPU data and the silhouette bound's casts.
+
+use super::field::{BuildFar, FarBuildSummary, FarField, FarGpu, SilhouetteBound};
+use crate::blockmap::cast::TexRay;
+use crate::blockmap::error::BuildingGrid;
+use crate::blockmap::{FrameRays, SelectError, SelectNode, SelectOptions, Selector, Source};
+use crate::blocks::BlockId;
+use crate::city::Mesh;
+use crate::geom::{Aabb3, Camera};
+use crate::index::BlockBounds;
+use crate::relief::cast::{cast_f32, cast_f64, cast_flat};
+use crate::relief::image::{node_xform, FLAT_PX};
+use crate::relief::{CpuReliefRenderer, NodeMaps, ReliefError, ReliefField, ReliefOptions};
+use crate::scene::Scene;
+use crate::visibility::FrameRenderer;
+use crate::walk::bound::{BoundGeometry, BoundMaps, FrameCaster};
+use glam::{DVec2, DVec3};
+
+impl FarField for ReliefField {
+    fn name(&self) -> &'static str {
+        "relief impostors"
+    }
+
+    fn len(&self) -> usize {
+        self.nodes.len()
+    }
+
+    fn build_summary(&self) -> FarBuildSummary {
+        FarBuildSummary {
+            representation: self.name().to_string(),
+            nodes: self.nodes.len(),
+            bytes: self.summary.bytes,
+            max_error_m: self.summary.max_error_m,
+        }
+    }
+
+    fn selector(
+        &self,
+        blocks: &[BlockBounds],
+        opts: SelectOptions,
+    ) -> Result<Selector, SelectError> {
+        let nodes: Vec<SelectNode> = self
+            .nodes
+            .iter()
+            .enumerate()
+            .map(|(i, n)| SelectNode {
+                key: i as u64,
+                eps_m: n.eps_m,
+                aabb: n.aabb,
+                parent: n.parent,
+                blocks: n.blocks.clone(),
+            })
+            .collect();
+        Selector::from_nodes(&nodes, blocks, opts)
+    }
+
+    fn cpu_renderer<'a>(
+        &'a self,
+        meshes: &'a [(BlockId, Mesh)],
+        ground: &'a Mesh,
+        size: (u32, u32),
+    ) -> Box<dyn FrameRenderer + 'a> {
+        Box::new(CpuReliefRenderer::new(meshes, ground, self, size))
+    }
+
+    fn gpu(&self) -> FarGpu<'_> {
+        FarGpu::Relief(self)
+    }
+
+    fn silhouette_bound<'a>(&'a self, source: &'a Source<'a>) -> Box<dyn SilhouetteBound + 'a> {
+        Box::new(BoundGeometry::new(source, self))
+    }
+}
+
+impl BuildFar for ReliefField {
+    type Options = ReliefOptions;
+    type Error = ReliefError;
+
+    fn build(
+        scene: &Scene,
+        opts: &ReliefOptions,
+        progress: &(dyn Fn(usize, usize) + Sync),
+    ) -> Result<Self, Self::Error> {
+        crate::relief::build_field(
+            &scene.city,
+            &scene.layout,
+            &scene.building_meshes,
+            opts,
+            progress,
+        )
+    }
+}
+
+/// The `f64` twin of the ray the GPU casts through the centre of pixel `(x, y)` of node `n`.
+pub fn twin_ray(n: &NodeMaps, camera: &Camera, w: u32, h: u32, x: u32, y: u32) -> TexRay<f64> {
+    let p = camera.clip_from_view();
+    let tx = 1.0 / p.x_axis.x;
+    let ty = 1.0 / p.y_axis.y;
+    let vx = (f64::from(x) + 0.5) * (2.0 * tx / f64::from(w.max(1))) - tx;
+    let vy = (f64::from(y) + 0.5) * (-2.0 * ty / f64::from(h.max(1))) + ty;
+    let (o, s) = n.tex_to_local();
+    let inv = DVec3::ONE / s;
+    let f = camera.forward();
+    let u = camera.up();
+    let r = f.cross(u);
+    let d = (r * vx + u * vy + f) * inv;
+    let org = (camera.position - o) * inv + d * camera.near;
+    TexRay {
+        o: org.to_array(),
+        d: d.to_array(),
+    }
+}
+
+/// One node's casts in one frame, as the frame draws it (flat or walked).
+struct ReliefCaster<'s> {
+    node: &'s NodeMaps,
+    levels: Vec<&'s [u16]>,
+    xform: crate::blockmap::MapXform,
+    rays: FrameRays,
+    camera: Camera,
+    flat: bool,
+    w: u32,
+    h: u32,
+}
+
+impl FrameCaster for ReliefCaster<'_> {
+    fn hit_depth(&self, px: f64, py: f64) -> Option<f32> {
+        let fr = &self.rays;
+        let v = [px as f32 * fr.sx + fr.cx, py as f32 * fr.sy + fr.cy];
+        let ray = self.xform.ray(v, fr.near);
+        let m = self.node.m();
+        let c = if self.flat {
+            cast_flat(&self.levels, m, &ray)
+        } else {
+            cast_f32(&self.levels, m, &ray)
+        };
+        c.hit.map(|h| fr.depth(h.t as f32))
+    }
+    fn twin_point(&self, x: u32, y: u32) -> Option<DVec3> {
+        let ray = twin_ray(self.node, &self.camera, self.w, self.h, x, y);
+        let m = self.node.m();
+        let c = if self.flat {
+            cast_flat(&self.levels, m, &ray)
+        } else {
+            cast_f64(&self.levels, m, &ray)
+        };
+        c.hit.map(|h| self.node.local_point(&ray, h.t))
+    }
+}
+
+impl BoundMaps for ReliefField {
+    fn count(&self) -> usize {
+        self.nodes.len()
+    }
+    fn aabb(&self, m: usize) -> Aabb3 {
+        self.nodes[m].aabb
+    }
+    fn buildings(&self, m: usize) -> &[u32] {
+        &self.nodes[m].buildings
+    }
+    fn declared(&self, m: usize) -> Vec<u32> {
+        self.nodes[m].declared.clone()
+    }
+    fn eps_m(&self, m: usize) -> f64 {
+        self.nodes[m].eps_m
+    }
+    fn frame_caster<'s>(
+        &'s self,
+        m: usize,
+        camera: &Camera,
+        w: u32,
+        h: u32,
+    ) -> Box<dyn FrameCaster + 's> {
+        let node = &self.nodes[m];
+        let info = node.frame_info();
+        Box::new(ReliefCaster {
+            node,
+            levels: node.levels(),
+            xform: node_xform(info.tex_origin, info.tex_scale, camera),
+            rays: FrameRays::new(camera, w, h),
+            camera: *camera,
+            flat: info.is_flat(camera, h, FLAT_PX),
+            w,
+            h,
+        })
+    }
+    fn building_grid<'s>(&self, m: usize, source: &'s Source<'s>) -> BuildingGrid<'s> {
+        let n = &self.nodes[m];
+        let f = &n.zenithal.frame;
+        BuildingGrid::over_square(
+            DVec2::new(f.origin.x, f.origin.y),
+            f.texel_m(),
+            f.m as usize,
+            source,
+            &n.buildings,
+        )
+    }
+}
