@@ -1,11 +1,11 @@
-//! `blockwalk farfield-sweep`: error against run time of the far field. For every K, route and
-//! τ, a hybrid walk with the reference (coverage error, PSNR, silhouette distance, popping) and
+//! `blockwalk farfield-sweep`: error against run time of the far field. For every representation
+//! (BlockMaps at every K, relief impostors), route and τ, a hybrid walk with the reference (coverage error, PSNR, silhouette distance, popping) and
 //! the mesh-only frames beside it ([`blockwalk::walk::sweep`]); the table (Markdown, JSON), the
 //! Pareto plot of error against milliseconds, and the walk report of one configuration per
 //! route, with frame time along the route (mesh-only vs hybrid) ([`blockwalk::report::sweep`]).
 //! Not run in CI: it draws about four frames per camera.
 
-use super::common::{load_scene, spinner, CityArgs, Size};
+use super::common::{choice, load_scene, spinner, CityArgs, ReliefArgs, Size};
 use anyhow::Context;
 use blockwalk::report::sweep::table_line;
 use blockwalk::report::walk::{Machine, Plan, ReportContext};
@@ -21,10 +21,17 @@ use std::path::PathBuf;
 pub struct Args {
     #[command(flatten)]
     pub city: CityArgs,
+    /// Far-field representations side by side on the same routes, τ and image size:
+    /// `blockmaps` (Cignoni et al.; at every K of --ks) and `relief` (multi-level relief
+    /// impostors, Andujar et al.).
+    #[arg(long = "far", value_delimiter = ',', default_value = "blockmaps", value_parser = choice::<blockwalk::walk::FarMode>())]
+    pub fars: Vec<blockwalk::walk::FarMode>,
+    #[command(flatten)]
+    pub relief: ReliefArgs,
     /// Error thresholds τ, pixels.
     #[arg(long, value_delimiter = ',', default_value = "0.5,1,2,4,8,16")]
     pub taus: Vec<f64>,
-    /// Height-map sides K.
+    /// BlockMaps' height-map sides K.
     #[arg(long, value_delimiter = ',', default_value = "32,64,128")]
     pub ks: Vec<u32>,
     /// Routes: `paper`, `orbit`, `flyover` (high, the whole city in view), `street`, or files.
@@ -74,8 +81,10 @@ impl JobProgress for Spinner {
 
 impl Args {
     /// The sweep asked for.
-    fn options(&self) -> SweepOptions {
-        SweepOptions {
+    fn options(&self) -> anyhow::Result<SweepOptions> {
+        Ok(SweepOptions {
+            fars: self.fars.clone(),
+            relief: self.relief.options()?,
             taus: self.taus.clone(),
             ks: self.ks.clone(),
             routes: self.routes.clone(),
@@ -84,7 +93,7 @@ impl Args {
             edges: self.edges,
             flyover_near_share: self.flyover_near_share,
             diagnose: self.diagnose,
-        }
+        })
     }
 }
 
@@ -104,7 +113,7 @@ fn gpu(asked: bool) -> Box<dyn GpuRenderers> {
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
-    let sweep_opts = args.options();
+    let sweep_opts = args.options()?;
     sweep_opts.check()?;
     let opts = SceneOptions {
         structures: vec![blockwalk::index::Structure::Bqr],
@@ -137,20 +146,14 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             "{}",
             serde_json::to_string(&serde_json::json!({
                 "city": sweep.city, "size": [sweep.size.0, sweep.size.1],
-                "frames": sweep.frames, "rows": sweep.rows, "notes": sweep.notes, "files": files,
+                "frames": sweep.frames, "builds": sweep.builds, "rows": sweep.rows,
+                "notes": sweep.notes, "files": files,
             }))?
         );
         return Ok(());
     }
-    for b in &sweep.builds {
-        outln!(
-            "{}: K = {}: {} maps in {:.1} s",
-            sweep.city,
-            b.k,
-            b.maps,
-            b.seconds
-        );
-    }
+    outln!("{}:", sweep.city);
+    outln!("{}", blockwalk::report::sweep::builds_table(&sweep.builds));
     for r in &sweep.rows {
         outln!("{}", table_line(r));
     }

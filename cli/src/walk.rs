@@ -169,7 +169,8 @@ fn print_summary(record: &WalkRecord, out: &std::path::Path) -> anyhow::Result<(
         let g = |v: Option<f64>| v.map(|v| format!("{v:.4}")).unwrap_or("–".into());
         let n = |v: Option<u64>| v.map(|v| v.to_string()).unwrap_or("–".into());
         outln!(
-            "far field (τ = {} px): {}; far nodes {} per frame, mesh triangles {}, frame time hybrid/mesh {}, coverage error max {}, PSNR min {} dB, silhouette max {} px (raw), bound ratio max {}, bound violations {} (sub-pixel {}, thin {}), popping max {} px",
+            "far field ({}, τ = {} px): {}; far nodes {} per frame, mesh triangles {}, frame time hybrid/mesh {}, coverage error max {}, PSNR min {} dB, silhouette max {} px (raw), bound ratio max {}, bound violations {} (sub-pixel {}, thin {}), popping max {} px",
+            f.representation,
             f.tau_px,
             if f.used { "drawn" } else { "left out" },
             g(f.far_nodes),

@@ -109,8 +109,20 @@ fn a_two_frame_farfield_sweep_writes_its_table_and_row() {
         .arg("--streets")
         .arg(data("helsinki/streets_blockclass.shp"))
         .args([
-            "--taus", "1", "--ks", "32", "--routes", "orbit", "--frames", "2", "--size", "160x90",
-            "--json", "--out",
+            "--far",
+            "blockmaps,relief",
+            "--taus",
+            "1",
+            "--ks",
+            "32",
+            "--routes",
+            "orbit",
+            "--frames",
+            "2",
+            "--size",
+            "160x90",
+            "--json",
+            "--out",
         ])
         .arg(out.path())
         .output()
@@ -128,24 +140,30 @@ fn a_two_frame_farfield_sweep_writes_its_table_and_row() {
         );
     }
     let rows = s["rows"].as_array().unwrap();
-    assert_eq!(rows.len(), 1, "τ 1 × K 32 × orbit");
-    let row = &rows[0];
-    assert_eq!(
-        (row["tau_px"].as_f64(), row["k"].as_u64()),
-        (Some(1.0), Some(32))
-    );
-    assert_eq!(row["frames"], 2);
-    assert_eq!(row["silhouette_bound_violations"], 0, "{row}");
-    assert!(row["far_nodes"].as_f64().unwrap() > 0.0, "{row}");
-    assert!(row["maps"].as_u64().unwrap() > 0, "{row}");
-    let cov = row["coverage_error_max"].as_f64().unwrap();
-    assert!((0.0..=0.01).contains(&cov), "coverage error {cov}");
-    assert!(row["hybrid_ms"].as_f64().unwrap() > 0.0 && row["mesh_ms"].as_f64().unwrap() > 0.0);
+    assert_eq!(rows.len(), 2, "(BlockMaps K 32, relief) × τ 1 × orbit");
+    for (row, far) in rows.iter().zip(["blockmaps", "relief"]) {
+        assert_eq!(row["far"], far, "{row}");
+        assert_eq!(row["tau_px"].as_f64(), Some(1.0));
+        assert_eq!(row["frames"], 2);
+        assert_eq!(row["silhouette_bound_violations"], 0, "{row}");
+        assert!(row["far_nodes"].as_f64().unwrap() > 0.0, "{row}");
+        assert!(row["maps"].as_u64().unwrap() > 0, "{row}");
+        let cov = row["coverage_error_max"].as_f64().unwrap();
+        assert!((0.0..=0.01).contains(&cov), "{far}: coverage error {cov}");
+        assert!(row["hybrid_ms"].as_f64().unwrap() > 0.0 && row["mesh_ms"].as_f64().unwrap() > 0.0);
+    }
+    assert_eq!(rows[0]["k"].as_u64(), Some(32));
+    // Both builds are stated with their bytes and time.
+    let builds = s["builds"].as_array().unwrap();
+    assert_eq!(builds.len(), 2, "{builds:?}");
+    for b in builds {
+        assert!(b["bytes"].as_u64().unwrap() > 0 && b["seconds"].as_f64().unwrap() > 0.0);
+    }
     // The file matches the printed rows, and the table has one line per row.
     let file = json(&out.path().join("sweep.json"));
-    assert_eq!(file.as_array().map(|a| a.len()), Some(1), "{file}");
-    assert_eq!(file[0]["silhouette_bound_violations"], 0);
+    assert_eq!(file["rows"].as_array().map(|a| a.len()), Some(2), "{file}");
+    assert_eq!(file["rows"][1]["silhouette_bound_violations"], 0);
     let md = std::fs::read_to_string(out.path().join("sweep.md")).unwrap();
-    assert!(md.contains("orbit"), "{md}");
+    assert!(md.contains("orbit") && md.contains("relief"), "{md}");
     png(&out.path().join("pareto.png"));
 }

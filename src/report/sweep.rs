@@ -5,14 +5,15 @@
 
 use super::plot::{write_plot, PlotKind, Series};
 use super::walk::{write_with, ReportContext, ReportError};
-use crate::walk::sweep::{pareto, Sweep, SweepDiagnosis, SweepRow};
+use crate::walk::sweep::{pareto, Sweep, SweepBuild, SweepDiagnosis, SweepRow};
+use crate::walk::FarMode;
 use std::path::{Path, PathBuf};
 
 /// The header of the table, one column per figure of a [`SweepRow`].
-pub const HEADER: &str = "| city | route | K | τ px | maps | far nodes | mesh tris | coverage err max | PSNR min dB | silhouette px max | ratio max | bound violations | sub-pixel | thin | popping px max | hybrid ms | mesh ms | ratio |";
+pub const HEADER: &str = "| city | route | far field | side | τ px | maps | far nodes | mesh tris | coverage err max | PSNR min dB | silhouette px max | ratio max | bound violations | sub-pixel | thin | popping px max | hybrid ms | mesh ms | ratio |";
 
 /// Columns of [`HEADER`].
-const COLUMNS: usize = 18;
+const COLUMNS: usize = 19;
 
 fn opt(v: Option<f64>, digits: usize) -> String {
     v.map(|v| format!("{v:.digits$}")).unwrap_or("–".into())
@@ -25,9 +26,10 @@ fn count(v: Option<u64>) -> String {
 /// One row of the table, as a Markdown line under [`HEADER`].
 pub fn table_line(r: &SweepRow) -> String {
     format!(
-        "| {} | {} | {} | {} | {} | {:.1} | {:.0} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} |",
+        "| {} | {} | {} | {} | {} | {} | {:.1} | {:.0} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} |",
         r.city,
         r.route,
+        r.far,
         r.k,
         r.tau_px,
         r.maps,
@@ -57,9 +59,33 @@ pub fn table(rows: &[SweepRow]) -> String {
     md
 }
 
-/// The file stem of a configuration's files: `{prefix}_{route}_k{K}_tau{τ}`.
-fn stem(prefix: &str, route: &str, k: u32, tau: f64) -> String {
-    format!("{prefix}_{route}_k{k}_tau{tau}")
+/// The file stem of a configuration's files: `{prefix}_{route}_{far}{side}_tau{τ}` (`k64` for
+/// BlockMaps at K = 64, `relief128` for relief impostors at M = 128).
+fn stem(prefix: &str, route: &str, far: FarMode, k: u32, tau: f64) -> String {
+    let f = match far {
+        FarMode::Blockmaps => "k",
+        _ => "relief",
+    };
+    format!("{prefix}_{route}_{f}{k}_tau{tau}")
+}
+
+/// The builds in Markdown: representation, side, nodes, bytes (MiB and per km²), build time.
+pub fn builds_table(b: &[SweepBuild]) -> String {
+    let mut md = String::from(
+        "| far field | side | nodes | MiB | MiB/km² | build s |\n|---|---|---|---|---|---|\n",
+    );
+    for x in b {
+        md.push_str(&format!(
+            "| {} | {} | {} | {:.1} | {:.2} | {:.1} |\n",
+            x.far,
+            x.k,
+            x.maps,
+            x.bytes as f64 / (1024.0 * 1024.0),
+            x.bytes_per_km2 / (1024.0 * 1024.0),
+            x.seconds
+        ));
+    }
+    md
 }
 
 /// A diagnosis in Markdown: a section with the table of each frame.
@@ -106,7 +132,13 @@ pub fn write(
     })?;
     let mut files = Vec::new();
     for d in &sweep.diagnoses {
-        let base = out_dir.join(stem("diagnose", &d.route, d.k, d.tau_px));
+        let base = out_dir.join(stem(
+            "diagnose",
+            &d.route,
+            FarMode::Blockmaps,
+            d.k,
+            d.tau_px,
+        ));
         files.push(put(base.with_extension("md"), diagnosis_markdown(d))?);
         let p = base.with_extension("json");
         // Through a JSON value: the keys of every object in alphabetical order.
@@ -117,9 +149,15 @@ pub fn write(
         let text = json_text(&p, &value)?;
         files.push(put(p, text)?);
     }
-    files.push(put(out_dir.join("sweep.md"), table(&sweep.rows))?);
+    files.push(put(
+        out_dir.join("sweep.md"),
+        format!("{}\n{}", builds_table(&sweep.builds), table(&sweep.rows)),
+    )?);
     let p = out_dir.join("sweep.json");
-    let text = json_text(&p, &sweep.rows)?;
+    let text = json_text(
+        &p,
+        &serde_json::json!({ "builds": sweep.builds, "rows": sweep.rows }),
+    )?;
     files.push(put(p, text)?);
     files.extend(write_pareto(out_dir, &sweep.city, &sweep.rows)?);
     let ctx = ReportContext {
@@ -137,24 +175,31 @@ pub fn write(
         ..ctx.clone()
     };
     for w in &sweep.walks {
-        let dir = out_dir.join(stem("walk", &w.route, w.k, w.tau_px));
+        let dir = out_dir.join(stem("walk", &w.route, w.far, w.k, w.tau_px));
         files.extend(write_with(&w.record, &dir, None, &ctx)?);
     }
     Ok(files)
 }
 
-/// Error against milliseconds: one series per K, the mesh-only frames at zero error, and the
-/// Pareto front over all of them, to `pareto.{png,svg}`.
+/// Error against milliseconds: one series per representation and side, the mesh-only frames at
+/// zero error, and the Pareto front over all of them, to `pareto.{png,svg}`.
 fn write_pareto(dir: &Path, city: &str, rows: &[SweepRow]) -> Result<Vec<PathBuf>, ReportError> {
-    let mut ks: Vec<u32> = rows.iter().map(|r| r.k).collect();
-    ks.dedup();
+    let mut ks: Vec<(FarMode, u32)> = Vec::new();
+    for r in rows {
+        if !ks.contains(&(r.far, r.k)) {
+            ks.push((r.far, r.k));
+        }
+    }
     let mut series: Vec<Series> = ks
         .iter()
-        .map(|&k| Series {
-            name: format!("K = {k}"),
+        .map(|&(far, k)| Series {
+            name: match far {
+                FarMode::Blockmaps => format!("BlockMaps K = {k}"),
+                _ => format!("relief impostors M = {k}"),
+            },
             points: rows
                 .iter()
-                .filter(|r| r.k == k)
+                .filter(|r| r.far == far && r.k == k)
                 .filter_map(|r| Some((r.hybrid_ms?, r.coverage_error_max? * 100.0)))
                 .collect(),
         })
@@ -176,7 +221,7 @@ fn write_pareto(dir: &Path, city: &str, rows: &[SweepRow]) -> Result<Vec<PathBuf
         let p = dir.join(format!("pareto.{ext}"));
         write_plot(
             &p,
-            &format!("{city}: coverage error against frame time (all routes, τ, K)"),
+            &format!("{city}: coverage error against frame time (all routes, τ, far fields)"),
             "ms per frame",
             "coverage error max, %",
             &series,

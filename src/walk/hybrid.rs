@@ -81,7 +81,8 @@ impl<'a> Hybrid<'a> {
             ))
         } else if setup.leave_out && !qualifies {
             Some(format!(
-                "no node qualifies on any frame of the route at τ = {} px: the walk runs without the far field",
+                "no node of the {} qualifies on any frame of the route at τ = {} px: the walk runs without the far field",
+                field.name(),
                 setup.select.tau_px
             ))
         } else {
@@ -91,6 +92,7 @@ impl<'a> Hybrid<'a> {
             notes.push(format!("far field left out: {r}"));
         }
         let decision = FarDecision {
+            representation: field.name().to_string(),
             used: reason.is_none(),
             reason,
             left_out_after: None,
@@ -249,7 +251,8 @@ impl<'a> Hybrid<'a> {
             return;
         }
         let reason = format!(
-            "meshes draw faster than maps here: {:.3} ms hybrid vs {:.3} ms mesh-only per frame over the first {} frames",
+            "meshes draw faster than {} here: {:.3} ms hybrid vs {:.3} ms mesh-only per frame over the first {} frames",
+            self.setup.field.name(),
             hyb * 1e3,
             mesh * 1e3,
             f + 1

@@ -1,17 +1,21 @@
-//! The far field's error against its run time, over a grid of settings: for every height-map
-//! side K, route and threshold τ, a hybrid walk compared with the mesh-only frames (coverage
-//! error, PSNR, silhouette distance against the bound on the exact prisms, popping) and the
-//! frame times of both ([`run_sweep`]). One row per configuration ([`SweepRow`]), the walk record
+//! The far field's error against its run time, over a grid of settings: for every far-field
+//! representation (BlockMaps at every height-map side K, relief impostors), route and threshold
+//! τ, a hybrid walk compared with the mesh-only frames (coverage error, PSNR, silhouette
+//! distance against the bound on the exact prisms, popping) and the frame times of both
+//! ([`run_sweep`]), with what each representation costs to build and to hold. One row per configuration ([`SweepRow`]), the walk record
 //! of one configuration per route, and, when asked, the classification of the mismatched pixels
 //! of each configuration's worst frames ([`blockmap::diagnose`](crate::blockmap::diagnose)).
 //! The Pareto front of error against time is [`pareto`]. It writes nothing: `report::sweep`
 //! writes the tables, plots and reports.
 
-use super::far::{BlockMapsOptions, BuildFar, FarDecision, FarSetup, FarSummary};
+use super::far::{
+    BlockMapsOptions, BuildFar, FarDecision, FarField, FarMode, FarSetup, FarSummary,
+};
 use super::job::{resolve_route, GpuRenderers, JobError, JobProgress};
 use super::{run_walk_with_far, Drawing, OcclusionMode, WalkError, WalkParams, WalkRecord};
 use crate::blockmap::diagnose::{diagnose_frame, FrameDiagnosis, FrameInput};
 use crate::blockmap::{BuildOptions, MapTree, SelectError, SelectOptions, Selector, Source};
+use crate::relief::{ReliefField, ReliefOptions};
 use crate::route::{
     flyover_route_with_near, CameraRoute, RouteChoice, FLYOVER_NEAR_SHARE, MAX_FRAMES,
 };
@@ -19,13 +23,17 @@ use crate::scene::Scene;
 use serde::Serialize;
 use std::time::Instant;
 
-/// What a sweep runs: every K × route × τ.
+/// What a sweep runs: every representation (BlockMaps at every K) × route × τ.
 #[derive(Clone, Debug, PartialEq)]
 pub struct SweepOptions {
+    /// The far-field representations, side by side on the same routes, τ and image size.
+    pub fars: Vec<FarMode>,
     /// Error thresholds τ, pixels.
     pub taus: Vec<f64>,
-    /// Height-map sides K.
+    /// BlockMaps' height-map sides K.
     pub ks: Vec<u32>,
+    /// How relief impostors are built.
+    pub relief: ReliefOptions,
     /// Routes.
     pub routes: Vec<RouteChoice>,
     /// Frames per route.
@@ -47,8 +55,10 @@ impl Default for SweepOptions {
     /// fly-over, 12 frames of 160×90, two edges per texel, no diagnosis.
     fn default() -> Self {
         Self {
+            fars: vec![FarMode::Blockmaps],
             taus: vec![0.5, 1.0, 2.0, 4.0, 8.0, 16.0],
             ks: vec![32, 64, 128],
+            relief: ReliefOptions::default(),
             routes: vec![RouteChoice::Paper, RouteChoice::Orbit, RouteChoice::Flyover],
             frames: 12,
             size: (160, 90),
@@ -87,16 +97,18 @@ impl SweepOptions {
         }
     }
 
-    /// Checks the parameters: no empty list, every τ a positive finite number of pixels
-    /// ([`SelectOptions::new`]), every K one the maps can be built with
-    /// ([`BuildOptions::validate`]), frames in `1..=MAX_FRAMES`, an image with pixels, edges
-    /// in `0..=2`.
+    /// Checks the parameters: no empty list, representations that are far fields (not
+    /// `none`), each once, every τ a positive finite number of pixels ([`SelectOptions::new`]),
+    /// every K one the maps can be built with ([`BuildOptions::validate`]), the relief
+    /// impostors' settings ([`ReliefOptions::validate`]), frames in `1..=MAX_FRAMES`, an image
+    /// with pixels, edges in `0..=2`.
     ///
     /// # Errors
     /// [`SweepError::Parameter`] naming the parameter.
     pub fn check(&self) -> Result<(), SweepError> {
         let bad = |m: String| Err(SweepError::Parameter(m));
         for (name, empty) in [
+            ("fars", self.fars.is_empty()),
             ("taus", self.taus.is_empty()),
             ("ks", self.ks.is_empty()),
             ("routes", self.routes.is_empty()),
@@ -105,6 +117,19 @@ impl SweepOptions {
                 return bad(format!("{name}: the list is empty"));
             }
         }
+        for (i, f) in self.fars.iter().enumerate() {
+            if *f == FarMode::None {
+                return bad(
+                    "fars: `none` is not a far field (mesh-only frames are in every row)".into(),
+                );
+            }
+            if self.fars[..i].contains(f) {
+                return bad(format!("fars: {f} is listed twice"));
+            }
+        }
+        self.relief
+            .validate()
+            .map_err(|e| SweepError::Parameter(e.to_string()))?;
         for &tau in &self.taus {
             SelectOptions::new(tau, SelectOptions::default().hysteresis)
                 .map_err(|e| SweepError::Parameter(e.to_string()))?;
@@ -137,11 +162,13 @@ pub struct SweepRow {
     pub city: String,
     /// Route name.
     pub route: String,
-    /// Height-map side.
+    /// The far-field representation.
+    pub far: FarMode,
+    /// Map side: the BlockMaps' height-map side K, the relief impostors' M.
     pub k: u32,
     /// Error threshold, pixels.
     pub tau_px: f64,
-    /// Maps built at this K.
+    /// Nodes with maps in the representation.
     pub maps: usize,
     /// Frames walked.
     pub frames: usize,
@@ -176,13 +203,19 @@ pub struct SweepRow {
     pub frame_time_ratio_vs_mesh: Option<f64>,
 }
 
-/// The maps built at one K.
+/// One far field built: a representation at one map side.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize)]
 pub struct SweepBuild {
-    /// Height-map side.
+    /// The representation.
+    pub far: FarMode,
+    /// Map side (K of BlockMaps, M of relief impostors).
     pub k: u32,
-    /// Maps built.
+    /// Nodes with maps.
     pub maps: usize,
+    /// Bytes of all maps.
+    pub bytes: u64,
+    /// Bytes per km² of the city's box.
+    pub bytes_per_km2: f64,
     /// Wall time of the build, seconds.
     pub seconds: f64,
 }
@@ -193,7 +226,9 @@ pub struct SweepBuild {
 pub struct SweepWalk {
     /// Route name.
     pub route: String,
-    /// Height-map side.
+    /// The representation.
+    pub far: FarMode,
+    /// Map side.
     pub k: u32,
     /// Error threshold, pixels.
     pub tau_px: f64,
@@ -318,20 +353,47 @@ pub fn run_sweep(
         diagnoses: Vec::new(),
         notes: Vec::new(),
     };
-    for &k in &opts.ks {
+    let bounds = scene.city_bounds();
+    let ext = bounds.extent();
+    let km2 = (ext.x * ext.y / 1e6).max(1e-9);
+    let mut builds: Vec<(FarMode, u32)> = Vec::new();
+    for far in &opts.fars {
+        match far {
+            FarMode::Blockmaps => builds.extend(opts.ks.iter().map(|&k| (*far, k))),
+            _ => builds.push((*far, 0)),
+        }
+    }
+    for (mode, k) in builds {
         let t0 = Instant::now();
-        let maps = build_maps(scene, opts.build(k), progress)?;
+        let built = match mode {
+            FarMode::Relief => Built::Relief(build_relief(scene, &opts.relief, progress)?),
+            _ => Built::BlockMaps(build_maps(scene, opts.build(k), progress)?),
+        };
+        let field = built.field();
+        let side = match &built {
+            Built::Relief(r) => r.m,
+            Built::BlockMaps(_) => k,
+        };
+        let summary = field.build_summary();
         sweep.builds.push(SweepBuild {
-            k,
-            maps: maps.maps.len(),
+            far: mode,
+            k: side,
+            maps: field.len(),
+            bytes: summary.bytes,
+            bytes_per_km2: summary.bytes as f64 / km2,
             seconds: t0.elapsed().as_secs_f64(),
         });
-        let renderer = gpu.renderer(scene, opts.size, Some(&maps));
+        let renderer = gpu.renderer(scene, opts.size, Some(field));
         if let Err(e) = &renderer {
             sweep.notes.push(format!(
-                "K = {k}: no GPU renderer ({e}); CPU hybrid renderer"
+                "{} ({side}): no GPU renderer ({e}); CPU hybrid renderer",
+                field.name()
             ));
         }
+        let show = match mode {
+            FarMode::Blockmaps => k == show_k,
+            _ => true,
+        };
         for (rname, route) in &routes {
             for &tau in &opts.taus {
                 let params = WalkParams {
@@ -356,38 +418,40 @@ pub fn run_sweep(
                     reference: true,
                     leave_out: false,
                     source: Some(&source),
-                    ..FarSetup::new(&maps)
+                    ..FarSetup::new(field)
                 };
-                progress.stage(&format!("walk {rname}, K = {k}, τ = {tau}"));
+                progress.stage(&format!("walk {rname}, {} {side}, τ = {tau}", field.name()));
                 let rec = run_walk_with_far(scene, &params, drawing, Some(far), &mut |d, t| {
                     progress.count(d, t)
                 })?;
                 let decision = rec.far_decision.clone().unwrap_or(FarDecision {
+                    representation: field.name().to_string(),
                     used: false,
                     reason: None,
                     left_out_after: None,
                 });
                 let s = FarSummary::new(&rec.far, &decision, &far.select);
-                if opts.diagnose {
+                if let (true, Built::BlockMaps(maps)) = (opts.diagnose, &built) {
                     sweep.diagnoses.push(SweepDiagnosis {
                         route: rname.clone(),
                         k,
                         tau_px: tau,
-                        frames: diagnose(scene, &source, &maps, route, opts, &rec, far.select)?,
+                        frames: diagnose(scene, &source, maps, route, opts, &rec, far.select)?,
                     });
                 }
                 sweep.rows.push(SweepRow::new(
                     &scene.name,
                     rname,
-                    (k, tau),
-                    maps.maps.len(),
+                    (mode, side, tau),
+                    field.len(),
                     opts.frames,
                     &s,
                 ));
-                if k == show_k && tau == show_t {
+                if show && tau == show_t {
                     sweep.walks.push(SweepWalk {
                         route: rname.clone(),
-                        k,
+                        far: mode,
+                        k: side,
                         tau_px: tau,
                         record: rec,
                     });
@@ -398,13 +462,44 @@ pub fn run_sweep(
     Ok(sweep)
 }
 
+/// A far field the sweep built.
+enum Built {
+    BlockMaps(MapTree),
+    Relief(ReliefField),
+}
+
+impl Built {
+    fn field(&self) -> &dyn FarField {
+        match self {
+            Built::BlockMaps(m) => m,
+            Built::Relief(r) => r,
+        }
+    }
+}
+
+/// The relief impostors of `scene` built with `opts`.
+fn build_relief(
+    scene: &Scene,
+    opts: &ReliefOptions,
+    progress: &dyn JobProgress,
+) -> Result<ReliefField, JobError> {
+    progress.stage(&format!("building the relief impostors of {}", scene.name));
+    ReliefField::build(scene, opts, &|done, total| progress.count(done, total)).map_err(|e| {
+        JobError::Far {
+            what: "relief impostors",
+            city: scene.name.clone(),
+            source: Box::new(e),
+        }
+    })
+}
+
 impl SweepRow {
-    /// The row of configuration `(k, tau)` on route `route` of `city`, with `maps` maps and
-    /// `frames` frames, from the walk's far-field figures `s`.
+    /// The row of configuration `(far, k, tau)` on route `route` of `city`, with `maps` maps
+    /// and `frames` frames, from the walk's far-field figures `s`.
     fn new(
         city: &str,
         route: &str,
-        (k, tau_px): (u32, f64),
+        (far, k, tau_px): (FarMode, u32, f64),
         maps: usize,
         frames: usize,
         s: &FarSummary,
@@ -412,6 +507,7 @@ impl SweepRow {
         Self {
             city: city.to_string(),
             route: route.to_string(),
+            far,
             k,
             tau_px,
             maps,
@@ -622,6 +718,37 @@ mod tests {
                 },
                 "edges",
             ),
+            (
+                SweepOptions {
+                    fars: vec![],
+                    ..ok.clone()
+                },
+                "fars",
+            ),
+            (
+                SweepOptions {
+                    fars: vec![FarMode::None],
+                    ..ok.clone()
+                },
+                "none",
+            ),
+            (
+                SweepOptions {
+                    fars: vec![FarMode::Relief, FarMode::Relief],
+                    ..ok.clone()
+                },
+                "twice",
+            ),
+            (
+                SweepOptions {
+                    relief: ReliefOptions {
+                        coverage_target: 0.0,
+                        ..ReliefOptions::default()
+                    },
+                    ..ok.clone()
+                },
+                "coverage_target",
+            ),
         ];
         for (o, word) in cases {
             let e = o.check().unwrap_err().to_string();
@@ -674,5 +801,38 @@ mod tests {
         assert_eq!(sweep.walks[0].tau_px, 1.0);
         assert_eq!(sweep.builds.len(), 1);
         assert!(sweep.notes.iter().any(|n| n.contains("test")));
+    }
+
+    #[test]
+    fn both_representations_run_on_the_same_routes_and_thresholds() {
+        let source = CitySource::parse(Path::new("synthetic:3x3"), None, None, &[], 2).unwrap();
+        let scene = Scene::load(&source, &SceneOptions::default(), &mut |_| {}).unwrap();
+        let opts = SweepOptions {
+            fars: vec![FarMode::Blockmaps, FarMode::Relief],
+            taus: vec![1.0, 8.0],
+            ks: vec![32],
+            routes: vec![RouteChoice::Orbit],
+            frames: 2,
+            size: (64, 36),
+            ..SweepOptions::default()
+        };
+        let sweep = run_sweep(&scene, &opts, &NoGpu("test"), &Quiet).unwrap();
+        assert_eq!(sweep.builds.len(), 2);
+        assert_eq!(sweep.rows.len(), 2 * opts.taus.len());
+        for far in [FarMode::Blockmaps, FarMode::Relief] {
+            let rows: Vec<&SweepRow> = sweep.rows.iter().filter(|r| r.far == far).collect();
+            assert_eq!(rows.len(), 2, "{far}");
+            for r in rows {
+                assert!(r.silhouette_ratio_max.is_some(), "bound checked: {r:?}");
+                assert!(r.mesh_ms.is_some());
+            }
+            let b = sweep.builds.iter().find(|b| b.far == far).unwrap();
+            assert!(b.bytes > 0 && b.bytes_per_km2 > 0.0 && b.maps > 0, "{b:?}");
+        }
+        assert_eq!(
+            sweep.walks.len(),
+            2,
+            "one walk per representation and route"
+        );
     }
 }

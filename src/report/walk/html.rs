@@ -259,7 +259,7 @@ fn far_section(h: &mut String, record: &WalkRecord, e: &Embedded) {
     let count = |v: Option<u64>| opt(v.map(|v| v as f64), 0);
     let _ = write!(
         h,
-        "<h2>Far field (BlockMaps, τ = {tau} px)</h2><p>{used}</p><table><tr><th>far nodes</th><th>mesh triangles</th><th>hybrid ms</th><th>mesh-only ms</th><th>ratio</th><th>coverage error max</th><th>PSNR min dB</th><th>silhouette px max (raw)</th><th>ratio max</th><th>bound violations</th><th>sub-pixel</th><th>thin</th><th>popping px max</th></tr><tr><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td></tr></table><p>{bound}</p>",
+        "<h2>Far field ({far}, τ = {tau} px)</h2><p>{used}</p><table><tr><th>far nodes</th><th>mesh triangles</th><th>hybrid ms</th><th>mesh-only ms</th><th>ratio</th><th>coverage error max</th><th>PSNR min dB</th><th>silhouette px max (raw)</th><th>ratio max</th><th>bound violations</th><th>sub-pixel</th><th>thin</th><th>popping px max</th></tr><tr><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td></tr></table><p>{bound}</p>",
         num(f.far_nodes, 1.0, 1),
         num(f.mesh_triangles, 1.0, 0),
         num(f.frame_s, 1e3, 3),
@@ -284,6 +284,7 @@ fn far_section(h: &mut String, record: &WalkRecord, e: &Embedded) {
              thin or dropped; bound violations: the rest."
         },
         tau = f.tau_px,
+        far = escape(&f.representation),
         used = escape(&match (&f.used, &f.reason) {
             (true, _) => "Drawn on every frame.".to_string(),
             (false, Some(r)) => format!("Left out: {r}"),

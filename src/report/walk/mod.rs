@@ -183,7 +183,13 @@ fn far_series(record: &WalkRecord) -> Vec<Series> {
                 .collect(),
         },
         Series {
-            name: "meshes + BlockMaps".into(),
+            name: format!(
+                "meshes + {}",
+                record
+                    .far_decision
+                    .as_ref()
+                    .map_or("far field", |d| d.representation.as_str())
+            ),
             points: rows
                 .iter()
                 .map(|r| (r.frame as f64, r.frame_s * 1e3))

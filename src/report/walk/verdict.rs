@@ -140,12 +140,17 @@ pub fn conclusion(record: &WalkRecord) -> Vec<String> {
     if let Some(f) = record.far_summary() {
         out.push(match (f.used, f.frame_time_ratio_vs_mesh, &f.reason) {
             (true, Some(r), _) => format!(
-                "The far field is drawn: hybrid frames take {:.2} × the mesh-only frames' time (τ = {} px).",
-                r, f.tau_px
+                "The far field ({}) is drawn: hybrid frames take {:.2} × the mesh-only frames' time (τ = {} px).",
+                f.representation, r, f.tau_px
             ),
-            (true, None, _) => format!("The far field is drawn (τ = {} px).", f.tau_px),
-            (false, _, Some(why)) => format!("The far field is left out: {why}."),
-            (false, _, None) => "The far field is left out.".to_string(),
+            (true, None, _) => format!(
+                "The far field ({}) is drawn (τ = {} px).",
+                f.representation, f.tau_px
+            ),
+            (false, _, Some(why)) => {
+                format!("The far field ({}) is left out: {why}.", f.representation)
+            }
+            (false, _, None) => format!("The far field ({}) is left out.", f.representation),
         });
     }
     out

@@ -189,6 +189,8 @@ pub struct ImageError {
 /// Whether the far field ran, and why not.
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct FarDecision {
+    /// The representation ("BlockMaps", "relief impostors").
+    pub representation: String,
     /// True when hybrid frames were drawn (for the whole route unless `left_out_after`).
     pub used: bool,
     /// Why it was left out, in words.
@@ -420,6 +422,7 @@ mod tests {
             ..ImageError::default()
         };
         let d = FarDecision {
+            representation: "BlockMaps".into(),
             used: true,
             reason: None,
             left_out_after: None,

@@ -10,6 +10,8 @@ use std::collections::BTreeMap;
 /// The figures of a walk's hybrid frames (the frames of the last culling mode walked).
 #[derive(Clone, Debug, Default, PartialEq, Serialize)]
 pub struct FarSummary {
+    /// The representation ("BlockMaps", "relief impostors").
+    pub representation: String,
     /// Whether the far field was drawn.
     pub used: bool,
     /// Why it was left out, when it was.
@@ -109,6 +111,7 @@ impl FarSummary {
             }
         }
         Self {
+            representation: decision.representation.clone(),
             used: decision.used,
             reason: decision.reason.clone(),
             left_out_after: decision.left_out_after,
