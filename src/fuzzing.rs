@@ -399,7 +399,9 @@ pub fn check_extrude(data: &[u8]) -> Outcome {
                 // unless a detail of it is finer than f32 resolves.
                 let below = matches!(
                     e,
-                    ExtrudeError::BelowPrecision { .. } | ExtrudeError::Sliver { .. }
+                    ExtrudeError::BelowPrecision { .. }
+                        | ExtrudeError::Sliver { .. }
+                        | ExtrudeError::RingsBelowPrecision { .. }
                 );
                 assert!(
                     raw || top <= bottom || below,

@@ -75,6 +75,20 @@ pub enum ExtrudeError {
         /// The first vertex's distance from the local origin, metres.
         from_origin: f64,
     },
+    /// A footprint that is valid as given (exactly, in world coordinates) has rings so close
+    /// that they cross once the local origin is subtracted (a hole's edge a few ulps inside the
+    /// shell's, say): a detail finer than the local frame resolves.
+    #[error(
+        "building {id}: its rings come closer than the local frame resolves ({from_origin:.0} m          from the local origin): once the origin is subtracted, {crossings} ring edge(s) cross"
+    )]
+    RingsBelowPrecision {
+        /// Source id.
+        id: String,
+        /// Ring edges that crossed another in local coordinates.
+        crossings: usize,
+        /// The farthest vertex's distance from the local origin, metres.
+        from_origin: f64,
+    },
     /// A ring is so thin that rounding its vertices to f32 turns it over (or flattens it): the
     /// prism would be inside out.
     #[error(
@@ -261,6 +275,15 @@ fn extrude_with(b: &Building, frame: &LocalFrame, s: &mut Scratch) -> Result<Mes
             source,
         })?;
         if conflicts > 0 || cdt.num_vertices() != n_in {
+            // Valid as given, crossing here: the origin's subtraction moved a vertex across a
+            // ring edge it was ulps from.
+            if crate::geom::repair::check_polygon(&b.footprint).is_ok() {
+                return Err(ExtrudeError::RingsBelowPrecision {
+                    id: b.source_id.clone(),
+                    crossings: conflicts,
+                    from_origin: s.local.iter().map(|p| p.length()).fold(0.0, f64::max),
+                });
+            }
             return Err(ExtrudeError::CrossingRings {
                 id: b.source_id.clone(),
                 crossings: conflicts,
