@@ -60,6 +60,26 @@ fn collect_tags<'a>(it: impl Iterator<Item = (&'a str, &'a str)>) -> Tags {
     it.map(|(k, v)| (k.to_string(), v.to_string())).collect()
 }
 
+/// Runs one pass of the decoder over `path`. A panic inside `osmpbf` (its coordinate
+/// arithmetic overflows on crafted offsets and granularities when overflow checks are on) ends
+/// the read with [`ImportError::Format`] naming the file, not the process.
+fn decoding(
+    path: &Path,
+    pass: impl FnOnce() -> Result<(), ImportError>,
+) -> Result<(), ImportError> {
+    std::panic::catch_unwind(std::panic::AssertUnwindSafe(pass)).unwrap_or_else(|p| {
+        let what = p
+            .downcast_ref::<&str>()
+            .map(|s| s.to_string())
+            .or_else(|| p.downcast_ref::<String>().cloned())
+            .unwrap_or_else(|| "a panic".into());
+        Err(ImportError::Format {
+            file: path.to_path_buf(),
+            message: format!("the OSM PBF decoder failed ({what}): the file is corrupt"),
+        })
+    })
+}
+
 /// Reads one theme of an OSM PBF file.
 ///
 /// # Errors
@@ -93,32 +113,34 @@ pub fn read(path: &Path, theme: &Theme) -> Result<Layer, ImportError> {
     // Pass 1: relations of interest.
     let mut relations = Vec::new();
     if buildings {
-        open()?
-            .for_each(|e| {
-                if let Element::Relation(r) = e {
-                    let tags = collect_tags(r.tags());
-                    if is_building_relation(&tags) {
-                        let mut members = Vec::new();
-                        let mut other_members = 0;
-                        for m in r.members() {
-                            match m.member_type {
-                                RelMemberType::Way => {
-                                    let inner = m.role().map(|s| s == "inner").unwrap_or(false);
-                                    members.push((m.member_id, inner));
+        decoding(path, || {
+            open()?
+                .for_each(|e| {
+                    if let Element::Relation(r) = e {
+                        let tags = collect_tags(r.tags());
+                        if is_building_relation(&tags) {
+                            let mut members = Vec::new();
+                            let mut other_members = 0;
+                            for m in r.members() {
+                                match m.member_type {
+                                    RelMemberType::Way => {
+                                        let inner = m.role().map(|s| s == "inner").unwrap_or(false);
+                                        members.push((m.member_id, inner));
+                                    }
+                                    _ => other_members += 1,
                                 }
-                                _ => other_members += 1,
                             }
+                            relations.push(Relation {
+                                id: r.id(),
+                                tags,
+                                members,
+                                other_members,
+                            });
                         }
-                        relations.push(Relation {
-                            id: r.id(),
-                            tags,
-                            members,
-                            other_members,
-                        });
                     }
-                }
-            })
-            .map_err(format)?;
+                })
+                .map_err(format)
+        })?;
     }
     let member_ways: HashSet<i64> = relations
         .iter()
@@ -134,46 +156,48 @@ pub fn read(path: &Path, theme: &Theme) -> Result<Layer, ImportError> {
     let mut nodes: HashMap<i64, (f64, f64)> = HashMap::new();
     let mut ways: Vec<Way> = Vec::new();
     let mut member_refs: HashMap<i64, Vec<i64>> = HashMap::new();
-    open()?
-        .for_each(|e| match e {
-            Element::Node(n) => {
-                nodes.insert(n.id(), (n.lon(), n.lat()));
-            }
-            Element::DenseNode(n) => {
-                nodes.insert(n.id(), (n.lon(), n.lat()));
-            }
-            Element::Way(w) => {
-                let id = w.id();
-                let wanted = {
-                    let mut t = w.tags();
-                    if buildings {
-                        t.any(|(k, v)| k == "building" && v != "no")
+    decoding(path, || {
+        open()?
+            .for_each(|e| match e {
+                Element::Node(n) => {
+                    nodes.insert(n.id(), (n.lon(), n.lat()));
+                }
+                Element::DenseNode(n) => {
+                    nodes.insert(n.id(), (n.lon(), n.lat()));
+                }
+                Element::Way(w) => {
+                    let id = w.id();
+                    let wanted = {
+                        let mut t = w.tags();
+                        if buildings {
+                            t.any(|(k, v)| k == "building" && v != "no")
+                        } else {
+                            t.any(|(k, _)| k == "highway")
+                        }
+                    };
+                    // A building way that is an outer ring of a building relation is that
+                    // relation's building, read with it: not a second building.
+                    let wanted = if wanted && buildings && outer_members.contains(&id) {
+                        skipped_outer += 1;
+                        false
                     } else {
-                        t.any(|(k, _)| k == "highway")
+                        wanted
+                    };
+                    if wanted {
+                        ways.push(Way {
+                            id,
+                            refs: w.refs().collect(),
+                            tags: collect_tags(w.tags()),
+                        });
                     }
-                };
-                // A building way that is an outer ring of a building relation is that
-                // relation's building, read with it: not a second building.
-                let wanted = if wanted && buildings && outer_members.contains(&id) {
-                    skipped_outer += 1;
-                    false
-                } else {
-                    wanted
-                };
-                if wanted {
-                    ways.push(Way {
-                        id,
-                        refs: w.refs().collect(),
-                        tags: collect_tags(w.tags()),
-                    });
+                    if member_ways.contains(&id) {
+                        member_refs.insert(id, w.refs().collect());
+                    }
                 }
-                if member_ways.contains(&id) {
-                    member_refs.insert(id, w.refs().collect());
-                }
-            }
-            Element::Relation(_) => {}
-        })
-        .map_err(format)?;
+                Element::Relation(_) => {}
+            })
+            .map_err(format)
+    })?;
 
     let mut report = ImportReport::default();
     let mut features = Vec::new();

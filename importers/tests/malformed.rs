@@ -616,6 +616,84 @@ fn pbf_with_an_absurd_header_length_is_a_format_error() {
     ));
 }
 
+/// Protobuf: a varint.
+fn varint(mut v: u64, out: &mut Vec<u8>) {
+    while v >= 0x80 {
+        out.push((v as u8) | 0x80);
+        v >>= 7;
+    }
+    out.push(v as u8);
+}
+
+/// Protobuf: field `n` as a length-delimited `bytes`.
+fn bytes_field(n: u64, b: &[u8], out: &mut Vec<u8>) {
+    varint((n << 3) | 2, out);
+    varint(b.len() as u64, out);
+    out.extend_from_slice(b);
+}
+
+/// Protobuf: field `n` as a varint.
+fn varint_field(n: u64, v: u64, out: &mut Vec<u8>) {
+    varint(n << 3, out);
+    varint(v, out);
+}
+
+/// One PBF file block: BlobHeader of `kind`, then a Blob holding `data` uncompressed.
+fn pbf_block(kind: &str, data: &[u8], out: &mut Vec<u8>) {
+    let mut blob = Vec::new();
+    bytes_field(1, data, &mut blob); // raw
+    varint_field(2, data.len() as u64, &mut blob); // raw_size
+    let mut header = Vec::new();
+    bytes_field(1, kind.as_bytes(), &mut header);
+    varint_field(3, blob.len() as u64, &mut header); // datasize
+    out.extend_from_slice(&(header.len() as u32).to_be_bytes());
+    out.extend_from_slice(&header);
+    out.extend_from_slice(&blob);
+}
+
+/// A dense node whose latitude, times the block's granularity, overflows 64 bits: `osmpbf`'s
+/// coordinate arithmetic panics on it where overflow checks are on (the test profile), and the
+/// reader says the file is corrupt instead of ending the process. Found by the `osm_pbf` fuzz
+/// target.
+#[test]
+fn pbf_with_coordinates_that_overflow_is_a_format_error() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut header_block = Vec::new();
+    bytes_field(4, b"OsmSchema-V0.6", &mut header_block);
+    bytes_field(4, b"DenseNodes", &mut header_block);
+    let zigzag = |v: i64| ((v << 1) ^ (v >> 63)) as u64;
+    let mut dense = Vec::new();
+    for (field, v) in [(1, 7i64), (8, 4_000_000_000_000_000_000 / 100 * 3), (9, 1)] {
+        let mut packed = Vec::new();
+        varint(zigzag(v), &mut packed);
+        bytes_field(field, &packed, &mut dense);
+    }
+    let mut group = Vec::new();
+    bytes_field(2, &dense, &mut group);
+    let mut strings = Vec::new();
+    bytes_field(1, b"", &mut strings);
+    let mut block = Vec::new();
+    bytes_field(1, &strings, &mut block);
+    bytes_field(2, &group, &mut block);
+    varint_field(17, 100, &mut block); // granularity
+    let mut file = Vec::new();
+    pbf_block("OSMHeader", &header_block, &mut file);
+    pbf_block("OSMData", &block, &mut file);
+    let p = write(dir.path(), "o.osm.pbf", &file);
+    for theme in [Theme::Buildings, Theme::Streets] {
+        match osm::read(&p, &theme) {
+            Err(e @ ImportError::Format { .. }) => {
+                assert!(e.to_string().contains("o.osm.pbf"), "{e}");
+                assert!(e.to_string().contains("corrupt"), "{e}");
+            }
+            // Without overflow checks (a release build) the arithmetic wraps: the node is
+            // read, and no way refers to it.
+            Ok(l) if !cfg!(debug_assertions) => assert!(l.features.is_empty()),
+            Err(e) => panic!("{e:?}"),
+        }
+    }
+}
+
 // ---- GeoPackage ------------------------------------------------------------------------------
 
 #[test]

@@ -3,6 +3,6 @@
 #[path = "common.rs"]
 mod common;
 
-libfuzzer_sys::fuzz_target!(|data: &[u8]| {
+libfuzzer_sys::fuzz_target!(init: common::let_caught_upstream_panics_unwind(), |data: &[u8]| {
     let _ = blockwalk_importers::fuzzing::check_osm(common::dir(), data);
 });

@@ -4,6 +4,6 @@
 #[path = "common.rs"]
 mod common;
 
-libfuzzer_sys::fuzz_target!(init: common::let_caught_overlay_panics_unwind(), |data: &[u8]| {
+libfuzzer_sys::fuzz_target!(init: common::let_caught_upstream_panics_unwind(), |data: &[u8]| {
     let _ = blockwalk::fuzzing::check_repair(data);
 });
