@@ -124,16 +124,18 @@ fn project(
     let mut shadings = Vec::new();
     let mut poly = Vec::with_capacity(8);
     let mut tmp = Vec::with_capacity(8);
+    let mut screen: Vec<DVec3> = Vec::with_capacity(8);
     for &(id, always, mesh) in layers {
         for t in mesh.indices.chunks_exact(3) {
-            let Some(v) = t
-                .iter()
-                .map(|&i| mesh.positions.get(i as usize).map(|p| p.as_dvec3()))
-                .collect::<Option<Vec<_>>>()
-            else {
+            let (Some(a), Some(b), Some(d)) = (
+                mesh.positions.get(t[0] as usize),
+                mesh.positions.get(t[1] as usize),
+                mesh.positions.get(t[2] as usize),
+            ) else {
                 continue;
             };
-            let c: Vec<DVec4> = v.iter().map(|p| m * p.extend(1.0)).collect();
+            let v = [a.as_dvec3(), b.as_dvec3(), d.as_dvec3()];
+            let c = v.map(|p| m * p.extend(1.0));
             // Trivially outside one side plane: skip.
             if c.iter().all(|q| q.x > q.w)
                 || c.iter().all(|q| q.x < -q.w)
@@ -169,17 +171,16 @@ fn project(
                     mesh.normals.get(i).copied().unwrap_or(Vec3::Z),
                 )
             });
-            let s: Vec<DVec3> = poly
-                .iter()
-                .map(|q| {
-                    let q = q.c;
-                    DVec3::new(
-                        (q.x / q.w + 1.0) * 0.5 * w,
-                        (1.0 - q.y / q.w) * 0.5 * h,
-                        q.z / q.w,
-                    )
-                })
-                .collect();
+            screen.clear();
+            screen.extend(poly.iter().map(|q| {
+                let q = q.c;
+                DVec3::new(
+                    (q.x / q.w + 1.0) * 0.5 * w,
+                    (1.0 - q.y / q.w) * 0.5 * h,
+                    q.z / q.w,
+                )
+            }));
+            let s = &screen;
             for k in 1..s.len() - 1 {
                 let p = [s[0], s[k], s[k + 1]];
                 let ymin = p.iter().map(|q| q.y).fold(f64::INFINITY, f64::min);
