@@ -387,6 +387,10 @@ fn build_node(
         })
         .collect();
     declared.sort_unstable();
+    // The box grows to hold every covered texel's whole column: a texel at the footprints'
+    // edge is covered when most of it is, and its column stands up to a texel beyond them. The
+    // selection culls, and both renderers draw, with this box.
+    let aabb = column_box(&zenithal, aabb);
     let pyramid = zenithal.pyramid();
     let upper: Vec<Vec<u16>> = pyramid.into_iter().skip(1).collect();
     let surf = surfels(source, &buildings, texel);
@@ -434,6 +438,31 @@ fn build_node(
     node.error = measure_node(&node, &meshes);
     node.build_s = started.elapsed().as_secs_f64();
     node
+}
+
+/// `aabb` grown to hold the whole column of every covered texel of the zenithal map `zen`.
+fn column_box(zen: &ReliefMap, aabb: Aabb3) -> Aabb3 {
+    let m = zen.frame.m;
+    let (mut lo, mut hi) = ([u32::MAX; 2], [0u32; 2]);
+    for (k, &q) in zen.depth.iter().enumerate() {
+        if q != super::map::EMPTY {
+            let (i, j) = (k as u32 % m, k as u32 / m);
+            lo = [lo[0].min(i), lo[1].min(j)];
+            hi = [hi[0].max(i + 1), hi[1].max(j + 1)];
+        }
+    }
+    if lo[0] > hi[0] {
+        return aabb;
+    }
+    let f = &zen.frame;
+    let (a, b) = (
+        f.from_map(f64::from(lo[0]), f64::from(lo[1]), 0.0),
+        f.from_map(f64::from(hi[0]), f64::from(hi[1]), 0.0),
+    );
+    Aabb3::new(
+        DVec3::new(a.x.min(aabb.min.x), a.y.min(aabb.min.y), aabb.min.z),
+        DVec3::new(b.x.max(aabb.max.x), b.y.max(aabb.max.y), aabb.max.z),
+    )
 }
 
 /// One level of the built tree, as the paper's Table 1 lists its levels.

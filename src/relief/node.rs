@@ -62,7 +62,8 @@ pub struct NodeMaps {
     pub blocks: Vec<BlockId>,
     /// Its buildings (indices into `City::buildings`).
     pub buildings: Vec<u32>,
-    /// Its box (local frame): the footprints' box × the height range.
+    /// Its box (local frame): the footprints' box, grown to hold every covered texel's whole
+    /// column, × the height range. Every hit of its walk lies in it.
     pub aabb: Aabb3,
     /// The height range `[z_bot, z_top]` the zenithal heights quantise.
     pub z_range: [f64; 2],

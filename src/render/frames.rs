@@ -1,20 +1,90 @@
 //! The wgpu renderer as the walk's [`FrameRenderer`]: block meshes, and with
-//! [`GpuFrameRenderer::with_far_field`] the ray-cast BlockMaps of the far field composited with
-//! them by depth.
+//! [`GpuFrameRenderer::with_far`] the far field ray-cast on the GPU (BlockMaps or relief
+//! impostors, [`FarRenderer`]) composited with them by depth.
 
-use super::blockmap::{BlockMapRenderer, FarReadback};
+use super::blockmap::{BlockMapRenderer, FarPass, FarReadback};
+use super::relief::ReliefRenderer;
 use super::{Gpu, MeshRenderer, RenderError, RenderOptions};
 use crate::blockmap::BlockMap;
 use crate::blocks::BlockId;
 use crate::city::Mesh;
 use crate::geom::Camera;
+use crate::relief::ReliefField;
 use crate::visibility::{DrawError, DrawnFrame, FrameRenderer};
+use crate::walk::{FarField, FarGpu};
 
-/// A headless GPU renderer of a scene's block meshes (and far-field maps), uploaded once.
+/// The far-field pass of one representation, uploaded once: what [`GpuFrameRenderer`] and the
+/// viewer draw after the meshes.
+#[derive(Debug)]
+pub enum FarRenderer {
+    /// BlockMaps ([`BlockMapRenderer`]).
+    BlockMaps(BlockMapRenderer),
+    /// Relief impostors ([`ReliefRenderer`]).
+    Relief(ReliefRenderer),
+}
+
+impl FarRenderer {
+    /// Uploads the far field `far` to `gpu` for frames of `size` pixels.
+    ///
+    /// # Errors
+    /// The representation's upload errors ([`RenderError::BadBlockMap`],
+    /// [`RenderError::FarField`], [`RenderError::EmptyImage`]).
+    pub fn new(gpu: &Gpu, far: &dyn FarField, size: (u32, u32)) -> Result<Self, RenderError> {
+        match far.gpu() {
+            FarGpu::BlockMaps(maps) => BlockMapRenderer::new(gpu, &maps, size).map(Self::BlockMaps),
+            FarGpu::Relief(field) => ReliefRenderer::new(gpu, field, size).map(Self::Relief),
+        }
+    }
+
+    /// Draws the nodes `far` (indices into the far field's nodes) from `camera` into the mesh
+    /// pass's `color` and `depth` targets and reads back what `read` asks for (see
+    /// [`BlockMapRenderer::draw`] and [`ReliefRenderer::draw`]).
+    ///
+    /// # Errors
+    /// [`RenderError::NoSuchMap`] for an index out of range; read-back failures.
+    pub fn draw(
+        &self,
+        gpu: &Gpu,
+        camera: &Camera,
+        far: &[usize],
+        color: &wgpu::Texture,
+        depth: &wgpu::Texture,
+        read: FarReadback,
+    ) -> Result<FarPass, RenderError> {
+        match self {
+            Self::BlockMaps(r) => r.draw(gpu, camera, far, color, depth, read),
+            Self::Relief(r) => r.draw(gpu, camera, far, color, depth, read),
+        }
+    }
+
+    /// Nodes uploaded (maps, or relief nodes).
+    pub fn nodes(&self) -> usize {
+        match self {
+            Self::BlockMaps(r) => r.maps(),
+            Self::Relief(r) => r.nodes(),
+        }
+    }
+
+    /// What is uploaded, in words.
+    pub fn describe(&self) -> String {
+        match self {
+            Self::BlockMaps(r) => format!("{} far-field maps in {} pages", r.maps(), r.pages()),
+            Self::Relief(r) => format!(
+                "{} relief-impostor nodes ({} oblique maps, {:.1} MB) in {} pages",
+                r.nodes(),
+                r.obliques(),
+                r.bytes() as f64 / 1e6,
+                r.pages()
+            ),
+        }
+    }
+}
+
+/// A headless GPU renderer of a scene's block meshes (and far field), uploaded once.
 pub struct GpuFrameRenderer {
     gpu: Gpu,
     renderer: MeshRenderer,
-    far: Option<BlockMapRenderer>,
+    far: Option<FarRenderer>,
 }
 
 impl std::fmt::Debug for GpuFrameRenderer {
@@ -37,16 +107,16 @@ pub struct HybridFrame {
     pub rgba: Vec<u8>,
     /// The depth buffer, when asked for.
     pub depth: Option<Vec<f32>>,
-    /// Per pixel, the index of the map drawn there ([`super::NO_MAP`] where meshes, ground or sky
-    /// won).
+    /// Per pixel, the index of the far-field node (map or relief node) drawn there
+    /// ([`super::NO_MAP`] where meshes, ground or sky won).
     pub map_ids: Vec<u32>,
-    /// Pixels a map won.
+    /// Pixels a far-field node won.
     pub far_pixels: u64,
     /// Seconds per pass, `"meshes"` then `"far"` (GPU time when [`HybridFrame::gpu_time`]).
     pub passes: Vec<(&'static str, f64)>,
     /// True when the passes' seconds come from GPU timestamps.
     pub gpu_time: bool,
-    /// Maps drawn and draw calls of the far pass.
+    /// Nodes (maps or relief nodes) drawn by the far pass.
     pub far_maps: u32,
     /// Draw calls of the far pass.
     pub far_draws: u32,
@@ -110,24 +180,39 @@ impl GpuFrameRenderer {
         let o = self.renderer.options();
         let far = BlockMapRenderer::new(&self.gpu, maps, (o.width, o.height))?;
         Ok(Self {
-            far: Some(far),
+            far: Some(FarRenderer::BlockMaps(far)),
+            ..self
+        })
+    }
+
+    /// The same renderer with the relief impostors of `field` uploaded ([`ReliefRenderer`]),
+    /// which [`FrameRenderer::draw_with_far`]'s `far` indexes (the field's nodes).
+    ///
+    /// # Errors
+    /// [`RenderError::FarField`] naming a node or a device limit.
+    pub fn with_relief(self, field: &ReliefField) -> Result<Self, RenderError> {
+        let o = self.renderer.options();
+        let far = ReliefRenderer::new(&self.gpu, field, (o.width, o.height))?;
+        Ok(Self {
+            far: Some(FarRenderer::Relief(far)),
             ..self
         })
     }
 
     /// The same renderer with the far field `far` uploaded (its GPU pass: [`BlockMapRenderer`]
-    /// for BlockMaps), which [`FrameRenderer::draw_with_far`]'s `far` indexes.
+    /// for BlockMaps, [`ReliefRenderer`] for relief impostors), which
+    /// [`FrameRenderer::draw_with_far`]'s `far` indexes.
     ///
     /// # Errors
-    /// The far field's upload errors (e.g. [`RenderError::BadBlockMap`]).
-    pub fn with_far(self, far: &dyn crate::walk::FarField) -> Result<Self, RenderError> {
-        match far.gpu() {
-            crate::walk::FarGpu::BlockMaps(maps) => self.with_far_field(&maps),
-            crate::walk::FarGpu::Relief(_) => Err(RenderError::FarField {
-                adapter: String::new(),
-                what: "relief impostors are not drawn on the GPU yet".into(),
-            }),
-        }
+    /// The far field's upload errors (e.g. [`RenderError::BadBlockMap`],
+    /// [`RenderError::FarField`]).
+    pub fn with_far(self, far: &dyn FarField) -> Result<Self, RenderError> {
+        let o = self.renderer.options();
+        let far = FarRenderer::new(&self.gpu, far, (o.width, o.height))?;
+        Ok(Self {
+            far: Some(far),
+            ..self
+        })
     }
 
     /// The device.
@@ -135,17 +220,34 @@ impl GpuFrameRenderer {
         &self.gpu
     }
 
-    /// The far-field renderer, when maps were given.
-    pub fn far_field(&self) -> Option<&BlockMapRenderer> {
+    /// The far-field pass, when a far field was given.
+    pub fn far_renderer(&self) -> Option<&FarRenderer> {
         self.far.as_ref()
     }
 
-    /// Draws `visible` as meshes, then the maps `far` in a second pass on the same colour and
-    /// depth targets; reads back the image, the map ids and, when `with_depth`, the depth.
+    /// The BlockMap pass, when BlockMaps were given.
+    pub fn far_field(&self) -> Option<&BlockMapRenderer> {
+        match &self.far {
+            Some(FarRenderer::BlockMaps(r)) => Some(r),
+            _ => None,
+        }
+    }
+
+    /// The relief-impostor pass, when relief impostors were given.
+    pub fn relief(&self) -> Option<&ReliefRenderer> {
+        match &self.far {
+            Some(FarRenderer::Relief(r)) => Some(r),
+            _ => None,
+        }
+    }
+
+    /// Draws `visible` as meshes, then the far-field nodes `far` in a second pass on the same
+    /// colour and depth targets; reads back the image, the node ids and, when `with_depth`, the
+    /// depth.
     ///
     /// # Errors
-    /// [`RenderError::NoSuchMap`] for a map index that was not uploaded (all of them without
-    /// [`Self::with_far_field`]); GPU failures.
+    /// [`RenderError::NoSuchMap`] for a node index that was not uploaded (all of them without
+    /// a far field); GPU failures.
     pub fn draw_hybrid(
         &self,
         camera: &Camera,
@@ -242,7 +344,7 @@ impl FrameRenderer for GpuFrameRenderer {
             o.width,
             o.height,
             match &self.far {
-                Some(f) => format!(", {} far-field maps in {} pages", f.maps(), f.pages()),
+                Some(f) => format!(", {}", f.describe()),
                 None => String::new(),
             }
         )

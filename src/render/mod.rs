@@ -5,6 +5,9 @@
 //! - [`GpuFrameRenderer`]: the walk's [`crate::visibility::FrameRenderer`] on a headless device.
 //! - [`BlockMapRenderer`]: the far field, BlockMaps ray-cast on the GPU into the mesh pass's
 //!   targets (`blockmap.wgsl`; the CPU reference is [`crate::blockmap::image`]).
+//! - [`ReliefRenderer`]: the other far field, relief impostors ray-cast on the GPU over each
+//!   node's max pyramid into the same targets (`relief.wgsl`; the CPU reference is
+//!   [`crate::relief::image`]); [`FarRenderer`] holds either.
 //! - [`MeshRenderer`]: uploads the block meshes once, then draws the blocks a culler lists, lit
 //!   (the procedural appearance of [`crate::city::appearance`], mirrored in `mesh.wgsl`: facades
 //!   with windows, roofs, ground plane, streets and blocks' ground; sun + ambient; sky) or as flat
@@ -24,12 +27,14 @@ mod blockmap;
 mod frames;
 mod mesh;
 mod pack;
+mod relief;
 #[cfg(feature = "window")]
 pub mod window;
 
 pub use blockmap::{BlockMapRenderer, FarPass, FarReadback, NO_MAP};
-pub use frames::{GpuFrameRenderer, HybridFrame, WgpuRenderers};
+pub use frames::{FarRenderer, GpuFrameRenderer, HybridFrame, WgpuRenderers};
 pub use mesh::{Batching, Frame, FrameTimings, MeshRenderer, RenderOptions, Shading};
+pub use relief::ReliefRenderer;
 
 use crate::blocks::BlockId;
 

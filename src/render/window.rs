@@ -9,7 +9,8 @@
 //! walk's [`FarStep`] picks, coarse to fine and front to back, the nodes whose projected error
 //! is at most τ (Cignoni et al., §4; Di Benedetto, §4.4) and the blocks left to draw as meshes;
 //! the meshes are drawn first and the far field is ray-cast into the same colour and depth
-//! targets ([`BlockMapRenderer`] for BlockMaps), as `blockwalk walk --far blockmaps` draws it.
+//! targets ([`FarRenderer`]: BlockMaps or relief impostors), as `blockwalk walk --far blockmaps`
+//! (or `--far relief`) draws it.
 //!
 //! The frame is drawn by the same [`MeshRenderer`] as the headless tools (so what the window shows
 //! is exactly what `blockwalk walk --render` writes), read back and written into the surface
@@ -32,7 +33,8 @@
 //!   --streets data/bubenec/streets.shp --route orbit --frames 3 --screenshot view.png
 //! ```
 
-use super::blockmap::{BlockMapRenderer, FarReadback};
+use super::blockmap::FarReadback;
+use super::frames::FarRenderer;
 use super::{Gpu, MeshRenderer, RenderError, RenderOptions};
 use crate::blockmap::SelectOptions;
 use crate::blocks::BlockId;
@@ -41,7 +43,7 @@ use crate::geom::Camera;
 use crate::index::Structure;
 use crate::route::CameraRoute;
 use crate::scene::Scene;
-use crate::walk::{CullMode, CullStep, FarField, FarGpu, FarStep};
+use crate::walk::{CullMode, CullStep, FarField, FarStep};
 use glam::DVec3;
 use std::collections::HashSet;
 use std::path::PathBuf;
@@ -324,8 +326,8 @@ struct GpuState {
     config: wgpu::SurfaceConfiguration,
     gpu: Gpu,
     renderer: MeshRenderer,
-    /// The far-field maps on the GPU, when the scene has a far field.
-    far: Option<BlockMapRenderer>,
+    /// The far field on the GPU, when the scene has one.
+    far: Option<FarRenderer>,
     /// Swap red and blue when writing into the surface.
     bgra: bool,
 }
@@ -460,17 +462,11 @@ impl App {
         gpu: &Gpu,
         width: u32,
         height: u32,
-    ) -> Result<Option<BlockMapRenderer>, RenderError> {
+    ) -> Result<Option<FarRenderer>, RenderError> {
         let Some(f) = &self.scene.far else {
             return Ok(None);
         };
-        match f.field.gpu() {
-            FarGpu::BlockMaps(maps) => BlockMapRenderer::new(gpu, &maps, (width, height)).map(Some),
-            FarGpu::Relief(_) => Err(RenderError::FarField {
-                adapter: String::new(),
-                what: "relief impostors are not drawn on the GPU yet".into(),
-            }),
-        }
+        FarRenderer::new(gpu, f.field.as_ref(), (width, height)).map(Some)
     }
 
     fn resize(&mut self, size: PhysicalSize<u32>) -> Result<(), WindowError> {

@@ -366,8 +366,10 @@ pub fn run_sweep(
     for (mode, k) in builds {
         let t0 = Instant::now();
         let built = match mode {
-            FarMode::Relief => Built::Relief(build_relief(scene, &opts.relief, progress)?),
-            _ => Built::BlockMaps(build_maps(scene, opts.build(k), progress)?),
+            FarMode::Relief => {
+                Built::Relief(Box::new(build_relief(scene, &opts.relief, progress)?))
+            }
+            _ => Built::BlockMaps(Box::new(build_maps(scene, opts.build(k), progress)?)),
         };
         let field = built.field();
         let side = match &built {
@@ -464,15 +466,15 @@ pub fn run_sweep(
 
 /// A far field the sweep built.
 enum Built {
-    BlockMaps(MapTree),
-    Relief(ReliefField),
+    BlockMaps(Box<MapTree>),
+    Relief(Box<ReliefField>),
 }
 
 impl Built {
     fn field(&self) -> &dyn FarField {
         match self {
-            Built::BlockMaps(m) => m,
-            Built::Relief(r) => r,
+            Built::BlockMaps(m) => m.as_ref(),
+            Built::Relief(r) => r.as_ref(),
         }
     }
 }
