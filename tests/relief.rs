@@ -7,7 +7,7 @@ mod support;
 
 use blockwalk::blockmap::{SelectOptions, Source};
 use blockwalk::relief::map::{EMPTY, Q_MAX};
-use blockwalk::relief::{build_field, ReliefField, ReliefOptions};
+use blockwalk::relief::{build_field, ReliefField, ReliefOptions, Stop};
 use blockwalk::scene::Scene;
 use blockwalk::walk::FarField;
 use glam::DVec2;
@@ -31,7 +31,13 @@ fn field(scene: &Scene, opts: &ReliefOptions) -> ReliefField {
 #[test]
 fn nodes_hold_whole_blocks_and_every_building_once() {
     let scene = helsinki_bqr_occlusion();
-    let f = field(&scene, &ReliefOptions::default());
+    let f = field(
+        &scene,
+        &ReliefOptions {
+            stop: Stop::All,
+            ..ReliefOptions::default()
+        },
+    );
     let block_of: HashMap<u32, u32> = scene
         .layout
         .blocks
@@ -72,6 +78,43 @@ fn nodes_hold_whole_blocks_and_every_building_once() {
     let (i, t, w) = f.tree.counts();
     assert_eq!(3 * i, t + w - 1);
     assert_eq!(f.formulas.nodes, f.nodes.len());
+    // The competitive stop maps a top part of the same tree: every mapped node's parent is
+    // mapped, and a node left out has meshes cheaper than its maps would be.
+    let c = field(&scene, &ReliefOptions::default());
+    assert!(c.nodes.len() < f.nodes.len() && !c.nodes.is_empty());
+    let mapped: BTreeSet<usize> = c.nodes.iter().map(|n| n.node).collect();
+    for n in &c.nodes {
+        let tree_parent = f
+            .tree
+            .nodes
+            .iter()
+            .position(|p| p.children.iter().flatten().any(|&k| k as usize == n.node));
+        assert_eq!(n.parent.map(|p| c.nodes[p].node), tree_parent);
+    }
+    let by_tree: HashMap<usize, &blockwalk::relief::NodeMaps> =
+        f.nodes.iter().map(|n| (n.node, n)).collect();
+    for (i, tn) in c.tree.nodes.iter().enumerate() {
+        if mapped.contains(&i) {
+            continue;
+        }
+        let tris: usize = by_tree[&i]
+            .buildings
+            .iter()
+            .map(|&b| scene.building_meshes[b as usize].triangle_count())
+            .sum();
+        let side = by_tree[&i].m() as usize;
+        let parent_mapped = c.tree.nodes.iter().enumerate().any(|(p, pn)| {
+            mapped.contains(&p) && pn.children.iter().flatten().any(|&k| k as usize == i)
+        });
+        if parent_mapped {
+            assert!(
+                tris * blockwalk::blockmap::tree::MESH_BYTES_PER_TRIANGLE <= side * side * 30,
+                "node {i} (depth {}) left out with {tris} triangles",
+                tn.depth
+            );
+        }
+    }
+    assert!(c.selector(&scene.bounds, SelectOptions::default()).is_ok());
 }
 
 /// A zenithal texel whose 4 × 4 samples all fall inside one building's footprint holds that
@@ -80,7 +123,13 @@ fn nodes_hold_whole_blocks_and_every_building_once() {
 #[test]
 fn zenithal_maps_hold_the_buildings_where_they_stand() {
     let scene = helsinki_bqr_occlusion();
-    let f = field(&scene, &ReliefOptions::default());
+    let f = field(
+        &scene,
+        &ReliefOptions {
+            stop: Stop::All,
+            ..ReliefOptions::default()
+        },
+    );
     let source = Source::new(&scene.city, &scene.layout, &scene.building_meshes).unwrap();
     let inside = |p: DVec2, rings: &[Vec<DVec2>]| {
         let mut c = false;

@@ -300,6 +300,10 @@ pub struct ReliefArgs {
     /// Relief impostors: most oblique maps per node.
     #[arg(long = "relief-max-obliques", default_value_t = blockwalk::relief::build::DEFAULT_MAX_OBLIQUES)]
     pub max_obliques: usize,
+    /// Relief impostors: which nodes get maps: `all` (the paper's tree) or `competitive` (down
+    /// to where a node's meshes take fewer bytes than its maps).
+    #[arg(long = "relief-stop", value_parser = choice::<blockwalk::relief::Stop>(), default_value_t = blockwalk::relief::Stop::Competitive)]
+    pub stop: blockwalk::relief::Stop,
 }
 
 impl ReliefArgs {
@@ -315,6 +319,7 @@ impl ReliefArgs {
             max_map_size: self.max_map_size,
             coverage_target: self.coverage,
             max_obliques: self.max_obliques,
+            stop: self.stop,
         };
         o.validate()?;
         Ok(o)

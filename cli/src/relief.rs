@@ -54,12 +54,14 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let s = &r.summary;
     let f = &r.formulas;
     outln!(
-        "{}: {} buildings in {} groups (whole blocks, gap {} m); {} nodes, M = {}{} for blocks of {:.0} m at {} m a texel",
+        "{}: {} buildings in {} groups (whole blocks, gap {} m); {} of the tree's {} nodes mapped ({}), M = {}{} for blocks of {:.0} m at {} m a texel",
         scene.name,
         scene.city.buildings.len(),
         r.groups,
         opts.tree.gap_m,
         s.nodes,
+        s.tree_nodes,
+        opts.stop,
         s.map_size,
         if !s.map_size_from_formula {
             " (given)"
@@ -108,7 +110,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         blockwalk::relief::error::COLOUR_TOLERANCE
     );
     outln!(
-        "bytes: {:.1} MiB, {:.0} KiB a node, {:.2} MiB/km² of the root cell; leaf texels {:.2}–{:.2} m; built in {:.1} s",
+        "bytes: {:.1} MiB, {:.0} KiB a node, {:.2} MiB/km² of the root cell; deepest maps' texels {:.2}–{:.2} m; built in {:.1} s",
         s.bytes as f64 / (1024.0 * 1024.0),
         s.bytes_per_node / 1024.0,
         s.bytes_per_km2 / (1024.0 * 1024.0),

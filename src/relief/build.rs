@@ -8,6 +8,7 @@ use super::map::{MapFrame, MapKind, ReliefMap};
 use super::node::{NodeError, NodeMaps};
 use super::surfels::{oblique_frame, surfels, vote};
 use super::tree::{largest_block_m, Formulas, ReliefTree, TreeError, TreeParams};
+use crate::blockmap::tree::MESH_BYTES_PER_TRIANGLE;
 use crate::blockmap::{BlockMapError, Source};
 use crate::blocks::{BlockId, BlockLayout};
 use crate::city::{City, Mesh};
@@ -18,9 +19,11 @@ use serde::Serialize;
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::time::Instant;
 
-/// Default texel size asked for, metres (`ts` of formula (9)): the leaves' maps sample the
-/// blocks at this size or finer.
-pub const DEFAULT_TEXEL_M: f64 = 1.0;
+/// Default texel size asked for, metres (`ts` of formula (9)): the deepest maps sample the
+/// blocks at this size or finer. The paper's 17 cm serves photographed façades; blockwalk's
+/// façades are flat colours and windows, and at 2 m (M = 64 for blocks up to 256 m) the far
+/// field of a city holds about as many bytes as its BlockMaps at K = 64.
+pub const DEFAULT_TEXEL_M: f64 = 2.0;
 
 /// Default coverage target of the oblique maps (the paper's 95 %).
 pub const DEFAULT_COVERAGE: f64 = 0.95;
@@ -74,7 +77,27 @@ pub struct ReliefOptions {
     pub coverage_target: f64,
     /// Most oblique maps per node.
     pub max_obliques: usize,
+    /// Which nodes get maps.
+    pub stop: Stop,
 }
+
+/// Which nodes of the tree get maps.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Stop {
+    /// Every node (the paper's tree).
+    All,
+    /// From the root down, while a node's meshes take more bytes than its zenithal map and
+    /// core set would: below that, meshes are cheaper to hold and to draw (the rule Cignoni et
+    /// al. give BlockMaps, §4). A node that stops leaves its blocks to the meshes.
+    #[default]
+    Competitive,
+}
+
+crate::choice::choices!(Stop, "relief impostors' stop",
+    All => "all", "Maps for every node of the tree (the paper's)";
+    Competitive => "competitive", "Maps down to where a node's meshes take fewer bytes than its maps";
+);
 
 impl Default for ReliefOptions {
     fn default() -> Self {
@@ -85,6 +108,7 @@ impl Default for ReliefOptions {
             max_map_size: DEFAULT_MAX_MAP_SIZE,
             coverage_target: DEFAULT_COVERAGE,
             max_obliques: DEFAULT_MAX_OBLIQUES,
+            stop: Stop::default(),
         }
     }
 }
@@ -145,7 +169,10 @@ pub struct BelowTarget {
 pub struct ReliefSummary {
     /// Nodes with maps.
     pub nodes: usize,
-    /// The map side `M`.
+    /// Nodes of the tree (with maps or left to the meshes by the stop).
+    pub tree_nodes: usize,
+    /// The map side `M` (the largest; smaller nodes may have smaller maps, see
+    /// [`node_map_size`]).
     pub map_size: u32,
     /// Whether `M` came from formula (9) (else given), and whether it was capped.
     pub map_size_from_formula: bool,
@@ -181,7 +208,7 @@ pub struct ReliefSummary {
     pub colour_mismatch_max: f64,
     /// Smallest colour PSNR of a node's covered pixels, dB.
     pub psnr_min_db: f64,
-    /// Leaf texel range, metres (smallest, largest).
+    /// Texel range of the deepest mapped nodes (no mapped child), metres (smallest, largest).
     pub leaf_texel_m: [f64; 2],
     /// Largest declared error, metres.
     pub max_error_m: f64,
@@ -198,7 +225,8 @@ pub struct ReliefField {
     pub tree: ReliefTree,
     /// Formulas (3)–(9) beside the tree.
     pub formulas: Formulas,
-    /// The map side.
+    /// The map side `M` of formula (9) (capped), the largest of the nodes' (see
+    /// [`node_map_size`]).
     pub m: u32,
     /// Every node's maps, in the tree's order (parents first; index = tree node).
     pub nodes: Vec<NodeMaps>,
@@ -221,6 +249,22 @@ pub fn map_size(opts: &ReliefOptions, b: f64) -> (u32, bool) {
     };
     let m = m.max(MAP_SIZE_RANGE.0);
     (m.min(opts.max_map_size), m > opts.max_map_size)
+}
+
+/// The side of a node's maps: the smallest power of two (at least [`MAP_SIZE_RANGE`]'s lower
+/// end) that samples a cell of `edge` metres at `texel_m` or finer, and at most the tree's `m`.
+/// The paper gives every node `M × M` maps; a node already at the texel size with fewer
+/// texels keeps the texel size asked for and not `M`'s finer one, which saves memory on the
+/// small blocks of a city with one large one, and shows the same thing at the distance it is
+/// drawn from.
+pub fn node_map_size(edge: f64, texel_m: f64, m: u32) -> u32 {
+    let need = (edge / texel_m).ceil().max(1.0);
+    let side = if need >= f64::from(m) {
+        m
+    } else {
+        (need as u32).next_power_of_two()
+    };
+    side.clamp(MAP_SIZE_RANGE.0.min(m), m)
 }
 
 /// Builds the relief impostors of `city` (its blocks `layout`, one mesh per building in
@@ -254,37 +298,55 @@ pub fn build_field(
     let tree = ReliefTree::build_with_blocks(city, params, Some(&block_of))?;
     let formulas = Formulas::new(&tree, opts.texel_m, b)?;
     let origin = city.frame.origin;
-    // Parent of every tree node.
-    let mut parent = vec![None; tree.nodes.len()];
-    for (i, n) in tree.nodes.iter().enumerate() {
-        for c in n.children.iter().flatten() {
-            parent[*c as usize] = Some(i);
+    let buildings_of = |n: &super::tree::ReliefNode| -> Vec<u32> {
+        let mut v: Vec<u32> = n
+            .groups
+            .iter()
+            .flat_map(|&g| tree.groups[g as usize].buildings.iter().map(|b| b.0))
+            .collect();
+        v.sort_unstable();
+        v
+    };
+    // Which tree nodes get maps, parents first, with their parent's slot among them.
+    let mut chosen: Vec<(usize, Option<usize>)> = Vec::new();
+    let mut stack = vec![(0usize, None::<usize>)];
+    while let Some((i, parent)) = stack.pop() {
+        let n = &tree.nodes[i];
+        if opts.stop == Stop::Competitive {
+            let tris: u64 = buildings_of(n)
+                .iter()
+                .filter_map(|&b| building_meshes.get(b as usize))
+                .map(|mesh| mesh.triangle_count() as u64)
+                .sum();
+            let side = u64::from(node_map_size(n.edge(), opts.texel_m, m));
+            let maps = side * side * 6 * (1 + super::node::CORE_SET as u64);
+            if tris * MESH_BYTES_PER_TRIANGLE as u64 <= maps {
+                continue;
+            }
+        }
+        let slot = chosen.len();
+        chosen.push((i, parent));
+        for c in n.children.iter().rev().flatten() {
+            stack.push((*c as usize, Some(slot)));
         }
     }
     let done = AtomicUsize::new(0);
-    let total = tree.nodes.len();
-    let nodes: Vec<NodeMaps> = tree
-        .nodes
+    let total = chosen.len();
+    let nodes: Vec<NodeMaps> = chosen
         .par_iter()
-        .enumerate()
-        .map(|(i, n)| {
-            let mut buildings: Vec<u32> = n
-                .groups
-                .iter()
-                .flat_map(|&g| tree.groups[g as usize].buildings.iter().map(|b| b.0))
-                .collect();
-            buildings.sort_unstable();
+        .map(|&(i, parent)| {
+            let n = &tree.nodes[i];
             let out = build_node(
                 &source,
                 building_meshes,
                 &block_of,
                 i,
                 n.depth,
-                parent[i],
-                buildings,
+                parent,
+                buildings_of(n),
                 [n.bounds.min[0] - origin.x, n.bounds.min[1] - origin.y],
                 [n.bounds.max[0] - origin.x, n.bounds.max[1] - origin.y],
-                m,
+                node_map_size(n.edge(), opts.texel_m, m),
                 opts,
             );
             progress(done.fetch_add(1, Ordering::Relaxed) + 1, total);
@@ -339,34 +401,16 @@ fn build_node(
         .filter_map(|&b| building_meshes.get(b as usize).map(|mesh| (b, mesh)))
         .collect();
     let zf = MapFrame::zenithal(aabb.min, aabb.max, m);
-    let (mut zenithal, mut texels_of) = ReliefMap::capture_zenithal(zf, &meshes, z);
+    let (zenithal, texels_of) = ReliefMap::capture_zenithal(zf, &meshes, z);
     let texel = zf.texel_m();
-    // Buildings the capture lost (narrower than half a texel) are kept, a texel wide.
-    for &b in &buildings {
-        if texels_of.contains_key(&b) {
-            continue;
-        }
-        let Some(Some(sb)) = source.buildings.get(b as usize) else {
-            continue;
-        };
-        let n = glam::Vec3::Z;
-        let rgb = crate::city::appearance::to_rgb8(crate::city::appearance::shade(
-            crate::city::appearance::surface_color(&sb.style, n, 0.0, sb.z1 as f32),
-            n,
-        ));
-        let kept = zenithal.rescue(&sb.rings, sb.z1, rgb, z);
-        if kept > 0 {
-            texels_of.insert(b, 0);
-        }
-    }
-    // Buildings no texel shows (no mesh, or nothing seen from above), and buildings narrower
-    // than a texel (twice the area over the perimeter, the width of a long thin footprint):
-    // drawn up to a texel too wide.
+    // Buildings no texel shows (narrower than half a texel: at the distance the node is drawn
+    // at, a fraction of a pixel), and buildings narrower than a texel (twice the area over the
+    // perimeter, the width of a long thin footprint): declared, not drawn faithfully.
     let mut declared: Vec<u32> = buildings
         .iter()
         .copied()
         .filter(|b| {
-            if texels_of.get(b).is_none_or(|&n| n == 0) {
+            if !texels_of.contains_key(b) {
                 return true;
             }
             let Some(Some(sb)) = source.buildings.get(*b as usize) else {
@@ -571,13 +615,22 @@ fn summarise(
         .unwrap_or(0.0);
     let wall: f64 = nodes.iter().map(|x| x.vote.wall_m2).sum();
     let seeable: f64 = nodes.iter().map(|x| x.vote.seeable_m2).sum();
+    // The deepest mapped nodes: no mapped child.
+    let mut has_child = vec![false; nodes.len()];
+    for x in nodes {
+        if let Some(p) = x.parent {
+            has_child[p] = true;
+        }
+    }
     let leaves: Vec<f64> = nodes
         .iter()
-        .filter(|x| tree.nodes[x.node].is_leaf())
-        .map(|x| x.texel_m)
+        .zip(&has_child)
+        .filter(|(_, &c)| !c)
+        .map(|(x, _)| x.texel_m)
         .collect();
     ReliefSummary {
         nodes: nodes.len(),
+        tree_nodes: tree.nodes.len(),
         map_size: m,
         map_size_from_formula: opts.map_size.is_none(),
         map_size_capped: capped,
@@ -695,6 +748,22 @@ mod tests {
         for (o, name) in cases {
             let e = o.validate().unwrap_err().to_string();
             assert!(e.contains(name), "{e}");
+        }
+    }
+
+    #[test]
+    fn small_nodes_get_maps_just_fine_enough() {
+        // 100 m at 1 m a texel: 128 texels, capped at M.
+        assert_eq!(node_map_size(100.0, 1.0, 128), 128);
+        assert_eq!(node_map_size(100.0, 1.0, 64), 64);
+        // 20 m: 32 texels reach 1 m (0.63 m); 5 m: the smallest side, 4.
+        assert_eq!(node_map_size(20.0, 1.0, 128), 32);
+        assert_eq!(node_map_size(5.0, 1.0, 128), 8);
+        assert_eq!(node_map_size(0.5, 1.0, 128), 4);
+        // Never above M, never a side that is not a power of two.
+        for e in [1.0, 7.0, 33.3, 1e4] {
+            let m = node_map_size(e, 0.5, 64);
+            assert!(m.is_power_of_two() && m <= 64 && m as f64 * 0.5 >= e.min(32.0));
         }
     }
 

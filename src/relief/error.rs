@@ -2,8 +2,9 @@
 //! drawn orthographically from a test view, the node's impostor is cast through the same pixels
 //! (the `f32` caster and colouring the GPU runs, with the three obliques the core-set heuristic
 //! picks for that view), and the **coverage error** is the share of the pixels covered by one
-//! image and not the other, over the pixels the meshes cover: the paper's pairwise comparison,
-//! and the same measure the walk takes of whole frames. The image is `M × M`, so a texel projects
+//! image and not the other, over the pixels either covers: the paper's pairwise comparison,
+//! restricted to the node's own pixels (over the whole image, a node that covers little of its
+//! box would look better than it is). The image is `M × M`, so a texel projects
 //! to about a pixel, as at the distance a node is first drawn at with τ = 1.
 //!
 //! Colour is measured apart: the PSNR of the covered pixels, and the share of them off by more
@@ -44,7 +45,7 @@ pub fn test_views() -> Vec<DVec3> {
 /// What one view measured.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct ViewError {
-    /// Coverage error: pixels covered by one image only, over the meshes' covered pixels.
+    /// Coverage error: pixels covered by one image only, over the pixels either covers.
     pub coverage: f64,
     /// Pixels covered by both whose colour is off by more than [`COLOUR_TOLERANCE`], over the
     /// meshes' covered pixels.
@@ -95,7 +96,8 @@ pub fn view_error(node: &NodeMaps, meshes: &[(u32, &Mesh)], dir: DVec3) -> ViewE
     }
     let n = covered.max(1) as f64;
     ViewError {
-        coverage: mismatched as f64 / n,
+        // The pixels either covers: the mismatched ones and those both cover.
+        coverage: mismatched as f64 / (mismatched + both).max(1) as f64,
         colour: off as f64 / n,
         psnr_db: crate::blockmap::compare::psnr_db(se, 3 * both as usize),
         covered,

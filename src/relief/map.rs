@@ -278,9 +278,8 @@ impl ReliefMap {
     /// [`MapFrame::zenithal`]), heights over `z_range`, captured at `ZENITHAL_SAMPLES²` samples
     /// per texel: a texel is covered where at least half its samples show a roof, with the
     /// highest sampled roof and the colour of the covered sample nearest its centre. Returns the
-    /// map and, per building id, the texels that show it; a building none of whose texels is
-    /// covered that way (narrower than half a texel: a wall standing alone, a thin wing) is
-    /// kept by [`ReliefMap::rescue`].
+    /// map and, per building id, the texels that show it (a building narrower than half a
+    /// texel may have none: it is a fraction of a pixel where the node is drawn).
     pub fn capture_zenithal(
         frame: MapFrame,
         meshes: &[(u32, &Mesh)],
@@ -339,87 +338,6 @@ impl ReliefMap {
             },
             texels,
         )
-    }
-}
-
-impl ReliefMap {
-    /// Keeps a building the zenithal capture lost: every texel its footprint `rings` (local
-    /// frame) touches (the texels along every edge, walked cell by cell, and those whose centre
-    /// lies inside) rises at least to its top `z_top` (heights over `z_range`) with its roof
-    /// colour `rgb`. The building stands up to a texel too wide, never lost. Returns the texels
-    /// that show it.
-    pub fn rescue(
-        &mut self,
-        rings: &[Vec<glam::DVec2>],
-        z_top: f64,
-        rgb: [u8; 3],
-        z_range: [f64; 2],
-    ) -> usize {
-        let f = self.frame;
-        let m = i64::from(f.m);
-        let t = f.texel_m();
-        let range = (z_range[1] - z_range[0]).max(f64::MIN_POSITIVE);
-        let q = ((z_top - z_range[0]) / range * f64::from(Q_MAX))
-            .round()
-            .clamp(1.0, f64::from(Q_MAX)) as u16;
-        let mut cells: Vec<(i64, i64)> = Vec::new();
-        let to = |p: glam::DVec2| ((p.x - f.origin.x) / t, (p.y - f.origin.y) / t);
-        for r in rings {
-            for e in 0..r.len() {
-                let (a, b) = (to(r[e]), to(r[(e + 1) % r.len()]));
-                // Cells along a → b (sampled at a quarter texel: every cell the segment
-                // crosses by more than a corner's graze).
-                let len = ((b.0 - a.0).powi(2) + (b.1 - a.1).powi(2)).sqrt();
-                let steps = (len * 4.0).ceil().max(1.0) as usize;
-                for k in 0..=steps {
-                    let w = k as f64 / steps as f64;
-                    let (x, y) = (a.0 + (b.0 - a.0) * w, a.1 + (b.1 - a.1) * w);
-                    cells.push((x.floor() as i64, y.floor() as i64));
-                }
-            }
-        }
-        // Cells whose centre lies inside the exterior ring (a building wider than the walk
-        // along its edges leaves a middle).
-        if let Some(ext) = rings.first() {
-            let (mut lo, mut hi) = ((i64::MAX, i64::MAX), (i64::MIN, i64::MIN));
-            for &(x, y) in &cells {
-                lo = (lo.0.min(x), lo.1.min(y));
-                hi = (hi.0.max(x), hi.1.max(y));
-            }
-            for y in lo.1..=hi.1 {
-                for x in lo.0..=hi.0 {
-                    let c = f.from_map(x as f64 + 0.5, y as f64 + 0.5, 0.0);
-                    let p = glam::DVec2::new(c.x, c.y);
-                    let mut inside = false;
-                    for e in 0..ext.len() {
-                        let (u, v) = (ext[e], ext[(e + 1) % ext.len()]);
-                        if (u.y > p.y) != (v.y > p.y)
-                            && p.x < u.x + (p.y - u.y) / (v.y - u.y) * (v.x - u.x)
-                        {
-                            inside = !inside;
-                        }
-                    }
-                    if inside {
-                        cells.push((x, y));
-                    }
-                }
-            }
-        }
-        cells.sort_unstable();
-        cells.dedup();
-        let mut n = 0;
-        for (x, y) in cells {
-            if x < 0 || y < 0 || x >= m || y >= m {
-                continue;
-            }
-            let k = (y * m + x) as usize;
-            if q > self.depth[k] {
-                self.depth[k] = q;
-                self.color[k] = [rgb[0], rgb[1], rgb[2], 255];
-            }
-            n += 1;
-        }
-        n
     }
 }
 

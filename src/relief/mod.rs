@@ -27,6 +27,7 @@ pub mod tree;
 
 pub use build::{
     build_field, LevelReport, ReliefError, ReliefField, ReliefOptions, ReliefReport, ReliefSummary,
+    Stop,
 };
 pub use image::{cast_image, frame_nodes, CpuReliefRenderer, FrameNode, ReliefImage};
 pub use map::{MapFrame, MapKind, ReliefMap};
