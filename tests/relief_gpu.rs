@@ -46,15 +46,21 @@ const DEPTH_TOL: f64 = 1e-6;
 /// tolerance (quantised units) is a tie of the colouring.
 const Q_TIE: f64 = 0.5;
 
-/// Helsinki (bundled) and its relief impostors with the default options (M from formula (9),
-/// at most 128).
+/// Helsinki (bundled) and its relief impostors for every node of the tree at 1 m a texel (M
+/// from formula (9), at most 128), horizon nodes drawn flat below the paper's 2 pixels: every
+/// path of the shader has pixels.
 fn helsinki() -> (Scene, ReliefField) {
     let scene = helsinki_bqr_occlusion();
     let field = build_field(
         &scene.city,
         &scene.layout,
         &scene.building_meshes,
-        &ReliefOptions::default(),
+        &ReliefOptions {
+            stop: blockwalk::relief::Stop::All,
+            texel_m: 1.0,
+            flat_px: blockwalk::relief::image::PAPER_FLAT_PX,
+            ..ReliefOptions::default()
+        },
         &|_, _| {},
     )
     .unwrap();

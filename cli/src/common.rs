@@ -304,6 +304,10 @@ pub struct ReliefArgs {
     /// to where a node's meshes take fewer bytes than its maps).
     #[arg(long = "relief-stop", value_parser = choice::<blockwalk::relief::Stop>(), default_value_t = blockwalk::relief::Stop::Competitive)]
     pub stop: blockwalk::relief::Stop,
+    /// Relief impostors: a node whose height projects to fewer pixels than this is drawn as a
+    /// flat quad (the paper's horizon nodes use 2; 0 draws every node by its walk).
+    #[arg(long = "relief-flat-px", default_value_t = 0.0)]
+    pub flat_px: f64,
 }
 
 impl ReliefArgs {
@@ -320,6 +324,7 @@ impl ReliefArgs {
             coverage_target: self.coverage,
             max_obliques: self.max_obliques,
             stop: self.stop,
+            flat_px: self.flat_px,
         };
         o.validate()?;
         Ok(o)

@@ -79,6 +79,12 @@ pub struct ReliefOptions {
     pub max_obliques: usize,
     /// Which nodes get maps.
     pub stop: Stop,
+    /// Horizon nodes: a node whose height projects to fewer pixels than this is drawn as a flat
+    /// quad at mid height with its zenithal colours (the paper's §5.2 uses 2). 0, the default,
+    /// draws every node by the walk: a flat quad seen at a grazing angle projects to less than a
+    /// pixel and can fall between pixel centres, losing walls up to its height from the frame,
+    /// which breaks the silhouette bound (measured in `docs/relief.md`).
+    pub flat_px: f64,
 }
 
 /// Which nodes of the tree get maps.
@@ -109,6 +115,7 @@ impl Default for ReliefOptions {
             coverage_target: DEFAULT_COVERAGE,
             max_obliques: DEFAULT_MAX_OBLIQUES,
             stop: Stop::default(),
+            flat_px: 0.0,
         }
     }
 }
@@ -142,6 +149,13 @@ impl ReliefOptions {
                 "coverage_target",
                 self.coverage_target,
                 "a share in (0, 1]",
+            ));
+        }
+        if !(self.flat_px.is_finite() && self.flat_px >= 0.0) {
+            return Err(bad(
+                "flat_px",
+                self.flat_px,
+                "a finite number of pixels >= 0",
             ));
         }
         if self.max_obliques > MAX_OBLIQUES {
@@ -401,16 +415,18 @@ fn build_node(
         .filter_map(|&b| building_meshes.get(b as usize).map(|mesh| (b, mesh)))
         .collect();
     let zf = MapFrame::zenithal(aabb.min, aabb.max, m);
-    let (zenithal, texels_of) = ReliefMap::capture_zenithal(zf, &meshes, z);
+    let (zenithal, texels_of, lost) = ReliefMap::capture_zenithal(zf, &meshes, z);
     let texel = zf.texel_m();
     // Buildings no texel shows (narrower than half a texel: at the distance the node is drawn
-    // at, a fraction of a pixel), and buildings narrower than a texel (twice the area over the
-    // perimeter, the width of a long thin footprint): declared, not drawn faithfully.
+    // at, a fraction of a pixel), buildings with a part the map loses (a wing narrower than half
+    // a texel, a texel or more from every column), and buildings narrower than a texel (twice
+    // the area over the perimeter, the width of a long thin footprint): declared, not drawn
+    // faithfully.
     let mut declared: Vec<u32> = buildings
         .iter()
         .copied()
         .filter(|b| {
-            if !texels_of.contains_key(b) {
+            if !texels_of.contains_key(b) || lost.binary_search(b).is_ok() {
                 return true;
             }
             let Some(Some(sb)) = source.buildings.get(*b as usize) else {
@@ -477,6 +493,7 @@ fn build_node(
         eps_m: eps,
         declared,
         error: NodeError::default(),
+        flat_px: opts.flat_px,
         build_s: 0.0,
     };
     node.error = measure_node(&node, &meshes);
@@ -691,7 +708,21 @@ mod tests {
     #[test]
     fn bad_options_are_refused_by_name() {
         assert!(ReliefOptions::default().validate().is_ok());
-        let cases: [(ReliefOptions, &str); 7] = [
+        let cases: [(ReliefOptions, &str); 9] = [
+            (
+                ReliefOptions {
+                    flat_px: -1.0,
+                    ..Default::default()
+                },
+                "flat_px",
+            ),
+            (
+                ReliefOptions {
+                    max_obliques: 65,
+                    ..Default::default()
+                },
+                "max_obliques",
+            ),
             (
                 ReliefOptions {
                     texel_m: 0.0,

@@ -6,7 +6,8 @@
 //! constants ([`node_xform`], a [`MapXform`] computed in `f64` and rounded), starting on the near
 //! plane; the depth written is [`FrameRays::depth`]. What a frame draws of each node
 //! ([`frame_nodes`]): whether it is a horizon node (its height projects under
-//! [`FLAT_PX`] pixels: the flat quad) and which three obliques colour its walls, decided once
+//! [`super::ReliefOptions::flat_px`] pixels: the flat quad) and which three obliques colour its
+//! walls, decided once
 //! per frame on the CPU in `f64` and handed to both renderers. Several nodes: the nearest depth
 //! wins, the first listed on equal depth.
 
@@ -22,9 +23,9 @@ use glam::{DVec3, DVec4};
 use rayon::prelude::*;
 use std::time::Instant;
 
-/// A node whose height projects to fewer pixels than this is drawn as a flat quad (the paper's
-/// two pixels).
-pub const FLAT_PX: f64 = 2.0;
+/// The paper's threshold for horizon nodes: a node whose height projects to fewer than two
+/// pixels is drawn as a flat quad (§5.2). Not the default (see [`super::ReliefOptions::flat_px`]).
+pub const PAPER_FLAT_PX: f64 = 2.0;
 
 /// What a frame draws of one node.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -68,7 +69,7 @@ pub fn frame_nodes(
             let n = &nodes[i];
             FrameNode {
                 node: i,
-                flat: n.is_flat(camera, height_px, FLAT_PX),
+                flat: n.is_flat(camera, height_px),
                 chosen: n.choose(camera.position),
                 xform: node_xform(n.tex_origin, n.tex_scale, camera),
             }

@@ -278,13 +278,14 @@ impl ReliefMap {
     /// [`MapFrame::zenithal`]), heights over `z_range`, captured at `ZENITHAL_SAMPLES²` samples
     /// per texel: a texel is covered where at least half its samples show a roof, with the
     /// highest sampled roof and the colour of the covered sample nearest its centre. Returns the
-    /// map and, per building id, the texels that show it (a building narrower than half a
-    /// texel may have none: it is a fraction of a pixel where the node is drawn).
+    /// map; per building id, the texels that show it (a building narrower than half a texel may
+    /// have none: it is a fraction of a pixel where the node is drawn); and the buildings with a
+    /// part no covered texel lies within a texel of (sorted): what the map loses of them.
     pub fn capture_zenithal(
         frame: MapFrame,
         meshes: &[(u32, &Mesh)],
         z_range: [f64; 2],
-    ) -> (Self, std::collections::HashMap<u32, usize>) {
+    ) -> (Self, std::collections::HashMap<u32, usize>, Vec<u32>) {
         let m = frame.m;
         let s = ZENITHAL_SAMPLES;
         let side = m * s;
@@ -329,6 +330,39 @@ impl ReliefMap {
                 *texels.entry(ids.ids[first]).or_default() += 1;
             }
         }
+        // Buildings with a part no column stands within a texel of: samples of theirs in an
+        // empty texel whose eight neighbours are empty too (a thin wing, a wall standing alone).
+        let mut lost: Vec<u32> = Vec::new();
+        let mi = i64::from(m);
+        for j in 0..mi {
+            for i in 0..mi {
+                let t = (j * mi + i) as usize;
+                if depth[t] != EMPTY {
+                    continue;
+                }
+                let near = (-1..=1).any(|dy| {
+                    (-1..=1).any(|dx| {
+                        let (x, y) = (i + dx, j + dy);
+                        x >= 0
+                            && y >= 0
+                            && x < mi
+                            && y < mi
+                            && depth[(y * mi + x) as usize] != EMPTY
+                    })
+                });
+                if near {
+                    continue;
+                }
+                for &o in &order {
+                    let id = ids.ids[sample(i as u32, j as u32, o)];
+                    if id != SKY {
+                        lost.push(id);
+                    }
+                }
+            }
+        }
+        lost.sort_unstable();
+        lost.dedup();
         (
             Self {
                 kind: MapKind::Zenithal,
@@ -337,6 +371,7 @@ impl ReliefMap {
                 depth,
             },
             texels,
+            lost,
         )
     }
 }

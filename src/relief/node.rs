@@ -86,6 +86,8 @@ pub struct NodeMaps {
     pub declared: Vec<u32>,
     /// The measured coverage error.
     pub error: NodeError,
+    /// Height in pixels below which it is drawn as a flat quad (0: never).
+    pub flat_px: f64,
     /// Seconds its maps took to build (capture, vote, obliques, error).
     pub build_s: f64,
 }
@@ -105,6 +107,8 @@ pub struct NodeFrameInfo {
     pub tex_scale: DVec3,
     /// The oblique maps' directions, in map order.
     pub oblique_dirs: Vec<DVec3>,
+    /// Height in pixels below which the node is drawn as a flat quad (0: never).
+    pub flat_px: f64,
 }
 
 impl NodeFrameInfo {
@@ -118,13 +122,16 @@ impl NodeFrameInfo {
         )
     }
 
-    /// True when the node's height projects to fewer than `px` pixels from `camera` on an
-    /// image `height_px` high: drawn as the flat quad.
-    pub fn is_flat(&self, camera: &Camera, height_px: u32, px: f64) -> bool {
+    /// True when the node's height projects to fewer than [`NodeFrameInfo::flat_px`] pixels
+    /// from `camera` on an image `height_px` high: drawn as the flat quad.
+    pub fn is_flat(&self, camera: &Camera, height_px: u32) -> bool {
+        if self.flat_px <= 0.0 {
+            return false;
+        }
         let h = self.z_range[1] - self.z_range[0];
         let c = self.aabb.center();
         let r = self.aabb.extent().length() * 0.5;
-        crate::blockmap::select::projected_error_px(h, c, r, camera, height_px) < px
+        crate::blockmap::select::projected_error_px(h, c, r, camera, height_px) < self.flat_px
     }
 }
 
@@ -229,6 +236,7 @@ impl NodeMaps {
             tex_origin,
             tex_scale,
             oblique_dirs: self.obliques.iter().map(|o| o.frame.dir).collect(),
+            flat_px: self.flat_px,
         }
     }
 }

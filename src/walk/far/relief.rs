@@ -12,7 +12,7 @@ use crate::city::Mesh;
 use crate::geom::{Aabb3, Camera};
 use crate::index::BlockBounds;
 use crate::relief::cast::{cast_f32, cast_f64, cast_flat};
-use crate::relief::image::{node_xform, FLAT_PX};
+use crate::relief::image::node_xform;
 use crate::relief::{CpuReliefRenderer, NodeMaps, ReliefError, ReliefField, ReliefOptions};
 use crate::scene::Scene;
 use crate::visibility::FrameRenderer;
@@ -182,7 +182,7 @@ impl BoundMaps for ReliefField {
             xform: node_xform(info.tex_origin, info.tex_scale, camera),
             rays: FrameRays::new(camera, w, h),
             camera: *camera,
-            flat: info.is_flat(camera, h, FLAT_PX),
+            flat: info.is_flat(camera, h),
             w,
             h,
         })
