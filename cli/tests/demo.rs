@@ -108,9 +108,12 @@ fn a_two_frame_farfield_sweep_writes_its_table_and_row() {
         .arg(data("helsinki/buildings.shp"))
         .arg("--streets")
         .arg(data("helsinki/streets_blockclass.shp"))
+        // Every relief node mapped: the default stop leaves Helsinki's blocks to the meshes.
         .args([
             "--far",
             "blockmaps,relief",
+            "--relief-stop",
+            "all",
             "--taus",
             "1",
             "--ks",
