@@ -238,3 +238,82 @@ fn nodes_below_the_coverage_target_are_reported() {
         assert_eq!(!listed.is_empty(), expect_short, "max {max}: {listed:?}");
     }
 }
+
+/// The pop of a switch of oblique maps, measured with and without the blend: along the orbit of
+/// Helsinki, each frame's impostor pixels are cast twice at the same camera and selection, with
+/// this frame's map sets and with the last frame's, and the colour changes between the two are
+/// what the switches and blend steps of this frame changed. Without a blend a switch changes a
+/// wall's colours at once; blended over 4 frames, each frame moves them a fifth of the way.
+#[test]
+fn blending_spreads_the_pop_of_a_switch_over_frames() {
+    use blockwalk::relief::image::{cast_image, frame_nodes, MapSets, Prepared};
+    let scene = helsinki_bqr_occlusion();
+    let f = field(
+        &scene,
+        &ReliefOptions {
+            stop: Stop::All,
+            texel_m: 1.0,
+            ..ReliefOptions::default()
+        },
+    );
+    let prepared = Prepared::new(&f);
+    let (w, h) = (160u32, 120u32);
+    let (route, _) = blockwalk::walk::job::resolve_route(
+        &blockwalk::route::RouteChoice::Orbit,
+        &scene,
+        f64::from(w) / f64::from(h),
+    )
+    .unwrap();
+    let cameras = route.sample(120);
+    let mut out = Vec::new();
+    for frames in [0u32, 4] {
+        let mut sel = f
+            .selector(&scene.bounds, SelectOptions::new(2.0, 0.25).unwrap())
+            .unwrap();
+        let mut sets = MapSets::new(frames);
+        let (mut changed, mut max_step, mut sum) = (0u64, 0u8, 0u64);
+        for cam in &cameras {
+            let s = sel.select(cam, h, None);
+            let base = frame_nodes(prepared.infos(), &s.maps, cam, h);
+            let mut last = base.clone();
+            sets.peek(&mut last);
+            let mut now = base;
+            sets.apply(&mut now, cam);
+            let a = cast_image(&f, &prepared, &last, cam, w, h);
+            let b = cast_image(&f, &prepared, &now, cam, w, h);
+            for k in 0..(w * h) as usize {
+                if a.hit[k].is_none() || a.node[k] != b.node[k] {
+                    continue;
+                }
+                let d = (0..3)
+                    .map(|c| a.color[k][c].abs_diff(b.color[k][c]))
+                    .max()
+                    .unwrap();
+                if d > 0 {
+                    changed += 1;
+                    sum += u64::from(d);
+                    max_step = max_step.max(d);
+                }
+            }
+        }
+        eprintln!(
+            "blend over {frames} frames: {changed} pixel changes from switches over {} frames, largest {max_step}, mean {:.1} (of 255)",
+            cameras.len(),
+            sum as f64 / changed.max(1) as f64
+        );
+        out.push((changed, max_step, sum));
+    }
+    let (none, blend) = (out[0], out[1]);
+    assert!(
+        none.0 > 100,
+        "the orbit switched no wall's colours: {none:?}"
+    );
+    // Blended, the same changes come in five smaller steps: more pixels change, each by less.
+    assert!(blend.0 > none.0, "{none:?} {blend:?}");
+    assert!(
+        u32::from(blend.1) * 10 <= u32::from(none.1) * 3 + 10,
+        "largest step {} blended against {} at once",
+        blend.1,
+        none.1
+    );
+}

@@ -308,6 +308,10 @@ pub struct ReliefArgs {
     /// flat quad (the paper's horizon nodes use 2; 0 draws every node by its walk).
     #[arg(long = "relief-flat-px", default_value_t = 0.0)]
     pub flat_px: f64,
+    /// Relief impostors: frames over which a node's colours move from its previous oblique
+    /// maps to a new choice (0: switch at once).
+    #[arg(long = "relief-blend", default_value_t = blockwalk::relief::build::DEFAULT_BLEND_FRAMES)]
+    pub blend_frames: u32,
 }
 
 impl ReliefArgs {
@@ -325,6 +329,7 @@ impl ReliefArgs {
             max_obliques: self.max_obliques,
             stop: self.stop,
             flat_px: self.flat_px,
+            blend_frames: self.blend_frames,
         };
         o.validate()?;
         Ok(o)

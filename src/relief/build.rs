@@ -85,7 +85,17 @@ pub struct ReliefOptions {
     /// pixel and can fall between pixel centres, losing walls up to its height from the frame,
     /// which breaks the silhouette bound (measured in `docs/relief.md`).
     pub flat_px: f64,
+    /// Frames over which a node's colours move from its previous three obliques to a new
+    /// choice (§5.2: both sets are used for a few frames with varying weights, against the pop
+    /// of a switch); 0 switches at once.
+    pub blend_frames: u32,
 }
+
+/// Default frames of a switch of oblique maps (the paper's "a few frames").
+pub const DEFAULT_BLEND_FRAMES: u32 = 4;
+
+/// Most blend frames accepted.
+pub const MAX_BLEND_FRAMES: u32 = 60;
 
 /// Which nodes of the tree get maps.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize)]
@@ -116,6 +126,7 @@ impl Default for ReliefOptions {
             max_obliques: DEFAULT_MAX_OBLIQUES,
             stop: Stop::default(),
             flat_px: 0.0,
+            blend_frames: DEFAULT_BLEND_FRAMES,
         }
     }
 }
@@ -156,6 +167,13 @@ impl ReliefOptions {
                 "flat_px",
                 self.flat_px,
                 "a finite number of pixels >= 0",
+            ));
+        }
+        if self.blend_frames > MAX_BLEND_FRAMES {
+            return Err(bad(
+                "blend_frames",
+                f64::from(self.blend_frames),
+                "at most 60 frames",
             ));
         }
         if self.max_obliques > MAX_OBLIQUES {
@@ -708,7 +726,14 @@ mod tests {
     #[test]
     fn bad_options_are_refused_by_name() {
         assert!(ReliefOptions::default().validate().is_ok());
-        let cases: [(ReliefOptions, &str); 9] = [
+        let cases: [(ReliefOptions, &str); 10] = [
+            (
+                ReliefOptions {
+                    blend_frames: 61,
+                    ..Default::default()
+                },
+                "blend_frames",
+            ),
             (
                 ReliefOptions {
                     flat_px: -1.0,

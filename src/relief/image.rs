@@ -13,7 +13,7 @@
 
 use super::build::ReliefField;
 use super::cast::{cast_f32, cast_flat, Hit};
-use super::node::{shade, NodeFrameInfo, ObliqueXform, CHOSEN};
+use super::node::{shade_blended, NodeFrameInfo, ObliqueXform, CHOSEN};
 use crate::blockmap::{FrameRays, MapXform};
 use crate::blocks::BlockId;
 use crate::city::Mesh;
@@ -36,8 +36,98 @@ pub struct FrameNode {
     pub flat: bool,
     /// The obliques colouring its walls.
     pub chosen: [Option<u32>; CHOSEN],
+    /// While a switch of obliques is blended, the previous three ([`MapSets`]).
+    pub previous: Option<[Option<u32>; CHOSEN]>,
+    /// The share of `chosen` in the blend, of 256 (256: `chosen` alone).
+    pub weight: u32,
     /// Its ray constants.
     pub xform: MapXform,
+}
+
+/// The obliques each node drew with, frame after frame, and the blends of their switches
+/// (Andujar et al., §5.2: both sets during a few frames, with varying weights). When a node's
+/// choice changes, its colours move from the old three to the new three over `frames` frames
+/// in equal steps (the new set's weight `(k + 1)·256 / (frames + 1)` on the `k`-th frame after the
+/// switch); a choice that changes during a blend is taken when the blend ends, so the drawn
+/// colours never jump (they may lag the choice by `frames` frames). The state advances once per
+/// camera: drawing the same camera again (the walk's reference and popping frames) sees the same
+/// blends. Both renderers keep one, so they draw the same colours.
+#[derive(Clone, Debug, Default)]
+pub struct MapSets {
+    frames: u32,
+    last: Option<[f64; 5]>,
+    nodes: std::collections::HashMap<usize, SetState>,
+}
+
+#[derive(Clone, Copy, Debug)]
+struct SetState {
+    current: [Option<u32>; CHOSEN],
+    previous: [Option<u32>; CHOSEN],
+    /// Frames since the switch.
+    age: u32,
+}
+
+impl MapSets {
+    /// Blends over `frames` frames (0: switches at once).
+    pub fn new(frames: u32) -> Self {
+        Self {
+            frames,
+            ..Self::default()
+        }
+    }
+
+    /// Sets each frame node's previous set and weight for `camera`, advancing the state when
+    /// `camera` is not the one last seen.
+    pub fn apply(&mut self, nodes: &mut [FrameNode], camera: &Camera) {
+        let key = [
+            camera.position.x,
+            camera.position.y,
+            camera.position.z,
+            camera.yaw,
+            camera.pitch,
+        ];
+        let advance = self.last != Some(key);
+        self.last = Some(key);
+        let frames = self.frames;
+        for f in nodes.iter() {
+            let st = self.nodes.entry(f.node).or_insert(SetState {
+                current: f.chosen,
+                previous: f.chosen,
+                age: frames,
+            });
+            if advance {
+                if st.age < frames {
+                    // A choice that changes during a blend waits for it to end: the drawn colours
+                    // move in equal steps, never jump.
+                    st.age += 1;
+                } else if st.current != f.chosen {
+                    st.previous = st.current;
+                    st.current = f.chosen;
+                    st.age = 0;
+                }
+            }
+        }
+        self.peek(nodes);
+    }
+
+    /// Sets each frame node's obliques, previous set and weight from the state as it is,
+    /// without advancing it: what the last frame drew its nodes with (a node the state does not
+    /// know keeps its own choice, unblended). Drawn beside [`MapSets::apply`]'s frame for the same
+    /// camera, the two differ only by what this frame's switches and blend steps changed.
+    pub fn peek(&self, nodes: &mut [FrameNode]) {
+        for f in nodes.iter_mut() {
+            f.previous = None;
+            f.weight = 256;
+            let Some(st) = self.nodes.get(&f.node) else {
+                continue;
+            };
+            f.chosen = st.current;
+            if st.age < self.frames && st.previous != st.current {
+                f.previous = Some(st.previous);
+                f.weight = (st.age + 1) * 256 / (self.frames + 1);
+            }
+        }
+    }
 }
 
 /// The texture-space ray constants of a node (its texture space `p = origin + scale ⊙ q`)
@@ -71,6 +161,8 @@ pub fn frame_nodes(
                 node: i,
                 flat: n.is_flat(camera, height_px),
                 chosen: n.choose(camera.position),
+                previous: None,
+                weight: 256,
                 xform: node_xform(n.tex_origin, n.tex_scale, camera),
             }
         })
@@ -216,7 +308,15 @@ pub fn cast_image(
                         Some((depth, k, h, ray)) => {
                             let f = &nodes[k];
                             let n = &field.nodes[f.node];
-                            let c = shade(n, prepared.xforms(f.node), &f.chosen, &ray, &h);
+                            let c = shade_blended(
+                                n,
+                                prepared.xforms(f.node),
+                                &f.chosen,
+                                f.previous.as_ref(),
+                                f.weight,
+                                &ray,
+                                &h,
+                            );
                             (Some(h), depth, c, f.node as u32)
                         }
                     }
@@ -250,6 +350,7 @@ pub struct CpuReliefRenderer<'a> {
     ground: &'a Mesh,
     field: &'a ReliefField,
     prepared: Prepared<'a>,
+    sets: std::sync::Mutex<MapSets>,
     size: (u32, u32),
 }
 
@@ -266,6 +367,7 @@ impl<'a> CpuReliefRenderer<'a> {
             ground,
             field,
             prepared: Prepared::new(field),
+            sets: std::sync::Mutex::new(MapSets::new(field.options.blend_frames)),
             size,
         }
     }
@@ -322,7 +424,11 @@ impl FrameRenderer for CpuReliefRenderer<'_> {
             oracle::shade_with_ground_depth(&list, self.ground, camera, w, h);
         let meshes_s = t0.elapsed().as_secs_f64();
         let t1 = Instant::now();
-        let nodes = frame_nodes(self.prepared.infos(), far, camera, h);
+        let mut nodes = frame_nodes(self.prepared.infos(), far, camera, h);
+        self.sets
+            .lock()
+            .map_err(|_| "relief map sets: a renderer thread panicked")?
+            .apply(&mut nodes, camera);
         let relief = cast_image(self.field, &self.prepared, &nodes, camera, w, h);
         let mut won = 0u64;
         for (k, px) in img.pixels_mut().enumerate() {
@@ -339,5 +445,58 @@ impl FrameRenderer for CpuReliefRenderer<'_> {
             passes: vec![("meshes", meshes_s), ("far", far_s)],
             far_pixels: Some(won),
         })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use glam::DVec3;
+
+    fn node(chosen: [Option<u32>; CHOSEN]) -> FrameNode {
+        FrameNode {
+            node: 7,
+            flat: false,
+            chosen,
+            previous: None,
+            weight: 256,
+            xform: MapXform {
+                ax: [0.0; 3],
+                ay: [0.0; 3],
+                af: [0.0; 3],
+                b: [0.0; 3],
+            },
+        }
+    }
+
+    #[test]
+    fn a_switch_is_blended_over_the_frames_asked_for() {
+        let a = [Some(0), Some(1), Some(2)];
+        let b = [Some(3), Some(1), Some(2)];
+        let mut sets = MapSets::new(4);
+        let cam = |x: f64| Camera::looking_at(DVec3::new(x, 0.0, 10.0), DVec3::ZERO);
+        let mut weights = Vec::new();
+        for (frame, chosen) in [a, a, b, b, b, b, b, b].into_iter().enumerate() {
+            let mut n = [node(chosen)];
+            sets.apply(&mut n, &cam(frame as f64));
+            // The same camera again (a reference frame) sees the same blend.
+            let mut again = [node(chosen)];
+            sets.apply(&mut again, &cam(frame as f64));
+            assert_eq!(again[0].weight, n[0].weight);
+            assert_eq!(again[0].previous, n[0].previous);
+            if n[0].previous.is_some() {
+                assert_eq!(n[0].previous, Some(a));
+            }
+            weights.push(n[0].weight);
+        }
+        // New set's share: (k + 1)·256/5 on the k-th frame after the switch, then alone.
+        assert_eq!(weights, [256, 256, 51, 102, 153, 204, 256, 256]);
+        // Without blending a switch is immediate.
+        let mut sets = MapSets::new(0);
+        for (frame, chosen) in [a, b].into_iter().enumerate() {
+            let mut n = [node(chosen)];
+            sets.apply(&mut n, &cam(frame as f64));
+            assert_eq!((n[0].previous, n[0].weight), (None, 256));
+        }
     }
 }

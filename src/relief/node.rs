@@ -322,6 +322,38 @@ pub fn shade(
     }
 }
 
+/// [`shade`] while a switch of obliques is blended: on a wall, the colour with the `previous`
+/// three mixed with the colour with `chosen` by `weight` (of 256, the new set's share) in
+/// integers, `(old·(256 − w) + new·w + 128) / 256` per channel, as the shader mixes them;
+/// elsewhere, or without a previous set, the plain colour.
+pub fn shade_blended(
+    node: &NodeMaps,
+    xf: &[ObliqueXform],
+    chosen: &[Option<u32>; CHOSEN],
+    previous: Option<&[Option<u32>; CHOSEN]>,
+    weight: u32,
+    ray: &TexRay<f32>,
+    hit: &Hit,
+) -> [u8; 4] {
+    let new = shade(node, xf, chosen, ray, hit);
+    let wall = matches!(hit.face, Face::WallX | Face::WallY);
+    match previous {
+        Some(prev) if wall && weight < 256 => {
+            let old = shade(node, xf, prev, ray, hit);
+            let mix = |o: u8, n: u8| {
+                ((u32::from(o) * (256 - weight) + u32::from(n) * weight + 128) >> 8) as u8
+            };
+            [
+                mix(old[0], new[0]),
+                mix(old[1], new[1]),
+                mix(old[2], new[2]),
+                255,
+            ]
+        }
+        _ => new,
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -92,6 +92,13 @@ struct Instance {
     rows: [[f32; 4]; 9],
     /// Their tolerances.
     tol: [f32; 4],
+    /// While a switch is blended: the previous three's oblique layers ([`NONE`] where none),
+    /// and in `w` the new set's weight of 256 (256: no blend).
+    prev: [u32; 4],
+    /// Rows of the previous maps' affine maps.
+    prev_rows: [[f32; 4]; 9],
+    /// Their tolerances.
+    prev_tol: [f32; 4],
 }
 
 /// One set of texture arrays.
@@ -127,6 +134,7 @@ pub struct ReliefRenderer {
     slots: Vec<Slot>,
     infos: Vec<NodeFrameInfo>,
     xforms: Vec<Vec<ObliqueXform>>,
+    sets: std::sync::Mutex<crate::relief::image::MapSets>,
     bytes: u64,
     obliques: usize,
     ids: wgpu::Texture,
@@ -615,6 +623,9 @@ impl ReliefRenderer {
             slots,
             infos: nodes.iter().map(NodeMaps::frame_info).collect(),
             xforms: nodes.iter().map(NodeMaps::oblique_xforms).collect(),
+            sets: std::sync::Mutex::new(crate::relief::image::MapSets::new(
+                field.options.blend_frames,
+            )),
             bytes,
             obliques: nodes.iter().map(|n| n.obliques.len()).sum(),
             ids,
@@ -685,7 +696,14 @@ impl ReliefRenderer {
         gpu.queue
             .write_buffer(&self.frame, 0, bytemuck::bytes_of(&uniform));
         // The CPU renderer's decisions, instances grouped by page, in `far` order within a page.
-        let decided = frame_nodes(&self.infos, far, camera, h);
+        let mut decided = frame_nodes(&self.infos, far, camera, h);
+        self.sets
+            .lock()
+            .map_err(|_| RenderError::FarField {
+                adapter: gpu.adapter_name(),
+                what: "the relief map sets' lock is poisoned".into(),
+            })?
+            .apply(&mut decided, camera);
         let mut inst = Vec::with_capacity(far.len());
         let mut ranges = Vec::new();
         for p in 0..self.pages.len() {
@@ -695,16 +713,27 @@ impl ReliefRenderer {
                 let xf = &self.xforms[fnode.node];
                 let x = &fnode.xform;
                 let v4 = |v: [f32; 3]| [v[0], v[1], v[2], 0.0];
-                let mut chosen = [NONE; 4];
-                let mut rows = [[0.0f32; 4]; 9];
-                let mut tol = [0.0f32; 4];
-                for (k, c) in fnode.chosen.iter().enumerate().take(CHOSEN) {
-                    if let Some(o) = c.and_then(|o| xf.get(o as usize).map(|x| (o, x))) {
-                        chosen[k] = s.oblique_layer + o.0;
-                        rows[3 * k..3 * k + 3].copy_from_slice(&o.1.rows);
-                        tol[k] = o.1.tol_q;
+                let set = |maps: &[Option<u32>; CHOSEN]| {
+                    let mut layers = [NONE; 4];
+                    let mut rows = [[0.0f32; 4]; 9];
+                    let mut tol = [0.0f32; 4];
+                    for (k, c) in maps.iter().enumerate().take(CHOSEN) {
+                        if let Some(o) = c.and_then(|o| xf.get(o as usize).map(|x| (o, x))) {
+                            layers[k] = s.oblique_layer + o.0;
+                            rows[3 * k..3 * k + 3].copy_from_slice(&o.1.rows);
+                            tol[k] = o.1.tol_q;
+                        }
                     }
-                }
+                    (layers, rows, tol)
+                };
+                let (chosen, rows, tol) = set(&fnode.chosen);
+                let (mut prev, prev_rows, prev_tol) =
+                    set(&fnode.previous.unwrap_or([None; CHOSEN]));
+                prev[3] = if fnode.previous.is_some() {
+                    fnode.weight
+                } else {
+                    256
+                };
                 inst.push(Instance {
                     ax: v4(x.ax),
                     ay: v4(x.ay),
@@ -717,6 +746,9 @@ impl ReliefRenderer {
                     chosen,
                     rows,
                     tol,
+                    prev,
+                    prev_rows,
+                    prev_tol,
                 });
             }
             if inst.len() as u32 > first {
@@ -897,7 +929,7 @@ mod tests {
     fn layouts_match_the_shader() {
         // Frame: mat4 + 2 vec4; Inst: 6 vec4 + 3 vec4<u32> + 9 vec4 + vec4.
         assert_eq!(std::mem::size_of::<FrameUniform>(), 96);
-        assert_eq!(std::mem::size_of::<Instance>(), 304);
+        assert_eq!(std::mem::size_of::<Instance>(), 480);
     }
 
     #[test]

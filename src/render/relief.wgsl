@@ -50,6 +50,11 @@ struct Inst {
     rows: array<vec4<f32>, 9>,
     // Per chosen oblique, the depth-match tolerance in quantised units.
     tol: vec4<f32>,
+    // While a switch of obliques is blended (relief::image::MapSets): xyz the previous three's
+    // layers (NONE where none), w the new set's weight of 256 (256: no blend).
+    prev: vec4<u32>,
+    prev_rows: array<vec4<f32>, 9>,
+    prev_tol: vec4<f32>,
 };
 
 @group(0) @binding(0) var<uniform> f: Frame;
@@ -308,27 +313,30 @@ fn zenithal(layer: i32, i: i32, j: i32) -> vec4<u32> {
     return vec4<u32>(c.xyz, 255u);
 }
 
-// relief::node::shade: the zenithal colour on tops; on walls the first chosen oblique whose
-// depth matches the point's within the tolerance, else the integer average of the covered
-// ones, else the zenithal colour.
-fn shade(ii: u32, o: vec3<f32>, d: vec3<f32>, h: Hit) -> vec4<u32> {
+// relief::node::shade over the chosen three (`prev` false) or the previous three (`prev` true):
+// the first oblique whose depth matches the wall point's within the tolerance, else the integer
+// average of the covered ones, else the zenithal colour.
+fn shade_wall(ii: u32, prev: bool, p: vec3<f32>, h: Hit) -> vec4<u32> {
     let layer = i32(instances[ii].info.x);
-    if h.face != WALL_X && h.face != WALL_Y {
-        return zenithal(layer, h.i, h.j);
-    }
-    let t = h.t;
-    let p = vec3<f32>(o.x + d.x * t, o.y + d.y * t, o.z + d.z * t);
     let mf = f32(instances[ii].info.y);
     var sum = vec3<u32>(0u);
     var n = 0u;
     for (var k = 0u; k < 3u; k++) {
-        let ob = instances[ii].chosen[k];
+        var ob = instances[ii].chosen[k];
+        var ra = instances[ii].rows[3u * k];
+        var rb = instances[ii].rows[3u * k + 1u];
+        var rd = instances[ii].rows[3u * k + 2u];
+        var tol = instances[ii].tol[k];
+        if prev {
+            ob = instances[ii].prev[k];
+            ra = instances[ii].prev_rows[3u * k];
+            rb = instances[ii].prev_rows[3u * k + 1u];
+            rd = instances[ii].prev_rows[3u * k + 2u];
+            tol = instances[ii].prev_tol[k];
+        }
         if ob == NONE {
             continue;
         }
-        let ra = instances[ii].rows[3u * k];
-        let rb = instances[ii].rows[3u * k + 1u];
-        let rd = instances[ii].rows[3u * k + 2u];
         let a = ra.x * p.x + ra.y * p.y + ra.z * p.z + ra.w;
         let b = rb.x * p.x + rb.y * p.y + rb.z * p.z + rb.w;
         let dq = rd.x * p.x + rd.y * p.y + rd.z * p.z + rd.w;
@@ -341,7 +349,7 @@ fn shade(ii: u32, o: vec3<f32>, d: vec3<f32>, h: Hit) -> vec4<u32> {
             continue;
         }
         let c = textureLoad(obl_color, at, i32(ob), 0).xyz;
-        if abs(f32(q) - dq) <= instances[ii].tol[k] {
+        if abs(f32(q) - dq) <= tol {
             return vec4<u32>(c, 255u);
         }
         sum += c;
@@ -351,6 +359,25 @@ fn shade(ii: u32, o: vec3<f32>, d: vec3<f32>, h: Hit) -> vec4<u32> {
         return zenithal(layer, h.i, h.j);
     }
     return vec4<u32>((sum + vec3<u32>(n / 2u)) / n, 255u);
+}
+
+// relief::node::shade_blended: the zenithal colour on tops; on walls the chosen three's colour,
+// mixed with the previous three's by the new set's weight while a switch is blended.
+fn shade(ii: u32, o: vec3<f32>, d: vec3<f32>, h: Hit) -> vec4<u32> {
+    let layer = i32(instances[ii].info.x);
+    if h.face != WALL_X && h.face != WALL_Y {
+        return zenithal(layer, h.i, h.j);
+    }
+    let t = h.t;
+    let p = vec3<f32>(o.x + d.x * t, o.y + d.y * t, o.z + d.z * t);
+    let c_new = shade_wall(ii, false, p, h);
+    let w = instances[ii].prev.w;
+    if w >= 256u {
+        return c_new;
+    }
+    let c_old = shade_wall(ii, true, p, h);
+    let mixed = (c_old.xyz * (256u - w) + c_new.xyz * w + vec3<u32>(128u)) >> vec3<u32>(8u);
+    return vec4<u32>(mixed, 255u);
 }
 
 struct FsOut {
