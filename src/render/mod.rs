@@ -24,6 +24,7 @@
 //! colour; the ground plane writes its depth too.
 
 mod blockmap;
+mod far_pass;
 mod frames;
 mod mesh;
 mod pack;

@@ -34,9 +34,9 @@
 //!   of the colouring) and in the last bits of the depth (`tests/relief_gpu.rs` measures both).
 //! - Writing depth disables early depth tests; the proxy's own depth is not used.
 
-use super::blockmap::{FarPass, FarReadback};
-use super::mesh::map_read;
-use super::{padded_row_bytes, Gpu, PassTimer, Readback, RenderError};
+use super::blockmap::FarPass;
+use super::far_pass::{FarReadback, FarTargets, ID_FORMAT};
+use super::{Gpu, PassTimer, RenderError};
 use crate::blockmap::FrameRays;
 use crate::geom::Camera;
 use crate::relief::cast::step_limit;
@@ -55,7 +55,6 @@ const COLOR_MAP_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba8Uint;
 /// Height and depth maps: the 16-bit values, read as integers.
 const DEPTH_MAP_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::R16Uint;
 /// The node-index target.
-const ID_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::R32Uint;
 /// Layers of one array of a page at most.
 const PAGE_LAYERS: u32 = 256;
 /// Value of a chosen-oblique slot with no map.
@@ -137,9 +136,7 @@ pub struct ReliefRenderer {
     sets: std::sync::Mutex<crate::relief::image::MapSets>,
     bytes: u64,
     obliques: usize,
-    ids: wgpu::Texture,
-    readback: wgpu::Buffer,
-    padded_row: u32,
+    targets: FarTargets,
     queries: Option<PassTimer>,
 }
 
@@ -589,28 +586,7 @@ impl ReliefRenderer {
             multiview_mask: None,
             cache: None,
         });
-        let ids = device.create_texture(&wgpu::TextureDescriptor {
-            label: Some("relief node ids"),
-            size: wgpu::Extent3d {
-                width: size.0,
-                height: size.1,
-                depth_or_array_layers: 1,
-            },
-            mip_level_count: 1,
-            sample_count: 1,
-            dimension: wgpu::TextureDimension::D2,
-            format: ID_FORMAT,
-            usage: wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::COPY_SRC,
-            view_formats: &[],
-        });
-        let padded_row = padded_row_bytes(size.0);
-        // Three images of 4 bytes per pixel: node ids, colour, depth.
-        let readback = device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("relief read-back"),
-            size: 3 * padded_row as u64 * size.1 as u64,
-            usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::MAP_READ,
-            mapped_at_creation: false,
-        });
+        let targets = FarTargets::new(device, size, "relief");
         let queries = PassTimer::new(gpu, "relief pass");
         Ok(Self {
             size,
@@ -628,9 +604,7 @@ impl ReliefRenderer {
             )),
             bytes,
             obliques: nodes.iter().map(|n| n.obliques.len()).sum(),
-            ids,
-            readback,
-            padded_row,
+            targets,
             queries,
         })
     }
@@ -759,144 +733,40 @@ impl ReliefRenderer {
             gpu.queue
                 .write_buffer(&self.instances, 0, bytemuck::cast_slice(&inst));
         }
-        let color_view = color.create_view(&Default::default());
-        let depth_view = depth.create_view(&Default::default());
-        let id_view = self.ids.create_view(&Default::default());
         let mut encoder = gpu
             .device
             .create_command_encoder(&wgpu::CommandEncoderDescriptor {
                 label: Some("relief far field"),
             });
-        {
-            let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
-                label: Some("relief far field"),
-                color_attachments: &[
-                    Some(wgpu::RenderPassColorAttachment {
-                        view: &color_view,
-                        depth_slice: None,
-                        resolve_target: None,
-                        ops: wgpu::Operations {
-                            load: wgpu::LoadOp::Load,
-                            store: wgpu::StoreOp::Store,
-                        },
-                    }),
-                    Some(wgpu::RenderPassColorAttachment {
-                        view: &id_view,
-                        depth_slice: None,
-                        resolve_target: None,
-                        ops: wgpu::Operations {
-                            load: wgpu::LoadOp::Clear(wgpu::Color {
-                                r: super::NO_MAP as f64,
-                                g: 0.0,
-                                b: 0.0,
-                                a: 0.0,
-                            }),
-                            store: wgpu::StoreOp::Store,
-                        },
-                    }),
-                ],
-                depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
-                    view: &depth_view,
-                    depth_ops: Some(wgpu::Operations {
-                        load: wgpu::LoadOp::Load,
-                        store: wgpu::StoreOp::Store,
-                    }),
-                    stencil_ops: None,
-                }),
-                timestamp_writes: self.queries.as_ref().map(PassTimer::writes),
-                occlusion_query_set: None,
-                multiview_mask: None,
-            });
-            pass.set_pipeline(&self.pipeline);
-            pass.set_bind_group(0, &self.globals, &[]);
-            for (p, r) in &ranges {
-                pass.set_bind_group(1, &self.pages[*p].bind_group, &[]);
-                pass.draw(0..36, r.clone());
-            }
-        }
+        self.targets.pass(
+            &mut encoder,
+            color,
+            depth,
+            self.queries.as_ref(),
+            "relief far field",
+            |pass| {
+                pass.set_pipeline(&self.pipeline);
+                pass.set_bind_group(0, &self.globals, &[]);
+                for (p, r) in &ranges {
+                    pass.set_bind_group(1, &self.pages[*p].bind_group, &[]);
+                    pass.draw(0..36, r.clone());
+                }
+            },
+        );
         if let Some(t) = &self.queries {
             t.resolve(&mut encoder);
         }
-        let plane = self.padded_row as u64 * h as u64;
-        let copy = |encoder: &mut wgpu::CommandEncoder,
-                    texture: &wgpu::Texture,
-                    aspect: wgpu::TextureAspect,
-                    slot: u64| {
-            encoder.copy_texture_to_buffer(
-                wgpu::TexelCopyTextureInfo {
-                    texture,
-                    mip_level: 0,
-                    origin: wgpu::Origin3d::ZERO,
-                    aspect,
-                },
-                wgpu::TexelCopyBufferInfo {
-                    buffer: &self.readback,
-                    layout: wgpu::TexelCopyBufferLayout {
-                        offset: slot * plane,
-                        bytes_per_row: Some(self.padded_row),
-                        rows_per_image: Some(h),
-                    },
-                },
-                wgpu::Extent3d {
-                    width: w,
-                    height: h,
-                    depth_or_array_layers: 1,
-                },
-            );
-        };
-        copy(&mut encoder, &self.ids, wgpu::TextureAspect::All, 0);
-        if read.color {
-            copy(&mut encoder, color, wgpu::TextureAspect::All, 1);
-        }
-        if read.depth {
-            copy(&mut encoder, depth, wgpu::TextureAspect::DepthOnly, 2);
-        }
-        gpu.queue.submit([encoder.finish()]);
-        let bytes = map_read(gpu, &self.readback, Readback::FarField)?;
-        let expected = 3 * plane as usize;
-        if bytes.len() < expected {
-            return Err(RenderError::ShortReadback {
-                what: Readback::FarField,
-                got: bytes.len(),
-                expected,
-            });
-        }
-        let unpad = |slot: usize| -> Vec<u8> {
-            let row = (w * 4) as usize;
-            let mut out = Vec::with_capacity(row * h as usize);
-            for y in 0..h as usize {
-                let s = slot * plane as usize + y * self.padded_row as usize;
-                out.extend_from_slice(&bytes[s..s + row]);
-            }
-            out
-        };
-        let words = |b: Vec<u8>| -> Vec<[u8; 4]> {
-            b.chunks_exact(4)
-                .map(|c| [c[0], c[1], c[2], c[3]])
-                .collect()
-        };
-        let map_ids: Vec<u32> = words(unpad(0))
-            .into_iter()
-            .map(u32::from_le_bytes)
-            .collect();
-        let far_pixels = map_ids.iter().filter(|&&m| m != super::NO_MAP).count() as u64;
-        let rgba = read.color.then(|| unpad(1));
-        let depth = read.depth.then(|| {
-            words(unpad(2))
-                .into_iter()
-                .map(f32::from_le_bytes)
-                .collect()
-        });
+        let images = self.targets.read(gpu, encoder, color, depth, read)?;
         let gpu_s = self.queries.as_ref().map(|t| t.seconds(gpu)).transpose()?;
         Ok(FarPass {
             gpu_s,
             wall_s: start.elapsed().as_secs_f64(),
             maps: inst.len() as u32,
             draws: ranges.len() as u32,
-            map_ids,
-            far_pixels,
-            rgba,
-            depth,
+            map_ids: images.map_ids,
+            far_pixels: images.far_pixels,
+            rgba: images.rgba,
+            depth: images.depth,
         })
     }
 }
