@@ -174,9 +174,12 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             if occlusion { " + occlusion" } else { "" }
         );
         if far_on {
+            let which = match args.far.mode {
+                FarMode::Blockmaps => format!("BlockMaps K = {}", args.far.k),
+                _ => "relief impostors".to_string(),
+            };
             outln!(
-                "far field: BlockMaps K = {} at τ = {} px; {} maps in the last frame ({} pixels), {:.1} per frame",
-                args.far.k,
+                "far field: {which} at τ = {} px; {} nodes in the last frame ({} pixels), {:.1} per frame",
                 args.far.tau,
                 summary.far_nodes,
                 summary.far_pixels,
