@@ -23,7 +23,6 @@ use blockwalk::relief::{
 use blockwalk::render::{GpuFrameRenderer, NO_MAP};
 use blockwalk::scene::Scene;
 use blockwalk::visibility::FrameRenderer;
-use blockwalk::walk::far::relief::twin_ray;
 use glam::DVec3;
 use rand::{Rng, SeedableRng};
 use std::collections::HashSet;
@@ -312,7 +311,7 @@ fn compare(
             // A tie of the f64 twin of any node drawn at this pixel explains it.
             let tie = nodes.iter().any(|f| {
                 let n = &cpu_field.nodes[f.node];
-                let r = twin_ray(n, camera, W, H, x, y);
+                let r = n.twin_ray(camera, W, H, x, y);
                 let levels = prepared.levels(f.node);
                 let cast = if f.flat {
                     cast_flat(levels, n.m(), &r)

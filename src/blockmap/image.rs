@@ -32,10 +32,9 @@ use super::layout::{BlockMap, BlockMapMeta};
 use crate::blocks::BlockId;
 use crate::city::Mesh;
 use crate::geom::Camera;
-use crate::visibility::{oracle, CpuFrameRenderer, DrawError, DrawnFrame, FrameRenderer};
+use crate::visibility::{CpuFrameRenderer, DrawError, DrawnFrame, FrameRenderer};
 use glam::DVec3;
 use rayon::prelude::*;
-use std::time::Instant;
 
 /// The per-frame constants of the pixel rays and of the depth (see the module doc), as the
 /// renderer uploads them.
@@ -105,16 +104,29 @@ pub struct MapXform {
     pub b: [f32; 3],
 }
 
-/// The `f64` values behind a [`MapXform`].
-fn xform64(meta: &BlockMapMeta, camera: &Camera) -> [DVec3; 4] {
-    let s = meta.side / meta.k as f64;
-    let hz = meta.zmax - meta.zmin;
-    let inv = DVec3::new(1.0 / s, 1.0 / s, 1.0 / hz);
+/// The `f64` values behind a [`MapXform`] of the texture space `p = origin + scale ⊙ q`
+/// (local frame `p`, texture coordinates `q`).
+fn texture_xform64(origin: DVec3, scale: DVec3, camera: &Camera) -> [DVec3; 4] {
+    let inv = DVec3::ONE / scale;
     let f = camera.forward();
     let u = camera.up();
     let r = f.cross(u);
-    let min = DVec3::new(meta.min[0], meta.min[1], meta.zmin);
-    [r * inv, u * inv, f * inv, (camera.position - min) * inv]
+    [r * inv, u * inv, f * inv, (camera.position - origin) * inv]
+}
+
+/// A BlockMap's texture space: `(origin, scale)` of [`texture_xform64`].
+fn map_space(meta: &BlockMapMeta) -> (DVec3, DVec3) {
+    let s = meta.side / meta.k as f64;
+    (
+        DVec3::new(meta.min[0], meta.min[1], meta.zmin),
+        DVec3::new(s, s, meta.zmax - meta.zmin),
+    )
+}
+
+/// The `f64` values behind a BlockMap's [`MapXform`].
+fn xform64(meta: &BlockMapMeta, camera: &Camera) -> [DVec3; 4] {
+    let (origin, scale) = map_space(meta);
+    texture_xform64(origin, scale, camera)
 }
 
 impl MapXform {
@@ -126,6 +138,14 @@ impl MapXform {
     /// The constants of the map with box and quantisation `meta` seen from `camera`.
     pub fn from_meta(meta: &BlockMapMeta, camera: &Camera) -> Self {
         let [ax, ay, af, b] = xform64(meta, camera).map(|v| v.as_vec3().to_array());
+        Self { ax, ay, af, b }
+    }
+
+    /// The constants of any texture space `p = origin + scale ⊙ q` (local frame `p`) seen from
+    /// `camera`: what a far field other than BlockMaps casts its rays with.
+    pub fn from_texture_space(origin: DVec3, scale: DVec3, camera: &Camera) -> Self {
+        let [ax, ay, af, b] =
+            texture_xform64(origin, scale, camera).map(|v| v.as_vec3().to_array());
         Self { ax, ay, af, b }
     }
 
@@ -149,12 +169,26 @@ pub fn twin_ray(
     x: u32,
     y: u32,
 ) -> TexRay<f64> {
+    let (origin, scale) = map_space(&map.meta);
+    twin_ray_in(origin, scale, camera, width, height, x, y)
+}
+
+/// [`twin_ray`] in any texture space `p = origin + scale ⊙ q` ([`MapXform::from_texture_space`]).
+pub fn twin_ray_in(
+    origin: DVec3,
+    scale: DVec3,
+    camera: &Camera,
+    width: u32,
+    height: u32,
+    x: u32,
+    y: u32,
+) -> TexRay<f64> {
     let p = camera.clip_from_view();
     let tx = 1.0 / p.x_axis.x;
     let ty = 1.0 / p.y_axis.y;
     let vx = (x as f64 + 0.5) * (2.0 * tx / width.max(1) as f64) - tx;
     let vy = (y as f64 + 0.5) * (-2.0 * ty / height.max(1) as f64) + ty;
-    let [ax, ay, af, b] = xform64(&map.meta, camera);
+    let [ax, ay, af, b] = texture_xform64(origin, scale, camera);
     let d = ax * vx + ay * vy + af;
     let o = b + d * camera.near;
     TexRay {
@@ -360,35 +394,16 @@ impl FrameRenderer for CpuHybridRenderer<'_> {
             )
             .into());
         }
-        let (w, h) = self.size;
-        let t0 = Instant::now();
-        let keep: std::collections::HashSet<BlockId> = visible.iter().copied().collect();
-        let list: Vec<(BlockId, &Mesh)> = self
-            .meshes
-            .iter()
-            .filter(|(b, _)| keep.contains(b))
-            .map(|(b, m)| (*b, m))
-            .collect();
-        let (mut img, mesh_depth) =
-            oracle::shade_with_ground_depth(&list, self.ground, camera, w, h);
-        let meshes_s = t0.elapsed().as_secs_f64();
-        let t1 = Instant::now();
-        let maps = cast_image(&self.maps, far, camera, w, h);
-        let mut won = 0u64;
-        for (k, px) in img.pixels_mut().enumerate() {
-            if maps.hit[k] && maps.depth[k] < mesh_depth[k] {
-                *px = image::Rgba(maps.color[k]);
-                won += 1;
-            }
-        }
-        let far_s = t1.elapsed().as_secs_f64();
-        Ok(DrawnFrame {
-            seconds: meshes_s + far_s,
-            gpu_time: false,
-            image: want_image.then_some(img),
-            passes: vec![("meshes", meshes_s), ("far", far_s)],
-            far_pixels: Some(won),
-        })
+        self.meshes_only()
+            .draw_composited(camera, visible, want_image, |w, h| {
+                let maps = cast_image(&self.maps, far, camera, w, h);
+                Ok(maps
+                    .hit
+                    .iter()
+                    .zip(maps.depth.iter().zip(&maps.color))
+                    .map(|(&hit, (&d, &c))| hit.then_some((d, c)))
+                    .collect())
+            })
     }
 }
 
@@ -397,6 +412,7 @@ mod tests {
     use super::*;
     use crate::blockmap::cast::cast_f64;
     use crate::blockmap::compare::pixel_ray;
+    use crate::visibility::oracle;
     use rand::{Rng, SeedableRng};
 
     /// A map with random heights over `[x0, x0 + 160] × [y0, y0 + 160]`, heights to 50 m.

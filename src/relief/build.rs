@@ -322,12 +322,12 @@ pub fn build_field(
             }
         }
     }
-    // The largest block, then M, then the tree with leaves at M·ts.
-    let probe = ReliefTree::build_with_blocks(city, opts.tree, Some(&block_of))?;
-    let b = largest_block_m(layout, &probe).max(opts.texel_m);
+    // The groups, the largest block, then M, then the tree with leaves at M·ts.
+    let groups = super::tree::merge(city, opts.tree.gap_m, Some(&block_of));
+    let b = largest_block_m(layout, &groups).max(opts.texel_m);
     let (m, capped) = map_size(opts, b);
     let params = opts.tree.with_leaf_edge(f64::from(m) * opts.texel_m)?;
-    let tree = ReliefTree::build_with_blocks(city, params, Some(&block_of))?;
+    let tree = ReliefTree::from_groups(groups, params)?;
     let formulas = Formulas::new(&tree, opts.texel_m, b)?;
     let origin = city.frame.origin;
     let buildings_of = |n: &super::tree::ReliefNode| -> Vec<u32> {

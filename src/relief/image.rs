@@ -3,7 +3,7 @@
 //!
 //! Rays are made exactly as for BlockMaps ([`crate::blockmap::image`]): the pixel's view
 //! direction from [`FrameRays`], taken into the node's texture space by per-node, per-frame
-//! constants ([`node_xform`], a [`MapXform`] computed in `f64` and rounded), starting on the near
+//! constants ([`MapXform::from_texture_space`], computed in `f64` and rounded), starting on the near
 //! plane; the depth written is [`FrameRays::depth`]. What a frame draws of each node
 //! ([`frame_nodes`]): whether it is a horizon node (its height projects under
 //! [`super::ReliefOptions::flat_px`] pixels: the flat quad) and which three obliques colour its
@@ -18,10 +18,9 @@ use crate::blockmap::{FrameRays, MapXform};
 use crate::blocks::BlockId;
 use crate::city::Mesh;
 use crate::geom::Camera;
-use crate::visibility::{oracle, CpuFrameRenderer, DrawError, DrawnFrame, FrameRenderer};
+use crate::visibility::{CpuFrameRenderer, DrawError, DrawnFrame, FrameRenderer};
 use glam::{DVec3, DVec4};
 use rayon::prelude::*;
-use std::time::Instant;
 
 /// The paper's threshold for horizon nodes: a node whose height projects to fewer than two
 /// pixels is drawn as a flat quad (§5.2). Not the default (see [`super::ReliefOptions::flat_px`]).
@@ -130,22 +129,6 @@ impl MapSets {
     }
 }
 
-/// The texture-space ray constants of a node (its texture space `p = origin + scale ⊙ q`)
-/// seen from `camera` (see the module doc).
-pub fn node_xform(origin: DVec3, scale: DVec3, camera: &Camera) -> MapXform {
-    let inv = DVec3::ONE / scale;
-    let f = camera.forward();
-    let u = camera.up();
-    let r = f.cross(u);
-    let v = |x: DVec3| x.as_vec3().to_array();
-    MapXform {
-        ax: v(r * inv),
-        ay: v(u * inv),
-        af: v(f * inv),
-        b: v((camera.position - origin) * inv),
-    }
-}
-
 /// What a frame draws of each node of `far` (indices into `nodes`) from `camera` on an image
 /// `height_px` high: the one decision both renderers use.
 pub fn frame_nodes(
@@ -163,7 +146,7 @@ pub fn frame_nodes(
                 chosen: n.choose(camera.position),
                 previous: None,
                 weight: 256,
-                xform: node_xform(n.tex_origin, n.tex_scale, camera),
+                xform: MapXform::from_texture_space(n.tex_origin, n.tex_scale, camera),
             }
         })
         .collect()
@@ -411,40 +394,22 @@ impl FrameRenderer for CpuReliefRenderer<'_> {
             )
             .into());
         }
-        let (w, h) = self.size;
-        let t0 = Instant::now();
-        let keep: std::collections::HashSet<BlockId> = visible.iter().copied().collect();
-        let list: Vec<(BlockId, &Mesh)> = self
-            .meshes
-            .iter()
-            .filter(|(b, _)| keep.contains(b))
-            .map(|(b, m)| (*b, m))
-            .collect();
-        let (mut img, mesh_depth) =
-            oracle::shade_with_ground_depth(&list, self.ground, camera, w, h);
-        let meshes_s = t0.elapsed().as_secs_f64();
-        let t1 = Instant::now();
-        let mut nodes = frame_nodes(self.prepared.infos(), far, camera, h);
-        self.sets
-            .lock()
-            .map_err(|_| "relief map sets: a renderer thread panicked")?
-            .apply(&mut nodes, camera);
-        let relief = cast_image(self.field, &self.prepared, &nodes, camera, w, h);
-        let mut won = 0u64;
-        for (k, px) in img.pixels_mut().enumerate() {
-            if relief.hit[k].is_some() && relief.depth[k] < mesh_depth[k] {
-                *px = image::Rgba(relief.color[k]);
-                won += 1;
-            }
-        }
-        let far_s = t1.elapsed().as_secs_f64();
-        Ok(DrawnFrame {
-            seconds: meshes_s + far_s,
-            gpu_time: false,
-            image: want_image.then_some(img),
-            passes: vec![("meshes", meshes_s), ("far", far_s)],
-            far_pixels: Some(won),
-        })
+        CpuFrameRenderer::new(self.meshes, self.size)
+            .with_ground(self.ground)
+            .draw_composited(camera, visible, want_image, |w, h| {
+                let mut nodes = frame_nodes(self.prepared.infos(), far, camera, h);
+                self.sets
+                    .lock()
+                    .map_err(|_| "relief map sets: a renderer thread panicked")?
+                    .apply(&mut nodes, camera);
+                let relief = cast_image(self.field, &self.prepared, &nodes, camera, w, h);
+                Ok(relief
+                    .hit
+                    .iter()
+                    .zip(relief.depth.iter().zip(&relief.color))
+                    .map(|(hit, (&d, &c))| hit.map(|_| (d, c)))
+                    .collect())
+            })
     }
 }
 

@@ -186,6 +186,14 @@ impl NodeMaps {
         }
     }
 
+    /// The `f64` twin of the ray the GPU casts through the centre of pixel `(x, y)` of a
+    /// `w × h` frame from `camera` in this node's texture space (for the casts' `f64` twins,
+    /// which name the ties).
+    pub fn twin_ray(&self, camera: &Camera, w: u32, h: u32, x: u32, y: u32) -> TexRay<f64> {
+        let (o, s) = self.tex_to_local();
+        crate::blockmap::image::twin_ray_in(o, s, camera, w, h, x, y)
+    }
+
     /// The local point at parameter `t` of a texture-space ray.
     pub fn local_point(&self, ray: &TexRay<f64>, t: f64) -> DVec3 {
         let (o, s) = self.tex_to_local();

@@ -347,7 +347,14 @@ impl ReliefTree {
         params: TreeParams,
         block_of: Option<&[u32]>,
     ) -> Result<Self, TreeError> {
-        let groups = merge(city, params.gap_m, block_of);
+        Self::from_groups(merge(city, params.gap_m, block_of), params)
+    }
+
+    /// The tree over building groups already merged ([`merge`]) with `params`.
+    ///
+    /// # Errors
+    /// [`TreeError::Empty`] without a group.
+    pub fn from_groups(groups: Vec<Group>, params: TreeParams) -> Result<Self, TreeError> {
         if groups.is_empty() {
             return Err(TreeError::Empty);
         }
@@ -670,8 +677,8 @@ pub struct TreeReport {
 }
 
 /// The largest block's size `b` of formula (9): the longer side of the largest box of the
-/// layout's blocks (outskirts groups left out); the largest group's when there is no block.
-pub fn largest_block_m(layout: &crate::blocks::BlockLayout, tree: &ReliefTree) -> f64 {
+/// layout's blocks (outskirts groups left out); the largest of `groups` when there is no block.
+pub fn largest_block_m(layout: &crate::blocks::BlockLayout, groups: &[Group]) -> f64 {
     let side = |r: Rect| (r.max[0] - r.min[0]).max(r.max[1] - r.min[1]);
     let blocks = layout
         .blocks
@@ -683,10 +690,7 @@ pub fn largest_block_m(layout: &crate::blocks::BlockLayout, tree: &ReliefTree) -
     if blocks > 0.0 {
         blocks
     } else {
-        tree.groups
-            .iter()
-            .map(|g| side(g.bounds))
-            .fold(0.0, f64::max)
+        groups.iter().map(|g| side(g.bounds)).fold(0.0, f64::max)
     }
 }
 
@@ -703,7 +707,7 @@ impl TreeReport {
         texel_m: f64,
     ) -> Result<Self, TreeError> {
         let tree = ReliefTree::build(city, params)?;
-        let b = largest_block_m(layout, &tree).max(texel_m);
+        let b = largest_block_m(layout, &tree.groups).max(texel_m);
         let formulas = Formulas::new(&tree, texel_m, b)?;
         Ok(Self {
             params,

@@ -183,6 +183,55 @@ impl<'a> CpuFrameRenderer<'a> {
             ..self
         }
     }
+
+    /// The CPU hybrid frame every far field's fallback draws: the `visible` blocks and the
+    /// ground through the oracle's shaded z-buffer, then `far(w, h)` (per pixel, row-major, the
+    /// far field's depth and colour where it hit) composited over them by depth (a far pixel wins
+    /// where its depth is less than the mesh pass's, the GPU's `Less` test); wall time, the two
+    /// passes timed apart.
+    ///
+    /// # Errors
+    /// What `far` returns.
+    pub fn draw_composited(
+        &self,
+        camera: &Camera,
+        visible: &[BlockId],
+        want_image: bool,
+        far: impl FnOnce(u32, u32) -> Result<Vec<Option<(f32, [u8; 4])>>, DrawError>,
+    ) -> Result<DrawnFrame, DrawError> {
+        let (w, h) = self.size;
+        let t0 = Instant::now();
+        let keep: HashSet<BlockId> = visible.iter().copied().collect();
+        let list: Vec<(BlockId, &Mesh)> = self
+            .meshes
+            .iter()
+            .filter(|(b, _)| keep.contains(b))
+            .map(|(b, m)| (*b, m))
+            .collect();
+        let empty = Mesh::default();
+        let ground = self.ground.unwrap_or(&empty);
+        let (mut img, mesh_depth) = oracle::shade_with_ground_depth(&list, ground, camera, w, h);
+        let meshes_s = t0.elapsed().as_secs_f64();
+        let t1 = Instant::now();
+        let layer = far(w, h)?;
+        let mut won = 0u64;
+        for ((px, f), &md) in img.pixels_mut().zip(&layer).zip(&mesh_depth) {
+            if let Some((depth, color)) = *f {
+                if depth < md {
+                    *px = image::Rgba(color);
+                    won += 1;
+                }
+            }
+        }
+        let far_s = t1.elapsed().as_secs_f64();
+        Ok(DrawnFrame {
+            seconds: meshes_s + far_s,
+            gpu_time: false,
+            image: want_image.then_some(img),
+            passes: vec![("meshes", meshes_s), ("far", far_s)],
+            far_pixels: Some(won),
+        })
+    }
 }
 
 impl FrameRenderer for CpuFrameRenderer<'_> {

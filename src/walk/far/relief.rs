@@ -4,7 +4,6 @@
 //! GPU data and the silhouette bound's casts.
 
 use super::field::{BuildFar, FarBuildSummary, FarField, FarGpu, SilhouetteBound};
-use crate::blockmap::cast::TexRay;
 use crate::blockmap::error::BuildingGrid;
 use crate::blockmap::{FrameRays, SelectError, SelectNode, SelectOptions, Selector, Source};
 use crate::blocks::BlockId;
@@ -12,7 +11,6 @@ use crate::city::Mesh;
 use crate::geom::{Aabb3, Camera};
 use crate::index::BlockBounds;
 use crate::relief::cast::{cast_f32, cast_f64, cast_flat};
-use crate::relief::image::node_xform;
 use crate::relief::{CpuReliefRenderer, NodeMaps, ReliefError, ReliefField, ReliefOptions};
 use crate::scene::Scene;
 use crate::visibility::FrameRenderer;
@@ -94,26 +92,6 @@ impl BuildFar for ReliefField {
     }
 }
 
-/// The `f64` twin of the ray the GPU casts through the centre of pixel `(x, y)` of node `n`.
-pub fn twin_ray(n: &NodeMaps, camera: &Camera, w: u32, h: u32, x: u32, y: u32) -> TexRay<f64> {
-    let p = camera.clip_from_view();
-    let tx = 1.0 / p.x_axis.x;
-    let ty = 1.0 / p.y_axis.y;
-    let vx = (f64::from(x) + 0.5) * (2.0 * tx / f64::from(w.max(1))) - tx;
-    let vy = (f64::from(y) + 0.5) * (-2.0 * ty / f64::from(h.max(1))) + ty;
-    let (o, s) = n.tex_to_local();
-    let inv = DVec3::ONE / s;
-    let f = camera.forward();
-    let u = camera.up();
-    let r = f.cross(u);
-    let d = (r * vx + u * vy + f) * inv;
-    let org = (camera.position - o) * inv + d * camera.near;
-    TexRay {
-        o: org.to_array(),
-        d: d.to_array(),
-    }
-}
-
 /// One node's casts in one frame, as the frame draws it (flat or walked).
 struct ReliefCaster<'s> {
     node: &'s NodeMaps,
@@ -140,7 +118,7 @@ impl FrameCaster for ReliefCaster<'_> {
         c.hit.map(|h| fr.depth(h.t as f32))
     }
     fn twin_point(&self, x: u32, y: u32) -> Option<DVec3> {
-        let ray = twin_ray(self.node, &self.camera, self.w, self.h, x, y);
+        let ray = self.node.twin_ray(&self.camera, self.w, self.h, x, y);
         let m = self.node.m();
         let c = if self.flat {
             cast_flat(&self.levels, m, &ray)
@@ -179,7 +157,11 @@ impl BoundMaps for ReliefField {
         Box::new(ReliefCaster {
             node,
             levels: node.levels(),
-            xform: node_xform(info.tex_origin, info.tex_scale, camera),
+            xform: crate::blockmap::MapXform::from_texture_space(
+                info.tex_origin,
+                info.tex_scale,
+                camera,
+            ),
             rays: FrameRays::new(camera, w, h),
             camera: *camera,
             flat: info.is_flat(camera, h),
