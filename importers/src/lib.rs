@@ -27,6 +27,7 @@
 #![allow(clippy::result_large_err)]
 
 pub mod crs;
+pub mod dem;
 pub mod fuzzing;
 pub mod geojson_reader;
 #[cfg(feature = "gpkg")]
