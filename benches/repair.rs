@@ -56,6 +56,7 @@ fn building(p: Polygon<f64>) -> Building {
         footprint: p,
         height_m: 20.0,
         min_height_m: 0.0,
+        base_m: 0.0,
         height_source: HeightSource::Height,
         attributes: Default::default(),
     }

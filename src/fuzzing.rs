@@ -347,6 +347,7 @@ pub fn check_extrude(data: &[u8]) -> Outcome {
             footprint,
             height_m: top,
             min_height_m: bottom,
+            base_m: 0.0,
             height_source: HeightSource::Default,
             attributes: Default::default(),
         };

@@ -57,6 +57,7 @@ fn scene() -> Scene {
         ),
         height_m: H,
         min_height_m: 0.0,
+        base_m: 0.0,
         height_source: HeightSource::Height,
         attributes: [
             ("building".to_string(), AttrValue::Text("apartments".into())),

@@ -475,6 +475,7 @@ fn a_block_seen_past_a_rounded_wall_end_far_from_the_origin_is_kept() {
         footprint,
         height_m: h,
         min_height_m: 0.0,
+        base_m: 0.0,
         height_source: HeightSource::Height,
         attributes: Default::default(),
     };

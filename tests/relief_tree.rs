@@ -208,6 +208,7 @@ fn a_regular_grid_gives_the_complete_tree_with_negative_overlap() {
             footprint: square(f64::from(i % 8) * 20.0, f64::from(i / 8) * 20.0),
             height_m: 10.0,
             min_height_m: 0.0,
+            base_m: 0.0,
             height_source: HeightSource::Height,
             attributes: Default::default(),
         })
@@ -279,6 +280,7 @@ fn an_unseparable_pair_is_split_about_the_median() {
         footprint,
         height_m: 10.0,
         min_height_m: 0.0,
+        base_m: 0.0,
         height_source: HeightSource::Height,
         attributes: Default::default(),
     };

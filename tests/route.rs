@@ -474,6 +474,7 @@ fn square_building(i: u32, x: f64, y: f64, side: f64, h: f64) -> blockwalk::city
         ),
         height_m: h,
         min_height_m: 0.0,
+        base_m: 0.0,
         height_source: blockwalk::city::HeightSource::Height,
         attributes: Default::default(),
     }

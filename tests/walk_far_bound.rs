@@ -40,6 +40,7 @@ fn city(boxes: &[(DVec2, DVec2, f64)]) -> (City, BlockLayout) {
             footprint: rect(a, b),
             height_m: h,
             min_height_m: 0.0,
+            base_m: 0.0,
             height_source: HeightSource::Height,
             attributes: Default::default(),
         })

@@ -261,18 +261,21 @@ pub fn build_map(
         return Err(BlockMapError::BadParameter("no building to map".into()));
     }
     let (mut lo, mut hi) = (DVec2::splat(f64::INFINITY), DVec2::splat(f64::NEG_INFINITY));
-    let mut zmax: f64 = 0.0;
+    // Heights span the lowest ground under the node's buildings (0 without terrain) to the
+    // highest roof; the terrain itself is drawn beside the maps, not in them.
+    let (mut zmin, mut zmax) = (f64::INFINITY, f64::NEG_INFINITY);
     for b in &bs {
         lo = lo.min(b.min);
         hi = hi.max(b.max);
+        zmin = zmin.min(b.ground).min(b.z0);
         zmax = zmax.max(b.z1);
     }
     let ext = hi - lo;
     // A square base (seed 002 §4.2.1) centred on the footprints' box.
     let side = ext.x.max(ext.y).max(1e-3) * (1.0 + 1e-9);
     let min = (lo + hi) * 0.5 - DVec2::splat(side * 0.5);
-    let zmax = if zmax > 0.0 { zmax } else { 1.0 };
-    let mut map = BlockMap::empty(opts.k, min.extend(0.0), side, zmax)?;
+    let zmax = if zmax > zmin { zmax } else { zmin + 1.0 };
+    let mut map = BlockMap::empty(opts.k, min.extend(zmin), side, zmax)?;
     let k = opts.k as usize;
 
     // 1. Top-down orthographic sampling at the texel centres: the highest roof over a centre
@@ -306,7 +309,9 @@ pub fn build_map(
             }
             let Some(b) = index_of(id) else { continue };
             stats.filled_texels += 1;
-            let code = ((b.z1 / zmax * 255.0).round().clamp(1.0, 255.0)) as u8;
+            let code = (((b.z1 - zmin) / (zmax - zmin) * 255.0)
+                .round()
+                .clamp(1.0, 255.0)) as u8;
             let t = map.texel_mut(i as u32, j as u32);
             t[0] = code;
             let c = colors::to_bytes(colors::roof_rgb(&b.style));
@@ -372,7 +377,8 @@ pub fn build_map(
                     let acc = sums.colour_mut(slot, r);
                     for du in [-0.25f32, 0.25] {
                         for dz in [0.25f64, 0.75] {
-                            let z = ((r as f64 + dz) / colour_rows as f64 * zmax).min(b.z1);
+                            let z = (zmin + (r as f64 + dz) / colour_rows as f64 * (zmax - zmin))
+                                .min(b.z1);
                             let fc = colors::facade_rgb(&b.style, u + du * s_m as f32, z as f32);
                             for ch in 0..3 {
                                 acc[ch] += fc[ch] as f64;

@@ -763,6 +763,7 @@ mod tests {
                 DVec2::new(x0 + a, y0 + a),
                 DVec2::new(x0, y0 + a),
             ]],
+            ground: 0.0,
             z0: 0.0,
             z1,
             min: DVec2::new(x0, y0),

@@ -19,6 +19,8 @@ pub struct SourceBuilding {
     pub block: BlockId,
     /// Rings in the local frame (exterior CCW first, then holes CW), closing point dropped.
     pub rings: Vec<Vec<DVec2>>,
+    /// The ground under the building (its base), local z, metres: 0 without terrain.
+    pub ground: f64,
     /// Bottom of the prism, metres.
     pub z0: f64,
     /// Top of the prism, metres.
@@ -117,8 +119,9 @@ impl<'a> Source<'a> {
                     source_id: b.source_id.clone(),
                     block: block.id,
                     rings,
-                    z0: b.min_height_m.min(b.height_m),
-                    z1: b.height_m.max(b.min_height_m),
+                    ground: b.base_m,
+                    z0: b.bottom_z(),
+                    z1: b.top_z(),
                     min,
                     max,
                     bridge,

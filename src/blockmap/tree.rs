@@ -439,8 +439,9 @@ pub fn skeleton_tree(tree: &BqrTree, k: u32, stop: Stop) -> Result<MapTree, Bloc
         let v = tree.node(n).expect("selected nodes exist");
         let b = v.aabb;
         let side = (b.max.x - b.min.x).max(b.max.y - b.min.y).max(1e-3);
-        let zmax = b.max.z.max(1.0);
-        let mut map = BlockMap::empty(k, glam::DVec3::new(b.min.x, b.min.y, 0.0), side, zmax)?;
+        let zmin = if b.min.z.is_finite() { b.min.z } else { 0.0 };
+        let zmax = b.max.z.max(zmin + 1.0);
+        let mut map = BlockMap::empty(k, glam::DVec3::new(b.min.x, b.min.y, zmin), side, zmax)?;
         map.meta.eps_m = map.half_voxel_diagonal();
         map.meta.node_key = v.key;
         let blocks: Vec<BlockId> = tree.blocks()[v.blocks.clone()]

@@ -175,7 +175,7 @@ pub fn extrusions() -> u64 {
 
 /// [`try_extrude_building`] with the given buffers.
 fn extrude_with(b: &Building, frame: &LocalFrame, s: &mut Scratch) -> Result<Mesh, ExtrudeError> {
-    let (z0, z1) = (b.min_height_m, b.height_m);
+    let (z0, z1) = (b.base_m + b.min_height_m, b.base_m + b.height_m);
     if !(z0.is_finite() && z1.is_finite() && z1 > z0) {
         return Err(ExtrudeError::Heights {
             id: b.source_id.clone(),
@@ -677,6 +677,7 @@ mod tests {
             footprint: p,
             height_m: h,
             min_height_m: min,
+            base_m: 0.0,
             height_source: HeightSource::Height,
             attributes: Default::default(),
         }

@@ -22,7 +22,10 @@ pub enum HeightSource {
     Default,
 }
 
-/// A building: a footprint prism from `min_height_m` to `height_m` above the ground.
+/// A building: a footprint prism from `min_height_m` to `height_m` above its ground, which lies
+/// at `base_m` in the world frame (0 for a city without terrain; the terrain under the
+/// footprint by the base rule of [`crate::city::build::BuildOptions`] otherwise). World z of the
+/// prism: [`Building::bottom_z`] to [`Building::top_z`].
 #[derive(Clone, Debug)]
 pub struct Building {
     /// Index in [`City::buildings`].
@@ -36,10 +39,26 @@ pub struct Building {
     pub height_m: f64,
     /// Bottom of the prism above ground, metres (0 for most buildings).
     pub min_height_m: f64,
+    /// World z of the ground the building stands on, metres (0 without terrain). Heights stay
+    /// heights above this ground.
+    pub base_m: f64,
     /// Where `height_m` came from.
     pub height_source: HeightSource,
     /// The source attributes.
     pub attributes: Attributes,
+}
+
+impl Building {
+    /// World z of the prism's bottom: `base_m + min(min_height_m, height_m)`.
+    #[inline]
+    pub fn bottom_z(&self) -> f64 {
+        self.base_m + self.min_height_m.min(self.height_m)
+    }
+    /// World z of the prism's top (the roof): `base_m + max(height_m, min_height_m)`.
+    #[inline]
+    pub fn top_z(&self) -> f64 {
+        self.base_m + self.height_m.max(self.min_height_m)
+    }
 }
 
 /// A street centre line in metric world coordinates.

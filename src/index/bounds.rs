@@ -142,8 +142,7 @@ fn push_prism_vertices(
     to_local: &impl Fn(&Coord<f64>) -> DVec2,
     out: &mut Vec<DVec3>,
 ) {
-    let lo = b.min_height_m.min(b.height_m);
-    let hi = b.height_m.max(b.min_height_m);
+    let (lo, hi) = (b.bottom_z(), b.top_z());
     for c in b.footprint.exterior().coords() {
         let p = to_local(c);
         out.push(DVec3::new(p.x, p.y, lo));
@@ -152,8 +151,7 @@ fn push_prism_vertices(
 }
 
 fn building_box(b: &Building, to_local: &impl Fn(&Coord<f64>) -> DVec2) -> Aabb3 {
-    let lo = b.min_height_m.min(b.height_m);
-    let hi = b.height_m.max(b.min_height_m);
+    let (lo, hi) = (b.bottom_z(), b.top_z());
     let mut bx = Aabb3::EMPTY;
     for c in b.footprint.exterior().coords() {
         let p = to_local(c);

@@ -25,7 +25,7 @@ struct Style {
     window: vec4<f32>,
     // rgb: roof (or ground surface); w: inv_bay_m.
     roof: vec4<f32>,
-    // x: levels.
+    // x: levels; y: the bits of ground_z (the building's ground, local z).
     levels: vec4<u32>,
 };
 
@@ -60,7 +60,7 @@ fn vs_main(
 
 // appearance::facade_color.
 fn facade_color(s: Style, u_m: f32, z_m: f32) -> vec3<f32> {
-    let t = z_m * s.window.w;
+    let t = (z_m - bitcast<f32>(s.levels.y)) * s.window.w;
     let st = floor(t);
     let v = t - st;
     if s.levels.x == 0u || st < 0.0 || st >= f32(s.levels.x) {

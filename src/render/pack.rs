@@ -36,7 +36,7 @@ pub(crate) struct GpuStyle {
     window: [f32; 4],
     /// rgb roof, w inv_bay_m.
     roof: [f32; 4],
-    /// x levels.
+    /// x levels, y the bits of ground_z.
     levels: [u32; 4],
 }
 
@@ -47,7 +47,7 @@ impl From<&BuildingStyle> for GpuStyle {
             facade: c(s.facade, s.window_half),
             window: c(s.window, s.inv_storey_m),
             roof: c(s.roof, s.inv_bay_m),
-            levels: [s.levels, 0, 0, 0],
+            levels: [s.levels, s.ground_z.to_bits(), 0, 0],
         }
     }
 }

@@ -1005,6 +1005,7 @@ mod tests {
                     footprint: polygon![(x: x0, y: y0), (x: x1, y: y0), (x: x1, y: y1), (x: x0, y: y1)],
                     height_m: 15.0,
                     min_height_m: 0.0,
+                    base_m: 0.0,
                     height_source: HeightSource::Height,
                     attributes: Default::default(),
                 });

@@ -74,10 +74,7 @@ impl Obstacles {
         let mut rects = Vec::with_capacity(buildings.len());
         let mut max_height = 0.0f64;
         for b in buildings {
-            let (lo, hi) = (
-                b.min_height_m.min(b.height_m),
-                b.height_m.max(b.min_height_m),
-            );
+            let (lo, hi) = (b.bottom_z(), b.top_z());
             let footprint = frame.to_local_polygon(&b.footprint);
             let mut min = DVec2::splat(f64::INFINITY);
             let mut max = DVec2::splat(f64::NEG_INFINITY);
@@ -299,6 +296,7 @@ mod tests {
             footprint: polygon![(x: 10., y: 10.), (x: 20., y: 10.), (x: 20., y: 20.), (x: 10., y: 20.)],
             height_m: 12.0,
             min_height_m: 0.0,
+            base_m: 0.0,
             height_source: HeightSource::Height,
             attributes: Default::default(),
         };

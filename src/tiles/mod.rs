@@ -11,7 +11,7 @@
 //!   meshes (Cignoni et al., §4: the far field reuses the spatial partition).
 //! - Leaves are glTF with one feature per building: a per-vertex `_FEATURE_ID_0`
 //!   (`EXT_mesh_features`) indexing a property table (`EXT_structural_metadata`, class
-//!   `building`: `source_id`, `height_m`, `min_height_m`); see
+//!   `building`: `source_id`, `height_m`, `min_height_m`, `base_m`); see
 //!   [`crate::city::export::tile_glb_bytes`].
 //! - Bounding volumes are `box`es in the local frame (x east, y north, z up, metres from the
 //!   city's origin). The root's `transform` places that frame on the WGS84 ellipsoid
@@ -273,6 +273,7 @@ fn leaf_mesh(city: &City, meshes: &[Mesh], buildings: &[u32]) -> TileMesh {
             source_id: bd.source_id.clone(),
             height_m: bd.height_m,
             min_height_m: bd.min_height_m,
+            base_m: bd.base_m,
         });
     }
     t

@@ -142,8 +142,8 @@ impl BuildingSolids {
                     holes: b.footprint.interiors().iter().map(ring).collect(),
                     min,
                     max,
-                    bottom: b.min_height_m.max(0.0),
-                    top: b.height_m,
+                    bottom: b.base_m + b.min_height_m.max(0.0),
+                    top: b.top_z(),
                 })
             })
             .collect();

@@ -47,10 +47,13 @@ pub struct BlockOccluders {
     pub occluders: Vec<Occluder>,
 }
 
-/// Facade top edges of every building of every block, local frame.
+/// Facade top edges of every building of every block, local frame (heights are world z: the
+/// building's base plus its height).
 ///
 /// Only exterior rings are used. A roof edge at height `h` occludes only if the wall below it is
-/// solid down to the ground, so buildings with `min_height_m > 0` (passages, overhangs, bridges)
+/// solid down to the ground (on terrain: down to the building's base, under which the ground
+/// rises at least as high along the whole footprint, since the base is the lowest ground under
+/// it), so buildings with `min_height_m > 0` (passages, overhangs, bridges)
 /// give no occluders; they are still culled like any other geometry. Edges of the same block whose
 /// lines coincide and that point the same way (a block front of touching buildings) are merged
 /// into one run at the smallest of their heights, which is still a solid wall; the original edges
@@ -93,8 +96,8 @@ pub fn extract_drawn(
                 for c in b.footprint.exterior().coords() {
                     let p = city.frame.to_local_xy(*c);
                     aabb = aabb
-                        .including(DVec3::new(p.x, p.y, 0.0))
-                        .including(DVec3::new(p.x, p.y, b.height_m.max(0.0)));
+                        .including(DVec3::new(p.x, p.y, b.base_m))
+                        .including(DVec3::new(p.x, p.y, b.top_z().max(b.base_m)));
                 }
                 if b.min_height_m > 0.0
                     || b.height_m <= 0.0
@@ -115,7 +118,7 @@ pub fn extract_drawn(
                         edges.push(Occluder {
                             a,
                             b: b2,
-                            height: b.height_m,
+                            height: b.top_z(),
                         });
                     }
                 }
@@ -318,6 +321,7 @@ mod tests {
             footprint,
             height_m: 12.0,
             min_height_m: 0.0,
+            base_m: 0.0,
             height_source: HeightSource::Height,
             attributes: Default::default(),
         };

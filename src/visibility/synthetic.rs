@@ -171,6 +171,7 @@ impl SyntheticCity {
                         ),
                         height_m: height,
                         min_height_m: min_height,
+                        base_m: 0.0,
                         height_source: HeightSource::Height,
                         attributes: Default::default(),
                     });

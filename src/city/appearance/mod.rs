@@ -11,11 +11,12 @@
 //! `Rgba8Unorm` target exactly); the style also stores the reciprocals the shader needs, rounded
 //! once on the CPU, so the GPU never divides.
 //!
-//! A wall point is given by `u` (metres along the unfolded ring, [`ring_u`]) and `z` (metres above
-//! the ground). [`facade_color`] is, with `fl` = floor and every operation one f32 operation:
+//! A wall point is given by `u` (metres along the unfolded ring, [`ring_u`]) and `z` (its local
+//! height; the building's ground is at `ground_z`, 0 without terrain). [`facade_color`] is, with
+//! `fl` = floor and every operation one f32 operation:
 //!
 //! ```text
-//! t = z · inv_storey_m          s = fl(t)        v = t − s          (storey s, height v in it)
+//! t = (z − ground_z) · inv_storey_m         s = fl(t)        v = t − s          (storey s, height v in it)
 //! b = u · inv_bay_m             f = b − fl(b)                        (position f in its bay)
 //! plain  if levels = 0, s < 0 or s ≥ levels            → facade
 //! window if v ≥ v0 and v < v1 and |f − 0.5| < window_half   → window

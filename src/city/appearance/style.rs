@@ -179,6 +179,9 @@ pub struct BuildingStyle {
     pub inv_bay_m: f32,
     /// Half the window width as a fraction of the bay, in `(0, 0.5)`.
     pub window_half: f32,
+    /// Local z of the ground the building stands on (its base; 0 without terrain): storeys
+    /// count from here.
+    pub ground_z: f32,
 }
 
 impl Default for BuildingStyle {
@@ -202,6 +205,7 @@ impl BuildingStyle {
             bay_m: 3.0,
             inv_bay_m: 1.0 / 3.0f32,
             window_half: 0.25,
+            ground_z: 0.0,
         }
     }
 }
@@ -270,12 +274,16 @@ pub fn building_levels(b: &Building) -> u32 {
 /// The style of a building (see the module docs): pure and deterministic.
 pub fn building_style(b: &Building) -> BuildingStyle {
     let kind = BuildingKind::from_attributes(&b.attributes);
-    style_for(
-        kind,
-        style_hash(&b.source_id),
-        b.height_m,
-        building_levels(b),
-    )
+    BuildingStyle {
+        // The local frame's origin is at z = 0, so the world base is the local one.
+        ground_z: b.base_m as f32,
+        ..style_for(
+            kind,
+            style_hash(&b.source_id),
+            b.height_m,
+            building_levels(b),
+        )
+    }
 }
 
 /// The style of a building of `kind` with hash `hash`, `height_m` tall with `levels` storeys.
@@ -303,14 +311,15 @@ pub fn style_for(kind: BuildingKind, hash: u32, height_m: f64, levels: u32) -> B
         bay_m,
         inv_bay_m: 1.0 / bay_m,
         window_half: WINDOW_HALF[k],
+        ground_z: 0.0,
     }
 }
 
-/// Unlit colour of a wall point `u_m` metres along the unfolded ring ([`ring_u`]) and `z_m`
-/// metres above the ground (see the module docs for the formula; `mesh.wgsl` has the same
+/// Unlit colour of a wall point `u_m` metres along the unfolded ring ([`ring_u`]) at local
+/// height `z_m` (`z_m − ground_z` metres above the building's ground) (see the module docs for the formula; `mesh.wgsl` has the same
 /// function, operation for operation).
 pub fn facade_color(style: &BuildingStyle, u_m: f32, z_m: f32) -> [f32; 3] {
-    let t = z_m * style.inv_storey_m;
+    let t = (z_m - style.ground_z) * style.inv_storey_m;
     let s = t.floor();
     let v = t - s;
     if style.levels == 0 || s < 0.0 || s >= style.levels as f32 {

@@ -21,6 +21,7 @@ fn building(source_id: &str, height_m: f64, attrs: &[(&str, AttrValue)]) -> Buil
         ),
         height_m,
         min_height_m: 0.0,
+        base_m: 0.0,
         height_source: HeightSource::Height,
         attributes: attrs
             .iter()

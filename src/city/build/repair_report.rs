@@ -141,6 +141,7 @@ pub(crate) fn build_footprints(
                             footprint: poly,
                             height_m: heights.height_m,
                             min_height_m: heights.min_height_m,
+                            base_m: 0.0,
                             height_source: heights.source,
                             attributes: f.attributes.clone(),
                         });

@@ -9,8 +9,9 @@
 //!   counter-clockwise seen from outside, inner rings the other way), as CityJSON requires, with
 //!   semantics `RoofSurface`, `WallSurface` and `GroundSurface` (`OuterCeilingSurface` for a
 //!   prism raised above the ground by its bottom height).
-//! - Heights are metres above the ground (z = 0); there is no terrain.
-//! - Attributes: the source attributes as they were read, then `source_id`, `height_m`,
+//! - Vertex z is world height: the building's base (its ground; 0 without terrain) plus its
+//!   heights above that ground.
+//! - Attributes: the source attributes as they were read, then `source_id`, `height_m`, `base_m`,
 //!   `min_height_m`, `height_source` (`height`, `levels` or `default`) and `storeysAboveGround`
 //!   (the first levels field, when there is one); a source attribute of the same name as one of
 //!   these is kept as `source:<name>`.
@@ -245,7 +246,7 @@ pub fn choose_scale(buildings: &[Building]) -> f64 {
                 hi = [hi[0].max(c.x), hi[1].max(c.y)];
             }
         }
-        top = top.max(b.height_m);
+        top = top.max(b.top_z().abs()).max(b.bottom_z().abs());
     }
     let extent = (hi[0] - lo[0]).max(hi[1] - lo[1]).max(top).max(0.0);
     const STEPS: [f64; 4] = [1e-3, 1e-4, 1e-5, 1e-6];
@@ -345,7 +346,7 @@ fn building_object(
             None => dropped.push(format!("{} (courtyard {})", b.source_id, k + 1)),
         }
     }
-    let (z0, z1) = (b.min_height_m, b.height_m);
+    let (z0, z1) = (b.bottom_z(), b.top_z());
     // Rings as vertex indices at the bottom and at the top, in the footprint's own winding
     // (outer counter-clockwise, courtyards clockwise, seen from above).
     let mut bottom: Vec<Vec<u32>> = Vec::with_capacity(all.len());
@@ -383,6 +384,7 @@ fn building_object(
         ("source_id", json!(b.source_id)),
         ("height_m", json!(b.height_m)),
         ("min_height_m", json!(b.min_height_m)),
+        ("base_m", json!(b.base_m)),
         ("height_source", json!(source_name(b.height_source))),
     ];
     if let Some(l) = levels_fields
@@ -444,8 +446,8 @@ fn bounds(buildings: &[Building]) -> ([f64; 3], [f64; 3]) {
                 hi[1] = hi[1].max(c.y);
             }
         }
-        lo[2] = lo[2].min(b.min_height_m);
-        hi[2] = hi[2].max(b.height_m);
+        lo[2] = lo[2].min(b.bottom_z());
+        hi[2] = hi[2].max(b.top_z());
     }
     if lo[0] > hi[0] {
         return ([0.0; 3], [0.0; 3]);

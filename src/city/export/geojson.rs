@@ -45,6 +45,7 @@ pub fn geojson_value(city: &City) -> Value {
                     "source_id": b.source_id,
                     "height_m": b.height_m,
                     "min_height_m": b.min_height_m,
+                    "base_m": b.base_m,
                     "height_source": source_name(b.height_source),
                 },
                 "geometry": { "type": "Polygon", "coordinates": rings },

@@ -196,6 +196,7 @@ fn prepare(city: &City, meshes: &[Mesh], limit: u64) -> Result<Prepared, ExportE
                 "source_id": b.source_id,
                 "height_m": b.height_m,
                 "min_height_m": b.min_height_m,
+                "base_m": b.base_m,
             }
         });
         if m.triangle_count() > 0 {

@@ -1,6 +1,6 @@
 //! glTF 2.0 binary (`.glb`) export of the extruded city.
 //!
-//! One node per building (`name` = source id; `extras` = `{source_id, height_m, min_height_m}`)
+//! One node per building (`name` = source id; `extras` = `{source_id, height_m, min_height_m, base_m}`)
 //! holding one mesh with one primitive (POSITION with the min/max the specification requires,
 //! NORMAL, u32 indices) and a shared default material. All buildings hang under one root node
 //! whose `extras` carry the local origin (metric world coordinates) and the CRS, so a reader can

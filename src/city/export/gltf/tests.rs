@@ -52,6 +52,7 @@ fn glb_bytes_in_memory(city: &City, meshes: &[Mesh]) -> Vec<u8> {
                 "source_id": b.source_id,
                 "height_m": b.height_m,
                 "min_height_m": b.min_height_m,
+                "base_m": b.base_m,
             }
         });
         if m.triangle_count() > 0 {
@@ -255,11 +256,13 @@ fn two_triangles() -> TileMesh {
                 source_id: "a".into(),
                 height_m: 1.0,
                 min_height_m: 0.0,
+                base_m: 0.0,
             },
             TileFeature {
                 source_id: "bé".into(),
                 height_m: 2.0,
                 min_height_m: 0.5,
+                base_m: 0.0,
             },
         ],
     }

@@ -15,6 +15,9 @@ pub struct TileFeature {
     pub height_m: f64,
     /// Bottom of the building (raised parts), metres.
     pub min_height_m: f64,
+    /// Height of the ground under the building (its base) in the city's vertical datum,
+    /// metres (0 without terrain).
+    pub base_m: f64,
 }
 
 /// One primitive of a 3D Tiles content `.glb`, local frame (x east, y north, z up; metres
@@ -61,7 +64,7 @@ fn push_view(bin: &mut Vec<u8>, bytes: &[u8], target: Option<u32>, stride: Optio
 /// primitive carries `_FEATURE_ID_0` (FLOAT scalars holding whole numbers, as
 /// `EXT_mesh_features` allows) and an `EXT_mesh_features` feature id set pointing at property
 /// table 0 of `EXT_structural_metadata`, class `building` (`source_id` STRING, `height_m` and
-/// `min_height_m` FLOAT64). `extras` goes on the root node. Deterministic.
+/// `min_height_m`, `base_m` FLOAT64). `extras` goes on the root node. Deterministic.
 ///
 /// # Errors
 /// [`ExportError::AttributeCount`] when a per-vertex array does not match the positions or a
@@ -177,6 +180,7 @@ pub fn tile_glb_bytes(name: &str, mesh: &TileMesh, extras: Value) -> Result<Vec<
                 .flat_map(|r| r.min_height_m.to_le_bytes())
                 .collect(),
         );
+        let bases = view_of(f.iter().flat_map(|r| r.base_m.to_le_bytes()).collect());
         let mut strings = Vec::new();
         let mut offsets: Vec<u8> = Vec::new();
         for r in f {
@@ -208,6 +212,7 @@ pub fn tile_glb_bytes(name: &str, mesh: &TileMesh, extras: Value) -> Result<Vec<
                                 "source_id": { "type": "STRING", "description": "id in the source data" },
                                 "height_m": { "type": "SCALAR", "componentType": "FLOAT64", "description": "roof height above the ground, metres" },
                                 "min_height_m": { "type": "SCALAR", "componentType": "FLOAT64", "description": "bottom of the building, metres" },
+                                "base_m": { "type": "SCALAR", "componentType": "FLOAT64", "description": "ground height under the building (its base), metres" },
                             }
                         }
                     }
@@ -219,6 +224,7 @@ pub fn tile_glb_bytes(name: &str, mesh: &TileMesh, extras: Value) -> Result<Vec<
                         "source_id": { "values": ids, "stringOffsets": id_offsets, "stringOffsetType": "UINT32" },
                         "height_m": { "values": heights },
                         "min_height_m": { "values": mins },
+                        "base_m": { "values": bases },
                     }
                 }]
             }),
