@@ -7,6 +7,7 @@
 //! | read files into layers | crate `blockwalk_importers` | |
 //! | crash-safe writing: temporary names renamed when complete, staged folders | [`output`] | |
 //! | geometric primitives, robust predicates, ring repair, frustum | [`geom`] | |
+//! | elevation grids in the city's frame: base heights under footprints, the terrain LOD tree (L∞ bound per level, skirts, occluder level) | [`terrain`] | 002 ch. 3, 004 §4.1 |
 //! | city model, local frame, extrusion, glTF/GeoJSON export, generator | [`city`] | 003 §3 |
 //! | street graph, urban blocks, building assignment | [`blocks`] | 003 §3 |
 //! | spatial structures (BqR-tree, VAMSplit R-tree, flat, none, rstar) | [`index`] | 003 §4 |
@@ -42,6 +43,7 @@ pub mod render;
 pub mod report;
 pub mod route;
 pub mod scene;
+pub mod terrain;
 pub mod tiles;
 pub mod visibility;
 pub mod walk;

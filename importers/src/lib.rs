@@ -13,6 +13,7 @@
 //! | [`geojson_reader::read`] | FeatureCollection, Feature or bare geometry | legacy `crs` member, else WGS84 |
 //! | `gpkg::read` (feature `gpkg`) | one feature table of a GeoPackage, chosen by [`Theme`] | `gpkg_spatial_ref_sys` |
 //! | `osm::read` (feature `osm`) | OSM PBF buildings (ways and multipolygon relations) or streets | WGS84 |
+//! | [`read_dem`] | a single-band GeoTIFF elevation grid ([`DemGrid`], not a layer) | GeoKeys (EPSG codes) |
 //!
 //! [`read_layer`] picks the reader by extension. [`Crs::metric_transform`] maps a layer's
 //! coordinates to ground metres (identity for projected data; a local transverse Mercator for
@@ -44,6 +45,7 @@ use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
 pub use crs::{CoordError, Crs, CrsError, MetricTransform};
+pub use dem::{read_dem, DemError, DemGrid, PixelIs};
 pub use report::{format_groups, group_reasons, ImportReport, ReasonGroup, Refusal};
 
 /// One attribute value of a feature.

@@ -2,7 +2,8 @@
 //! frame for everything that goes to f32, extrusion into watertight prisms, export, and a
 //! procedural city generator.
 //!
-//! - [`model`]: [`City`], [`Building`], [`Street`], [`Parcel`], [`LocalFrame`].
+//! - [`model`]: [`City`], [`Building`], [`Street`], [`Parcel`]; [`LocalFrame`] (defined in
+//!   [`crate::geom::frame`], re-exported here).
 //! - [`build`]: layers → city (CRS to metric, heights, repair; the [`CityReport`]).
 //! - [`appearance`]: the procedural look of buildings, streets and ground (one definition,
 //!   mirrored in `render/mesh.wgsl`).

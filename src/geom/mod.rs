@@ -6,6 +6,8 @@
 //! converts or allocates to use them.
 //!
 //! - [`Aabb3`], [`BoundingSphere`]: bounding volumes in f64.
+//! - [`frame`]: [`LocalFrame`], world (f64) ↔ local (f64, f32) coordinates: the one place where
+//!   the origin is subtracted and positions become f32.
 //! - [`frustum`]: view-frustum planes and the sphere / box / box∩sphere tests.
 //! - [`point`]: the [`Xy`] point trait.
 //! - [`predicates`]: robust orientation, signed area, point in ring / polygon, segment crossing.
@@ -18,6 +20,7 @@
 pub mod bounds;
 pub mod camera;
 pub mod clip;
+pub mod frame;
 pub mod frustum;
 pub mod hull;
 pub mod point;
@@ -29,6 +32,7 @@ pub mod tolerance;
 
 pub use bounds::{Aabb3, BoundingSphere};
 pub use camera::Camera;
+pub use frame::LocalFrame;
 pub use frustum::{CoherenceState, Containment, Frustum, Plane, PlaneMask, ALL_PLANES};
 pub use point::Xy;
 pub use rect::Rect;
