@@ -131,6 +131,7 @@ fn paper_route_street_frames() -> Option<(blockwalk::scene::Scene, Vec<blockwalk
         buildings: &scene.city.buildings,
         frame: &scene.city.frame,
         aspect: 1280.0 / 720.0,
+        terrain: None,
     };
     let (route, _) = RouteChoice::Paper.resolve(&ctx).ok()?;
     let cams: Vec<_> = route

@@ -439,6 +439,7 @@ pub fn check_route(dir: &Path, data: &[u8]) -> Outcome {
         buildings: &[],
         frame: &frame,
         aspect: 16.0 / 9.0,
+        terrain: None,
     };
     match RouteChoice::File(path.clone()).resolve(&ctx) {
         Ok((route, frames)) => {

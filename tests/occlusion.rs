@@ -492,6 +492,7 @@ fn a_block_seen_past_a_rounded_wall_end_far_from_the_origin_is_kept() {
         streets: vec![],
         parcels: vec![],
         report: CityReport::default(),
+        terrain: None,
     };
     let block = |i: u32, polygon| Block {
         id: BlockId(i),

@@ -223,6 +223,7 @@ fn a_regular_grid_gives_the_complete_tree_with_negative_overlap() {
         streets: vec![],
         parcels: vec![],
         report: CityReport::default(),
+        terrain: None,
     };
     assert_eq!(check_merge(&city, 0.5), 0);
     let tree = ReliefTree::build(&city, TreeParams::default()).unwrap();
@@ -294,6 +295,7 @@ fn an_unseparable_pair_is_split_about_the_median() {
         streets: vec![],
         parcels: vec![],
         report: CityReport::default(),
+        terrain: None,
     };
     let tree = ReliefTree::build(&city, TreeParams::default()).unwrap();
     check_tree(&city, &tree);

@@ -529,6 +529,7 @@ fn orbit_frames_the_buildings_of_a_sparse_city_not_its_box() {
         buildings: &buildings,
         frame: &frame,
         aspect: 16.0 / 9.0,
+        terrain: None,
     };
     let (route, frames) = RouteChoice::Orbit.resolve(&ctx).unwrap();
     assert_eq!(frames, None);
@@ -584,6 +585,7 @@ fn street_walk_frames_keep_a_walking_pace_on_a_long_street_graph() {
         buildings: &[],
         frame: &frame,
         aspect: 16.0 / 9.0,
+        terrain: None,
     };
     let (route, frames) = RouteChoice::Street.resolve(&ctx).unwrap();
     let frames = frames.expect("the street walk reports its frame count");

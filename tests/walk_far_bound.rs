@@ -72,6 +72,7 @@ fn city(boxes: &[(DVec2, DVec2, f64)]) -> (City, BlockLayout) {
         streets: Vec::new(),
         parcels: Vec::new(),
         report: CityReport::default(),
+        terrain: None,
     };
     (city, layout)
 }

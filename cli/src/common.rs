@@ -71,6 +71,24 @@ pub struct CityArgs {
     /// wrong one.
     #[arg(long)]
     pub crs: Option<String>,
+    /// Elevation model (GeoTIFF: strips or tiles, integer or float samples, nodata, the CRS
+    /// from its GeoKeys) the buildings stand on; reprojected into the city's frame when its CRS
+    /// differs. Without it the city is flat (z = 0).
+    #[arg(long)]
+    pub dem: Option<PathBuf>,
+    /// How a building's base is taken from the terrain under its footprint: `min` (the lowest
+    /// point, as 3dfier's LoD1 does) or `pNN`, a percentile of the terrain under it (e.g. `p10`).
+    #[arg(long, default_value = "min", value_parser = blockwalk::city::build::ground::parse_rule)]
+    pub base: blockwalk::terrain::BaseRule,
+    /// List buildings whose footprint spans more terrain relief than this, metres.
+    #[arg(long = "steep", default_value_t = blockwalk::city::build::ground::DEFAULT_STEEP_M)]
+    pub steep_m: f64,
+    /// Terrain kept around the footprints' box, metres.
+    #[arg(long = "dem-margin", default_value_t = blockwalk::city::build::ground::DEFAULT_MARGIN_M)]
+    pub dem_margin_m: f64,
+    /// Take a DEM without CRS information as metres in the city's frame (otherwise refused).
+    #[arg(long = "dem-in-city-frame")]
+    pub dem_in_city_frame: bool,
 }
 
 /// The library's progress as a spinner (stages) and a bar (counts) on stderr, hidden with
@@ -149,7 +167,35 @@ impl CityArgs {
             &self.exclude_tag,
             seed,
         )?
-        .with_name_and_crs(self.name.clone(), crs))
+        .with_name_and_crs(self.name.clone(), crs)
+        .with_ground(self.ground()?))
+    }
+
+    /// The ground options `--dem` and its companions ask for (`None` without `--dem`).
+    pub fn ground(&self) -> anyhow::Result<Option<blockwalk::city::build::GroundOptions>> {
+        let Some(dem) = &self.dem else {
+            return Ok(None);
+        };
+        if self
+            .inputs
+            .iter()
+            .any(|i| i.to_string_lossy().starts_with("synthetic:"))
+        {
+            anyhow::bail!(
+                "--dem {}: a synthetic grid has no CRS to place an elevation model by; generate a city on it with `blockwalk generate --on-dem`",
+                dem.display()
+            );
+        }
+        let g = blockwalk::city::build::GroundOptions {
+            dem: dem.clone(),
+            rule: self.base,
+            steep_m: self.steep_m,
+            margin_m: self.dem_margin_m,
+            assume_city_frame: self.dem_in_city_frame,
+        };
+        g.validate()
+            .map_err(|e| anyhow::anyhow!("--dem {}: {e}", dem.display()))?;
+        Ok(Some(g))
     }
 }
 
@@ -356,6 +402,7 @@ pub fn city_report_json(city: &City) -> serde_json::Value {
         "parcel_layer_unusable": r.parcel_layer_unusable,
         "warnings": r.notes.iter().filter(|n| n.starts_with("warning:")).collect::<Vec<_>>(),
         "notes": r.notes,
+        "ground": r.ground,
     })
 }
 
@@ -404,11 +451,82 @@ pub fn city_report_lines(city: &City) -> Vec<String> {
             ));
         }
     }
+    if let Some(g) = &r.ground {
+        out.extend(ground_lines(g));
+    }
     out.extend(
         r.notes
             .iter()
             .filter(|n| n.starts_with("warning:"))
             .cloned(),
     );
+    out
+}
+
+/// The ground report in a few lines: the terrain, the bases, the slopes, the lists.
+pub fn ground_lines(g: &blockwalk::city::build::GroundReport) -> Vec<String> {
+    let t = &g.terrain;
+    let mut out = vec![
+        format!(
+            "terrain: {} ({}), {}×{} nodes at {:.1}×{:.1} m{}, {:.1}–{:.1} m, {} nodata",
+            t.source,
+            t.crs,
+            t.size[0],
+            t.size[1],
+            t.spacing_m[0],
+            t.spacing_m[1],
+            if t.resampled { ", resampled" } else { "" },
+            t.min_m,
+            t.max_m,
+            t.nodata_count
+        ),
+        format!(
+            "ground: {} buildings on it (base rule {}): base {:.1}–{:.1} m (median {:.1}); slope under footprints median {:.1}°, p90 {:.1}°, max {:.1}°; relief under footprints median {:.2} m, max {:.2} m",
+            g.placed,
+            g.rule,
+            g.base_m.min,
+            g.base_m.max,
+            g.base_m.median,
+            g.slope_deg.median,
+            g.slope_deg.p90,
+            g.slope_deg.max,
+            g.relief_m.median,
+            g.relief_m.max
+        ),
+    ];
+    if g.steep_count > 0 {
+        out.push(format!(
+            "  {} buildings span more than {} m of terrain (e.g. {})",
+            g.steep_count,
+            g.steep_threshold_m,
+            g.steep
+                .iter()
+                .take(5)
+                .map(|n| format!("{} {:.1} m", n.id, n.relief_m))
+                .collect::<Vec<_>>()
+                .join(", ")
+        ));
+    }
+    if g.partial_count > 0 {
+        out.push(format!(
+            "  {} buildings stand partly over nodata or off the grid (e.g. {})",
+            g.partial_count,
+            g.partial
+                .iter()
+                .take(5)
+                .map(|n| format!(
+                    "{} {}/{} samples missing",
+                    n.id, n.missing_samples, n.samples
+                ))
+                .collect::<Vec<_>>()
+                .join(", ")
+        ));
+    }
+    if g.refused_count > 0 {
+        out.push(format!(
+            "  {} buildings refused: no terrain under them",
+            g.refused_count
+        ));
+    }
     out
 }

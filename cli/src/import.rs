@@ -163,6 +163,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             "crs": r.crs,
             "origin": [city.frame.origin.x, city.frame.origin.y, city.frame.origin.z],
             "height_sources": r.height_sources,
+            "ground": r.ground,
             "notes": r.notes,
             "glb": glb,
             "cityjson": cityjson,
@@ -185,6 +186,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         );
         for n in r.buildings_repaired.iter().take(5) {
             outln!("  repaired {}: {}", n.id, n.what);
+        }
+        if let Some(g) = &r.ground {
+            for line in super::common::ground_lines(g) {
+                outln!("{line}");
+            }
         }
         for g in &r.refused_by_reason {
             outln!(

@@ -122,6 +122,9 @@ pub struct CityReport {
     pub frame: crate::city::build::FrameReport,
     /// Other notes (per layer).
     pub notes: Vec<String>,
+    /// The buildings put on an elevation model: terrain, rule, bases, slopes, steep and partly
+    /// covered footprints (`None` for a flat city).
+    pub ground: Option<crate::city::build::GroundReport>,
 }
 
 /// A repaired feature.
@@ -181,4 +184,7 @@ pub struct City {
     pub parcels: Vec<Parcel>,
     /// The import account.
     pub report: CityReport,
+    /// The ground the buildings stand on, in the metric world frame (`None`: a flat city whose
+    /// ground is z = 0).
+    pub terrain: Option<std::sync::Arc<crate::terrain::Terrain>>,
 }

@@ -133,6 +133,8 @@ pub struct RouteContext<'a> {
     pub frame: &'a LocalFrame,
     /// Image width / height.
     pub aspect: f64,
+    /// The ground the city stands on (`None`: flat, z = 0).
+    pub terrain: Option<&'a std::sync::Arc<crate::terrain::Terrain>>,
 }
 
 impl RouteChoice {
@@ -143,6 +145,43 @@ impl RouteChoice {
     /// # Errors
     /// A route that cannot be made (no street graph for `street`, a bad file, …).
     pub fn resolve(
+        &self,
+        ctx: &RouteContext<'_>,
+    ) -> Result<(CameraRoute, Option<usize>), RouteError> {
+        let (route, frames) = self.resolve_flat(ctx)?;
+        Ok((self.on_ground(ctx, route)?, frames))
+    }
+
+    /// The route lifted onto `ctx`'s terrain: street walks (and route files whose heights are
+    /// `above_ground`) keep their eye height above the ground under the eye; the other routes
+    /// keep their world heights, raised where they would come nearer the ground than the street
+    /// eye height. A flat city's route is returned as it is.
+    fn on_ground(
+        &self,
+        ctx: &RouteContext<'_>,
+        mut route: CameraRoute,
+    ) -> Result<CameraRoute, RouteError> {
+        let Some(t) = ctx.terrain else {
+            return Ok(route);
+        };
+        let above = match self {
+            RouteChoice::Street | RouteChoice::Corners => true,
+            RouteChoice::File(path) => {
+                RouteFile::read(path)?.heights == super::file::Heights::AboveGround
+            }
+            RouteChoice::Paper | RouteChoice::Orbit | RouteChoice::Flyover => false,
+        };
+        let mode = if above {
+            super::GroundMode::AboveGround
+        } else {
+            super::GroundMode::Clear(STREET_EYE_HEIGHT_M)
+        };
+        route.ground = Some(super::RouteGround::new(t.clone(), *ctx.frame, mode));
+        Ok(route)
+    }
+
+    /// The route as over a flat city (heights above the ground for street walks).
+    fn resolve_flat(
         &self,
         ctx: &RouteContext<'_>,
     ) -> Result<(CameraRoute, Option<usize>), RouteError> {
@@ -291,6 +330,7 @@ mod tests {
             buildings: &[],
             frame: &frame,
             aspect: 16.0 / 9.0,
+            terrain: None,
         };
         let dir = tempfile::tempdir().unwrap();
         let keys = "[[keys]]\nposition = [0.0, 0.0, 1.7]\nyaw_deg = 0.0\n\
@@ -333,6 +373,7 @@ mod tests {
             buildings: &[],
             frame: &frame,
             aspect: 16.0 / 9.0,
+            terrain: None,
         };
         let e = RouteChoice::Street.resolve(&ctx).unwrap_err();
         assert!(

@@ -12,6 +12,7 @@
 //! near = 0.5
 //! far = 5000.0
 //! orientation = "squad"    # or "slerp"
+//! heights = "world"        # or "above_ground": z is metres above the terrain under the eye
 //!
 //! [[keys]]
 //! position = [-300.0, 0.0, 1.7]
@@ -94,6 +95,18 @@ pub enum CoordFrame {
     Local,
     /// The city's metric world coordinates (z up from the ground); needs the city's frame.
     World,
+}
+
+/// What a route file's heights (z) are measured from.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Heights {
+    /// The frame's z (the world's heights; on terrain, a pose nearer the ground than the street
+    /// eye height is raised to it).
+    #[default]
+    World,
+    /// Metres above the ground under the eye (on terrain; the same as `world` in a flat city).
+    AboveGround,
 }
 
 /// One key frame as written in a route file.
@@ -181,6 +194,9 @@ pub struct RouteFile {
     /// Orientation interpolation.
     #[serde(default)]
     pub orientation: OrientationInterpolation,
+    /// What the keys' heights are measured from.
+    #[serde(default)]
+    pub heights: Heights,
     /// The key frames.
     pub keys: Vec<KeySpec>,
 }
@@ -441,6 +457,10 @@ impl RouteFile {
             near: route.lens.near,
             far: route.lens.far,
             orientation: route.orientation,
+            heights: match route.ground.as_ref().map(|g| g.mode()) {
+                Some(super::GroundMode::AboveGround) => Heights::AboveGround,
+                _ => Heights::World,
+            },
             keys,
         }
     }

@@ -44,6 +44,7 @@ pub fn check_frames(route: &str, frames: usize) -> Result<usize, RouteError> {
     }
 }
 
+use crate::city::LocalFrame;
 use crate::geom::Camera;
 use glam::{DQuat, DVec3};
 use std::f64::consts::FRAC_PI_2;
@@ -215,6 +216,80 @@ impl Default for Lens {
     }
 }
 
+/// How a route's heights meet the ground of a city on terrain.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum GroundMode {
+    /// Key heights are heights above the ground under the eye: every pose is lifted by the
+    /// terrain height there (street walks: the eye stays at its height above the local ground).
+    AboveGround,
+    /// Key heights are world heights; a pose that comes nearer the ground than this many metres
+    /// is raised to it (fly-overs and orbits that pass over hills higher than the city).
+    Clear(f64),
+}
+
+/// The ground a route's poses are lifted onto ([`GroundMode`]); a route without one (a flat
+/// city) keeps its heights.
+#[derive(Clone)]
+pub struct RouteGround {
+    terrain: std::sync::Arc<crate::terrain::Terrain>,
+    frame: LocalFrame,
+    mode: GroundMode,
+}
+
+impl RouteGround {
+    /// Poses over `terrain` (metric world frame), given in `frame`'s local coordinates.
+    pub fn new(
+        terrain: std::sync::Arc<crate::terrain::Terrain>,
+        frame: LocalFrame,
+        mode: GroundMode,
+    ) -> Self {
+        Self {
+            terrain,
+            frame,
+            mode,
+        }
+    }
+
+    /// The ground mode.
+    pub fn mode(&self) -> GroundMode {
+        self.mode
+    }
+
+    /// The terrain height under a local point (`None` off the grid or over nodata).
+    pub fn ground_at(&self, local: DVec3) -> Option<f64> {
+        let w = self.frame.to_world(local);
+        self.terrain
+            .sample(glam::DVec2::new(w.x, w.y))
+            .map(|g| g - self.frame.origin.z)
+    }
+
+    /// `local` lifted by the mode; unchanged where the terrain has no height.
+    pub fn lift(&self, local: DVec3) -> DVec3 {
+        match (self.ground_at(local), self.mode) {
+            (Some(g), GroundMode::AboveGround) => DVec3::new(local.x, local.y, local.z + g),
+            (Some(g), GroundMode::Clear(c)) => DVec3::new(local.x, local.y, local.z.max(g + c)),
+            (None, _) => local,
+        }
+    }
+}
+
+impl PartialEq for RouteGround {
+    fn eq(&self, other: &Self) -> bool {
+        std::sync::Arc::ptr_eq(&self.terrain, &other.terrain)
+            && self.frame == other.frame
+            && self.mode == other.mode
+    }
+}
+
+impl std::fmt::Debug for RouteGround {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("RouteGround")
+            .field("mode", &self.mode)
+            .field("terrain", &self.terrain.report().source)
+            .finish()
+    }
+}
+
 /// A camera route: timed key frames and how to interpolate them (Pina, Serón and Cerezo, §5).
 #[derive(Clone, Debug, PartialEq)]
 pub struct CameraRoute {
@@ -227,6 +302,8 @@ pub struct CameraRoute {
     pub lens: Lens,
     /// Orientation interpolation.
     pub orientation: OrientationInterpolation,
+    /// The ground poses are lifted onto (`None`: heights as the keys give them).
+    pub ground: Option<RouteGround>,
 }
 
 impl CameraRoute {
@@ -304,6 +381,7 @@ impl CameraRoute {
             controls,
             lens,
             orientation: OrientationInterpolation::Squad,
+            ground: None,
         })
     }
 
@@ -339,6 +417,7 @@ impl CameraRoute {
         let p0 = (i > 0 && !a.corner).then(|| self.keys[i - 1].position);
         let p3 = (i + 2 < n && !b.corner).then(|| self.keys[i + 2].position);
         let pos = spline::catmull_rom(p0, a.position, b.position, p3, u);
+        let pos = self.ground.as_ref().map_or(pos, |g| g.lift(pos));
         let q = match self.orientation {
             OrientationInterpolation::Squad => spline::squad(
                 a.orientation,

@@ -67,14 +67,20 @@ impl Obstacles {
     }
 
     /// The footprints of `buildings` (metric world coordinates) moved into `frame`, each from its
-    /// `min_height_m` to its `height_m`. Footprints with a non-finite vertex or height are left
+    /// `min_height_m` to its `height_m` above its own ground (on terrain, routes are made as over
+    /// a flat city and lifted afterwards: [`super::RouteGround`]). Footprints with a non-finite vertex or height are left
     /// out (they are not drawn either).
     pub fn from_buildings(buildings: &[Building], frame: &LocalFrame) -> Self {
         let mut prisms = Vec::with_capacity(buildings.len());
         let mut rects = Vec::with_capacity(buildings.len());
         let mut max_height = 0.0f64;
         for b in buildings {
-            let (lo, hi) = (b.bottom_z(), b.top_z());
+            // Heights above each building's own ground: routes are made as over a flat city
+            // and lifted onto the terrain afterwards (`RouteGround`).
+            let (lo, hi) = (
+                b.min_height_m.min(b.height_m),
+                b.height_m.max(b.min_height_m),
+            );
             let footprint = frame.to_local_polygon(&b.footprint);
             let mut min = DVec2::splat(f64::INFINITY);
             let mut max = DVec2::splat(f64::NEG_INFINITY);

@@ -53,6 +53,8 @@ pub enum CitySource {
         name: Option<String>,
         /// The footprint layer's CRS, replacing the file's (`None`: the file's).
         crs: Option<crate::importers::Crs>,
+        /// The elevation model the buildings stand on (`None`: flat, z = 0).
+        ground: Option<Box<crate::city::build::GroundOptions>>,
     },
     /// A synthetic grid of `cols × rows` blocks of box buildings (see [`SyntheticCity`]).
     Synthetic {
@@ -160,7 +162,27 @@ impl CitySource {
             exclude_street_tags,
             name: None,
             crs: None,
+            ground: None,
         })
+    }
+
+    /// The same source standing on an elevation model (`None` leaves it as it was). A
+    /// synthetic grid has no CRS to place a DEM by and stays flat.
+    pub fn with_ground(mut self, ground: Option<crate::city::build::GroundOptions>) -> Self {
+        if let CitySource::Files { ground: g, .. } = &mut self {
+            if let Some(ground) = ground {
+                *g = Some(Box::new(ground));
+            }
+        }
+        self
+    }
+
+    /// The elevation model of a file source, when it has one.
+    pub fn ground(&self) -> Option<&crate::city::build::GroundOptions> {
+        match self {
+            CitySource::Files { ground, .. } => ground.as_deref(),
+            CitySource::Synthetic { .. } => None,
+        }
     }
 
     /// The same source with the city's name and the footprint layer's CRS stated (each `None`
@@ -237,6 +259,7 @@ impl CitySource {
                     exclude_street_tags,
                     name,
                     crs,
+                    ground,
                     ..
                 },
                 Some((fp, st, _)),
@@ -247,6 +270,7 @@ impl CitySource {
                 exclude_street_tags: exclude_street_tags.clone(),
                 name: name.clone(),
                 crs: crs.clone(),
+                ground: ground.clone(),
             }),
             _ => Ok(self.clone()),
         }
@@ -349,6 +373,7 @@ impl CitySource {
                 exclude_street_tags,
                 name,
                 crs,
+                ground,
                 ..
             } => {
                 let (f, s, p) = self
@@ -362,6 +387,9 @@ impl CitySource {
                 }
                 if crs.is_some() {
                     opts.crs.clone_from(crs);
+                }
+                if let Some(g) = ground {
+                    opts.ground = Some((**g).clone());
                 }
                 progress(&format!(
                     "building the city from {} footprints",

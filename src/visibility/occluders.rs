@@ -335,6 +335,7 @@ mod tests {
             streets: vec![],
             parcels: vec![],
             report: CityReport::default(),
+            terrain: None,
         };
         assert!(try_extrude_building(&city.buildings[0], &city.frame).is_ok());
         assert!(try_extrude_building(&city.buildings[1], &city.frame).is_err());

@@ -212,6 +212,7 @@ impl SyntheticCity {
             streets: Vec::new(),
             parcels: Vec::new(),
             report: CityReport::default(),
+            terrain: None,
         };
         Self {
             city,

@@ -227,6 +227,7 @@ pub fn route_context(scene: &Scene, aspect: f64) -> RouteContext<'_> {
         buildings: &scene.city.buildings,
         frame: &scene.city.frame,
         aspect,
+        terrain: scene.city.terrain.as_ref(),
     }
 }
 

@@ -8,6 +8,11 @@ fn epsg_name(code: u32) -> Option<String> {
     wkt::parse(def.wkt).and_then(|n| n.name().map(str::to_string))
 }
 
+/// The OGC WKT of EPSG code `code` (for a `.prj` file), when the registry has it.
+pub fn epsg_wkt(code: u32) -> Option<&'static str> {
+    crs_definitions::from_code(u16::try_from(code).ok()?).map(|d| d.wkt)
+}
+
 fn normalise(name: &str) -> String {
     name.chars()
         .filter(|c| c.is_ascii_alphanumeric())

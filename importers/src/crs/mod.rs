@@ -27,7 +27,7 @@ mod identify;
 mod transform;
 mod wkt;
 
-pub use identify::datum_shift_for;
+pub use identify::{datum_shift_for, epsg_wkt};
 pub use transform::MetricTransform;
 
 #[cfg(test)]

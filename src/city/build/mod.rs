@@ -42,12 +42,14 @@ use super::model::{Building, City, CityReport, LocalFrame};
 
 pub mod frame;
 pub mod geometry;
+pub mod ground;
 pub mod heights;
 pub mod layers;
 pub mod repair_report;
 
 pub use frame::{robust_origin, FrameReport};
 pub use geometry::{has_tag, truthy};
+pub use ground::{GroundOptions, GroundReport, GroundSetupError};
 pub use heights::{heights_from_attributes, source_name, HeightFields, Heights, ImplausibleHeight};
 
 /// Options of [`build_city`].
@@ -62,6 +64,8 @@ pub struct BuildOptions {
     /// The footprint layer's CRS, stated or replacing the one its file gives (a Shapefile
     /// without `.prj`, a wrong one); `None`: the file's ([`parse_crs`] reads one from text).
     pub crs: Option<crate::importers::Crs>,
+    /// Put the buildings on an elevation model (`None`: a flat city at z = 0).
+    pub ground: Option<GroundOptions>,
 }
 
 /// Footprint file stems that say nothing about the city (`buildings.shp` of a city folder).
@@ -174,6 +178,9 @@ pub enum BuildError {
     /// The options are unusable.
     #[error("invalid build options: {0}")]
     Options(String),
+    /// The elevation model cannot be used.
+    #[error(transparent)]
+    Ground(#[from] GroundSetupError),
 }
 
 /// Builds a city from a footprint layer and optional street and parcel layers, each in its own
@@ -212,7 +219,8 @@ pub fn build_city(
         },
         ..Default::default()
     };
-    let buildings = repair_report::build_footprints(footprints, &transform, hf, &mut report);
+    let mut buildings = repair_report::build_footprints(footprints, &transform, hf, &mut report);
+    let terrain = on_ground(&mut buildings, &transform, opts, &mut report)?;
     if buildings.is_empty() {
         return Err(BuildError::NoBuildings {
             file: footprints.source.display().to_string(),
@@ -233,6 +241,7 @@ pub fn build_city(
         buildings,
         report,
     )?;
+    city.terrain = terrain;
     city.name = opts
         .name
         .clone()
@@ -262,8 +271,9 @@ pub fn build_city_in_frame(
         crs: transform.describe(),
         ..Default::default()
     };
-    let buildings = repair_report::build_footprints(footprints, &transform, hf, &mut report);
-    with_layers(
+    let mut buildings = repair_report::build_footprints(footprints, &transform, hf, &mut report);
+    let terrain = on_ground(&mut buildings, &transform, opts, &mut report)?;
+    let mut city = with_layers(
         footprints,
         streets,
         parcels,
@@ -271,7 +281,25 @@ pub fn build_city_in_frame(
         (transform, frame),
         buildings,
         report,
-    )
+    )?;
+    city.terrain = terrain;
+    Ok(city)
+}
+
+/// With [`BuildOptions::ground`]: the terrain in the city's frame, every building put on it
+/// ([`ground::place_buildings`]) and the account in `report`. Without: `None`, buildings at 0.
+fn on_ground(
+    buildings: &mut Vec<Building>,
+    transform: &MetricTransform,
+    opts: &BuildOptions,
+    report: &mut CityReport,
+) -> Result<Option<std::sync::Arc<crate::terrain::Terrain>>, BuildError> {
+    let Some(g) = &opts.ground else {
+        return Ok(None);
+    };
+    let terrain = ground::load_terrain(g, transform, buildings)?;
+    report.ground = Some(ground::place_buildings(buildings, &terrain, g, report));
+    Ok(Some(std::sync::Arc::new(terrain)))
 }
 
 /// Refuses a storey or default height that is not usable.
@@ -330,6 +358,7 @@ fn with_layers(
         streets: streets_out,
         parcels: parcels_out,
         report,
+        terrain: None,
     })
 }
 

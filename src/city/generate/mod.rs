@@ -9,8 +9,10 @@
 //! The same parameters and seed give byte-identical files (but for the date of writing in the
 //! `.dbf` headers).
 //!
-//! Coordinates are UTM zone 33N metres (EPSG:32633) around x ≈ 500 000, y ≈ 5 400 000, so the
-//! f64 → local-frame path is exercised as with real data.
+//! Coordinates are UTM zone 33N metres (EPSG:32633) around x ≈ 500 000, y ≈ 5 400 000 by
+//! default, so the f64 → local-frame path is exercised as with real data; another projected CRS
+//! in metres ([`GenerateParams::epsg`]) and a centre ([`GenerateParams::centre`]) put the city
+//! elsewhere (on an elevation model's ground, say).
 
 //!
 //! The generator's tuning numbers (parcel depths, wing layouts, detail probabilities, …) are
@@ -52,8 +54,13 @@ pub struct GenerateParams {
     pub storey_m: f64,
     /// Write `parcels.shp` too.
     pub parcels: bool,
-    /// South-west corner of the city in EPSG:32633 metres.
+    /// South-west corner of the city in the CRS's metres.
     pub origin: (f64, f64),
+    /// The city's CRS: an EPSG code of a projected CRS in metres (default 32633, UTM 33N).
+    pub epsg: u32,
+    /// Where the centre of the city's box goes (CRS metres); `None`: the city grows from
+    /// `origin`.
+    pub centre: Option<(f64, f64)>,
 }
 
 impl Default for GenerateParams {
@@ -67,6 +74,8 @@ impl Default for GenerateParams {
             storey_m: 3.2,
             parcels: true,
             origin: (500_000.0, 5_400_000.0),
+            epsg: 32633,
+            centre: None,
         }
     }
 }
@@ -102,6 +111,8 @@ pub struct GeneratedCity {
     pub parcels: Vec<Polygon<f64>>,
     /// Number of blocks used.
     pub blocks: usize,
+    /// The CRS (EPSG code) its coordinates are in.
+    pub epsg: u32,
 }
 
 /// Why generation failed.
@@ -129,6 +140,22 @@ pub enum GenerateError {
     /// No buildings asked for.
     #[error("invalid parameter buildings = 0: a generated city needs at least 1 building")]
     NoBuildings,
+    /// The CRS is unknown or not a projected CRS in metres.
+    #[error("invalid parameter epsg = {epsg}: {why}")]
+    BadCrs {
+        /// The code given.
+        epsg: u32,
+        /// What is wrong.
+        why: String,
+    },
+    /// The centre is not finite.
+    #[error("invalid parameter centre = ({x}, {y}): need finite coordinates")]
+    BadCentre {
+        /// Easting.
+        x: f64,
+        /// Northing.
+        y: f64,
+    },
     /// Blocks are too small for two rows of parcels.
     #[error("invalid parameter block_m: blocks must be at least {min_m} m on a side, got {lo} m")]
     BlocksTooSmall {
@@ -180,6 +207,32 @@ impl GenerateParams {
             return Err(GenerateError::BadStoreyHeight {
                 value: self.storey_m,
             });
+        }
+        match blockwalk_importers::Crs::from_epsg(self.epsg) {
+            Ok(c) if c.is_metric_projected() => {}
+            Ok(c) => {
+                return Err(GenerateError::BadCrs {
+                    epsg: self.epsg,
+                    why: format!("{} is not a projected CRS in metres", c.describe()),
+                })
+            }
+            Err(e) => {
+                return Err(GenerateError::BadCrs {
+                    epsg: self.epsg,
+                    why: e.to_string(),
+                })
+            }
+        }
+        if blockwalk_importers::crs::epsg_wkt(self.epsg).is_none() {
+            return Err(GenerateError::BadCrs {
+                epsg: self.epsg,
+                why: "no WKT for the .prj files".into(),
+            });
+        }
+        if let Some((x, y)) = self.centre {
+            if !(x.is_finite() && y.is_finite()) {
+                return Err(GenerateError::BadCentre { x, y });
+            }
         }
         if self.block_m.0 < tuning::MIN_BLOCK_SIDE_M {
             return Err(GenerateError::BlocksTooSmall {
@@ -245,7 +298,108 @@ pub fn generate_city(p: &GenerateParams) -> Result<GeneratedCity, GenerateError>
     let sh = rng.random_range(p.street_m.0..p.street_m.1);
     street_y.push((y + sh / 2.0, sh));
     city.streets = layout::street_segments(&street_x, &street_y);
+    city.epsg = p.epsg;
+    if let Some(c) = p.centre {
+        city.centre_at(c);
+    }
     Ok(city)
+}
+
+/// Where [`place_on_dem`] puts a generated city.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct DemPlace {
+    /// The elevation model's CRS (a projected CRS in metres).
+    pub epsg: u32,
+    /// The centre of its grid, CRS metres.
+    pub centre: (f64, f64),
+}
+
+/// Why a city cannot be put on an elevation model.
+#[derive(Debug, thiserror::Error)]
+pub enum DemPlaceError {
+    /// The file could not be read.
+    #[error(transparent)]
+    Read(#[from] blockwalk_importers::dem::DemError),
+    /// Its CRS is not a projected one in metres with an EPSG code.
+    #[error("{file}: the generator needs a DEM in a projected CRS in metres with an EPSG code, this one is {crs}")]
+    Crs {
+        /// The file.
+        file: String,
+        /// Its CRS.
+        crs: String,
+    },
+}
+
+/// The CRS and centre that put a generated city on the elevation model `dem` (a GeoTIFF):
+/// the model's own CRS, and the centre of its grid.
+///
+/// # Errors
+/// [`DemPlaceError`] when the file cannot be read or its CRS is not a projected one in metres
+/// with an EPSG code.
+pub fn place_on_dem(dem: &std::path::Path) -> Result<DemPlace, DemPlaceError> {
+    let grid = blockwalk_importers::dem::read_dem(dem)?;
+    let epsg = match &grid.crs {
+        blockwalk_importers::Crs::Projected { epsg: Some(e), .. }
+            if grid.crs.is_metric_projected() =>
+        {
+            e
+        }
+        other => {
+            return Err(DemPlaceError::Crs {
+                file: dem.display().to_string(),
+                crs: other.describe(),
+            })
+        }
+    };
+    // The grid's centre sample position (the transform maps sample indices to positions).
+    let (c, r) = (
+        (grid.width as f64 - 1.0) / 2.0,
+        (grid.height as f64 - 1.0) / 2.0,
+    );
+    let t = grid.transform;
+    Ok(DemPlace {
+        epsg: *epsg,
+        centre: (t[0] + t[1] * c + t[2] * r, t[3] + t[4] * c + t[5] * r),
+    })
+}
+
+impl GeneratedCity {
+    /// The centre of the box around its buildings, streets and parcels.
+    pub fn box_centre(&self) -> (f64, f64) {
+        use geo::BoundingRect;
+        let rects = self
+            .buildings
+            .iter()
+            .filter_map(|b| b.footprint.bounding_rect())
+            .chain(self.streets.iter().filter_map(|s| s.line.bounding_rect()))
+            .chain(self.parcels.iter().filter_map(|p| p.bounding_rect()));
+        let (mut lo, mut hi) = (
+            (f64::INFINITY, f64::INFINITY),
+            (f64::NEG_INFINITY, f64::NEG_INFINITY),
+        );
+        for r in rects {
+            lo = (lo.0.min(r.min().x), lo.1.min(r.min().y));
+            hi = (hi.0.max(r.max().x), hi.1.max(r.max().y));
+        }
+        ((lo.0 + hi.0) / 2.0, (lo.1 + hi.1) / 2.0)
+    }
+
+    /// Moves everything so that the box centre ([`Self::box_centre`]) is at `c`, rounded to
+    /// whole metres of offset (the layout keeps its centimetre grid).
+    pub fn centre_at(&mut self, c: (f64, f64)) {
+        use geo::Translate;
+        let now = self.box_centre();
+        let (dx, dy) = ((c.0 - now.0).round(), (c.1 - now.1).round());
+        for b in &mut self.buildings {
+            b.footprint.translate_mut(dx, dy);
+        }
+        for s in &mut self.streets {
+            s.line.translate_mut(dx, dy);
+        }
+        for p in &mut self.parcels {
+            p.translate_mut(dx, dy);
+        }
+    }
 }
 
 #[cfg(test)]
@@ -399,6 +553,8 @@ mod tests {
             storey_m: 2.9,
             parcels: false,
             origin: (480_123.25, 5_390_001.5),
+            epsg: 32633,
+            centre: None,
         };
         let mut got = Vec::new();
         for p in [&small, &odd] {

@@ -37,9 +37,16 @@ fn shp_err(file: &Path) -> impl FnOnce(shapefile::Error) -> GenerateError + '_ {
     }
 }
 
-fn write_prj(shp: &Path, files: &mut Vec<PathBuf>) -> Result<(), GenerateError> {
+fn write_prj(shp: &Path, epsg: u32, files: &mut Vec<PathBuf>) -> Result<(), GenerateError> {
     let prj = shp.with_extension("prj");
-    std::fs::write(&prj, UTM33N_PRJ).map_err(io_err(&prj))?;
+    let wkt = match epsg {
+        32633 => UTM33N_PRJ,
+        code => blockwalk_importers::crs::epsg_wkt(code).ok_or(GenerateError::BadCrs {
+            epsg: code,
+            why: "no WKT for the .prj files".into(),
+        })?,
+    };
+    std::fs::write(&prj, wkt).map_err(io_err(&prj))?;
     let cpg = shp.with_extension("cpg");
     std::fs::write(&cpg, "UTF-8").map_err(io_err(&cpg))?;
     files.extend([
@@ -137,7 +144,7 @@ pub fn write_city(city: &GeneratedCity, dir: &Path) -> Result<WrittenCity, Gener
             (shapefile::Polygon::from(b.footprint.clone()), r)
         }),
     )?;
-    write_prj(&path, &mut files)?;
+    write_prj(&path, city.epsg, &mut files)?;
 
     let path = stage.join("streets.shp");
     let table = TableWriterBuilder::new()
@@ -162,7 +169,7 @@ pub fn write_city(city: &GeneratedCity, dir: &Path) -> Result<WrittenCity, Gener
             (shapefile::Polyline::new(pts), r)
         }),
     )?;
-    write_prj(&path, &mut files)?;
+    write_prj(&path, city.epsg, &mut files)?;
 
     if !city.parcels.is_empty() {
         let path = stage.join("parcels.shp");
@@ -176,7 +183,7 @@ pub fn write_city(city: &GeneratedCity, dir: &Path) -> Result<WrittenCity, Gener
                 (shapefile::Polygon::from(p.clone()), r)
             }),
         )?;
-        write_prj(&path, &mut files)?;
+        write_prj(&path, city.epsg, &mut files)?;
     }
     staged.commit()?;
     let files = files
