@@ -61,6 +61,7 @@ fn run_source(name: &str, source: &CitySource, seed: u64) {
         blocks: BlockOptions::default(),
         structures: Structure::ALL.to_vec(),
         occlusion: None,
+        ..SceneOptions::default()
     };
     let scene = Scene::load(source, &opts, &mut |_| {}).unwrap();
     let refs: Vec<(BlockId, &Mesh)> = scene

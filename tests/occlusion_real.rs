@@ -25,6 +25,7 @@ fn helsinki_no_false_culls() {
         blocks: BlockOptions::default(),
         structures: vec![Structure::Flat, Structure::Bqr],
         occlusion: None,
+        ..SceneOptions::default()
     };
     let scene = Scene::load(&source, &opts, &mut |_| {}).unwrap();
     let refs: Vec<(BlockId, &Mesh)> = scene

@@ -25,6 +25,7 @@
 //! ```
 
 pub mod source;
+pub mod terrain;
 pub mod units;
 
 pub use source::{CitySource, LoadedCity, SourceError};
@@ -46,6 +47,11 @@ pub struct SceneOptions {
     pub structures: Vec<Structure>,
     /// The occlusion culler's settings; `None` builds no culler.
     pub occlusion: Option<CullerOptions>,
+    /// For a city on terrain: the largest projected error of a drawn terrain tile, pixels.
+    pub terrain_tau_px: f64,
+    /// For a city on terrain: the terrain takes part in occlusion culling (its min-filtered
+    /// cells as occluders, [`crate::visibility::occluders::terrain_occluders`]).
+    pub terrain_occludes: bool,
 }
 
 impl Default for SceneOptions {
@@ -55,6 +61,8 @@ impl Default for SceneOptions {
             blocks: BlockOptions::default(),
             structures: vec![Structure::Bqr],
             occlusion: None,
+            terrain_tau_px: terrain::DEFAULT_TERRAIN_TAU_PX,
+            terrain_occludes: true,
         }
     }
 }
@@ -94,6 +102,14 @@ pub enum SceneError {
         #[source]
         source: VisibilityError,
     },
+    /// The terrain tree could not be built.
+    #[error("building the terrain of {city}: {problem}")]
+    Terrain {
+        /// City name.
+        city: String,
+        /// What went wrong.
+        problem: String,
+    },
 }
 
 /// A city ready to cull, walk and draw.
@@ -126,6 +142,8 @@ pub struct Scene {
     /// Pages and buildings as draw units, when asked for ([`Scene::build_units`]; always with
     /// [`Structure::SceneGraph`]).
     pub units: Option<DrawUnits>,
+    /// The ground as drawn, for a city on terrain (`None`: a flat city, ground at z = 0).
+    pub terrain: Option<std::sync::Arc<terrain::SceneTerrain>>,
 }
 
 impl std::fmt::Debug for Scene {
@@ -212,10 +230,38 @@ impl Scene {
                 })
             })
             .collect::<Result<Vec<_>, _>>()?;
+        let terrain = match &city.terrain {
+            Some(t) => {
+                progress("building the terrain tree");
+                let st = terrain::SceneTerrain::build(
+                    (**t).clone(),
+                    city.frame,
+                    &crate::terrain::TreeOptions::default(),
+                    opts.terrain_tau_px,
+                )
+                .map_err(|e| SceneError::Terrain {
+                    city: city.name.clone(),
+                    problem: e.to_string(),
+                })?;
+                Some(std::sync::Arc::new(st))
+            }
+            None => None,
+        };
         let occlusion = match opts.occlusion {
             Some(o) => {
                 progress("extracting occluders");
-                let culler = OcclusionCuller::with_drawn(&city, &layout, &drawn, o);
+                let culler = match (&terrain, opts.terrain_occludes) {
+                    (Some(t), true) => {
+                        let extra = crate::visibility::occluders::terrain_occluders(
+                            &t.tree,
+                            &city.frame,
+                            crate::visibility::occluders::TERRAIN_OCCLUDER_CELL_M,
+                            &o.occluders,
+                        );
+                        OcclusionCuller::with_drawn_and(&city, &layout, &drawn, extra, o)
+                    }
+                    _ => OcclusionCuller::with_drawn(&city, &layout, &drawn, o),
+                };
                 Some(culler.map_err(|source| SceneError::Occlusion {
                     city: city.name.clone(),
                     source,
@@ -234,6 +280,7 @@ impl Scene {
             indexes,
             occlusion,
             units: None,
+            terrain,
         };
         if let Some(at) = opts
             .structures

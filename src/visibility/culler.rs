@@ -142,6 +142,24 @@ impl OcclusionCuller {
         Self::from_occluders(city, layout, blocks, opts)
     }
 
+    /// As [`Self::with_drawn`], with `extra` occluders beside the blocks' (the terrain's,
+    /// [`super::occluders::terrain_occluders`]); the cull map still covers the city's blocks.
+    ///
+    /// # Errors
+    /// As [`Self::with_drawn`].
+    pub fn with_drawn_and(
+        city: &City,
+        layout: &BlockLayout,
+        drawn: &[bool],
+        extra: Vec<BlockOccluders>,
+        opts: CullerOptions,
+    ) -> Result<Self, VisibilityError> {
+        let blocks = extract_drawn(city, layout, &opts.occluders, drawn);
+        let mut c = Self::from_occluders(city, layout, blocks, opts)?;
+        c.blocks.extend(extra);
+        Ok(c)
+    }
+
     /// The culler over extracted occluders; the cull map covers the city's plan-view bounds.
     fn from_occluders(
         city: &City,

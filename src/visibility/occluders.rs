@@ -137,6 +137,78 @@ pub fn extract_drawn(
 /// Merged runs of collinear, same-direction edges (only runs of two or more edges).
 ///
 /// What holds for a run: it lies on the line of one of its edges `e0`; every edge merged into
+/// The smallest side of a terrain occluder cell, metres ([`terrain_occluders`]).
+pub const TERRAIN_OCCLUDER_CELL_M: f64 = 25.0;
+
+/// The block id terrain occluders carry ([`terrain_occluders`]): no block of a layout has it.
+pub const TERRAIN_OCCLUDER_BLOCK: BlockId = BlockId(u32::MAX);
+
+/// Terrain occluders (Willmott et al., §3.2, with the terrain's min-filtered level as the
+/// occluder): the cells of the finest level of `tree` whose side is at least `cell_m`, each a
+/// column from below up to the lowest full-resolution sample under it
+/// ([`crate::terrain::TerrainTree::occluder_cells`]), as four walls at that height; one group per
+/// tile of that level, in `frame`'s local coordinates. The terrain as drawn at full resolution
+/// (the oracle's) never goes below these walls' tops over their cells, and is solid below, so
+/// their shadows are conservative. Collinear walls along a row of cells are merged into runs
+/// at the lowest of their heights, as facade runs are ([`merge_runs`]).
+pub fn terrain_occluders(
+    tree: &crate::terrain::TerrainTree,
+    frame: &crate::city::LocalFrame,
+    cell_m: f64,
+    opts: &OccluderOptions,
+) -> Vec<BlockOccluders> {
+    let spacing = tree.terrain().spacing();
+    let cell = spacing.x.min(spacing.y).max(f64::MIN_POSITIVE);
+    // The finest level whose cells are at least `cell_m` (the root's when none is that coarse).
+    let level = (0..=tree.depth())
+        .rev()
+        .find(|&l| {
+            tree.node_ids()
+                .find(|&n| tree.level(n) == l)
+                .is_some_and(|n| tree.stride(n) as f64 * cell >= cell_m)
+        })
+        .unwrap_or(0);
+    tree.node_ids()
+        .filter(|&n| tree.level(n) == level)
+        .filter_map(|n| {
+            let mut edges = Vec::new();
+            let mut aabb = Aabb3::EMPTY;
+            for (b, z) in tree.occluder_cells(n) {
+                let lo = frame.to_local_f64(DVec3::new(b[0], b[1], z));
+                let hi = frame.to_local_f64(DVec3::new(b[2], b[3], z));
+                aabb = aabb.including(lo).including(hi);
+                // Counter-clockwise: the outward side is on the right of each edge.
+                let ring = [
+                    DVec2::new(lo.x, lo.y),
+                    DVec2::new(hi.x, lo.y),
+                    DVec2::new(hi.x, hi.y),
+                    DVec2::new(lo.x, hi.y),
+                    DVec2::new(lo.x, lo.y),
+                ];
+                for w in ring.windows(2) {
+                    edges.push(Occluder {
+                        a: w[0],
+                        b: w[1],
+                        height: lo.z,
+                    });
+                }
+            }
+            if edges.is_empty() {
+                return None;
+            }
+            let ext = tree.extent(n);
+            aabb = aabb.including(frame.to_local_f64(ext.min));
+            let mut occluders = merge_runs(&edges, opts);
+            occluders.extend(edges.iter().filter(|e| e.length() >= opts.min_length));
+            Some(BlockOccluders {
+                block: TERRAIN_OCCLUDER_BLOCK,
+                aabb,
+                occluders,
+            })
+        })
+        .collect()
+}
+
 /// it points the same way within `collinear_angle` and has both ends within `collinear_offset`
 /// of that line, measured at the ends themselves (not through the lines' distances from the
 /// local origin, which let two facades 0.1–0.5 m apart far from the origin pass as one line);
