@@ -118,15 +118,10 @@ fn distance_to_polygon(p: &Polygon<f64>, q: DVec2) -> f64 {
     best
 }
 
-/// The full-resolution mesh height at a world point (two triangles per cell, south-west to
-/// north-east diagonal), by barycentric coordinates: this test's own evaluation.
-fn full_res_height(t: &Terrain, p: DVec2) -> Option<f64> {
-    let uv = (p - t.origin()) / t.spacing();
-    full_res_uv(t, uv, [0, 0], [t.nx() - 1, t.ny() - 1])
-}
-
-/// The same at grid coordinates `uv`, in the cell of `[lo, hi]` (grid nodes) that holds it
-/// (so that a point on the range's border is evaluated in a cell of the range).
+/// The full-resolution mesh height (two triangles per cell, south-west to north-east diagonal)
+/// at grid coordinates `uv`, by barycentric coordinates (this test's own evaluation), in the
+/// cell of `[lo, hi]` (grid nodes) that holds it, so that a point on the range's border is
+/// evaluated in a cell of the range.
 fn full_res_uv(t: &Terrain, uv: DVec2, lo: [usize; 2], hi: [usize; 2]) -> Option<f64> {
     let i = (uv.x.floor().max(0.0) as usize).clamp(lo[0], hi[0] - 1);
     let j = (uv.y.floor().max(0.0) as usize).clamp(lo[1], hi[1] - 1);
