@@ -570,7 +570,9 @@ fn kept(dem: &DemGrid, region: Option<[f64; 4]>, file: &str) -> Result<Terrain, 
         let row = if t[5] < 0.0 { h - 1 - j } else { j };
         for i in i0..=i1 {
             let col = if t[1] < 0.0 { w - 1 - i } else { i };
-            heights.push(dem.values[row * w + col]);
+            let v = dem.values[row * w + col];
+            // The declared nodata value too, should a reader leave it in place.
+            heights.push(if Some(v) == dem.nodata { f64::NAN } else { v });
         }
     }
     let origin = DVec2::new(x0 + i0 as f64 * dx, y0 + j0 as f64 * dy);
@@ -843,6 +845,24 @@ mod tests {
         assert_eq!(t.sample(DVec2::new(1.0, 1.0)), None);
         // The corner (1, 1) has zero weight on the line x = 0 … 1, y = 0.
         assert_eq!(t.sample(DVec2::new(0.5, 0.0)), Some(5.0));
+    }
+
+    #[test]
+    fn a_declared_nodata_value_is_nodata() {
+        let mut d = dem(3, 3, [0.0, 1.0, 0.0, 2.0, 0.0, -1.0], utm(), |x, _| {
+            if x == 2.0 {
+                -9999.0
+            } else {
+                7.0
+            }
+        });
+        d.nodata = Some(-9999.0);
+        let m = utm().metric_transform([0.0, 0.0]);
+        let t = Terrain::from_dem(&d, &m, None).unwrap();
+        assert_eq!(t.report().nodata_count, 3);
+        assert_eq!(t.report().min_m, 7.0);
+        let json = serde_json::to_string(t.report()).unwrap();
+        assert!(json.contains("\"nodata_count\":3"), "{json}");
     }
 
     #[test]

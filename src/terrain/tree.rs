@@ -98,6 +98,8 @@ struct Node {
     measured_m: f64,
     /// West, east, south, north; 0 where the edge has no neighbour.
     skirt_m: [f64; 4],
+    /// The lowest point of the node's and its descendants' drawn geometry, skirts included.
+    floor_z: f64,
     level: u8,
     tile: [u32; 2],
 }
@@ -219,6 +221,16 @@ impl TerrainTree {
             .collect();
         for (n, s) in tree.nodes.iter_mut().zip(skirts) {
             n.skirt_m = s;
+            n.floor_z = n.extent.min.z - s.iter().fold(0.0f64, |a, &b| a.max(b));
+        }
+        // A subtree's drawn geometry reaches down to the lowest skirt in it (a child's skirt
+        // can be deeper than its parent's).
+        for id in (0..tree.nodes.len()).rev() {
+            let f = tree
+                .children(NodeId(id as u32))
+                .map(|c| tree.nodes[c.0 as usize].floor_z)
+                .fold(tree.nodes[id].floor_z, f64::min);
+            tree.nodes[id].floor_z = f;
         }
         Ok(tree)
     }
@@ -291,6 +303,7 @@ impl TerrainTree {
             error_m: err,
             measured_m: err,
             skirt_m: [0.0; 4],
+            floor_z: lo,
             level: l as u8,
             tile: [tile[0] as u32, tile[1] as u32],
         }
@@ -395,6 +408,16 @@ impl TerrainTree {
     pub fn extent(&self, id: NodeId) -> Aabb3 {
         self.nodes[id.0 as usize].extent
     }
+    /// A box holding everything the node and its descendants draw: [`Self::extent`] reaching
+    /// down to the bottom of the deepest skirt in the subtree (what [`Self::select`] culls
+    /// with).
+    pub fn draw_box(&self, id: NodeId) -> Aabb3 {
+        let n = &self.nodes[id.0 as usize];
+        let mut b = n.extent;
+        b.min.z = n.floor_z;
+        b
+    }
+
     /// The node's error bound, metres: the largest of its measured error and its descendants'
     /// (saturated, so a parent's is at least each child's).
     pub fn error_m(&self, id: NodeId) -> f64 {
@@ -470,8 +493,8 @@ impl TerrainTree {
     /// `viewport_h_px` high, so that each drawn node's projected error is at most `tau_px`
     /// pixels where the finest level allows.
     ///
-    /// Top-down from the root: a node whose box (with its skirts) lies outside the frustum is
-    /// left out with its subtree; a node is drawn when
+    /// Top-down from the root: a node whose [`Self::draw_box`] lies outside the frustum is left
+    /// out with its subtree; a node is drawn when
     /// `e · focal_px / max(distance from the eye to its box, near) ≤ τ`, or at the finest
     /// level; else its children are visited. `focal_px = viewport_h_px / (2 tan(fov_y / 2))`.
     /// Nodes without a height are never drawn. The drawn nodes partition the visible part of
@@ -498,7 +521,7 @@ impl TerrainTree {
                 continue;
             }
             let mut cull_box = n.extent;
-            cull_box.min.z -= n.skirt_m.iter().fold(0.0f64, |a, &b| a.max(b));
+            cull_box.min.z = n.floor_z;
             if !frustum.intersects_aabb(&cull_box) {
                 continue;
             }

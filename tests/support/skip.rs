@@ -1,7 +1,7 @@
 //! Skips that everyone sees, and one switch that turns them into failures.
 //!
 //! A test that needs something the machine may lack (a GPU adapter, the Node validators and
-//! Chromium, the Astana data, the right to mount file systems, an X server) asks [`or_skip`];
+//! Chromium, the Astana data, the shared DEMs, the right to mount file systems, an X server) asks [`or_skip`];
 //! `tests/fuzz/ci.sh` logs its own skip (no nightly toolchain or `cargo-fuzz`) the same way.
 //! Without it, the skip is written straight to the process's standard error, which the test
 //! harness does not capture (it captures only `print!` and `eprint!`), and appended to the skip
@@ -24,6 +24,8 @@ pub enum Need {
     Validators,
     /// The Astana data beside the repository (`../shared/data/astana`).
     Astana,
+    /// The elevation grids beside the repository (`../shared/data/dem`).
+    Dem,
     /// Mounting small file systems (a full disk, a read-only folder): root, or `sudo -n`.
     Mounts,
     /// An X server for a real window (`xvfb-run`).
@@ -35,10 +37,11 @@ pub enum Need {
 
 impl Need {
     /// Every need, in the order the summary lists them.
-    pub const ALL: [Need; 6] = [
+    pub const ALL: [Need; 7] = [
         Need::Gpu,
         Need::Validators,
         Need::Astana,
+        Need::Dem,
         Need::Mounts,
         Need::Display,
         Need::Fuzz,
@@ -50,6 +53,7 @@ impl Need {
             Need::Gpu => "gpu",
             Need::Validators => "validators",
             Need::Astana => "astana",
+            Need::Dem => "dem",
             Need::Mounts => "mounts",
             Need::Display => "display",
             Need::Fuzz => "fuzz",
@@ -134,11 +138,25 @@ pub fn or_skip<T>(need: Need, test: &str, found: Result<T, String>) -> Option<T>
     }
 }
 
+/// Records a skip that no switch turns into a failure: for a state of the code rather than of the
+/// machine (a reader this branch does not have yet), which `BLOCKWALK_REQUIRE` cannot supply.
+pub fn skip_always(need: Need, test: &str, why: &str) {
+    skip_with(need, test, why, "no switch makes this a failure");
+}
+
 /// Records a skip: one line on the real standard error and one in the skip log.
 fn skip(need: Need, test: &str, why: &str) {
+    skip_with(
+        need,
+        test,
+        why,
+        &format!("BLOCKWALK_REQUIRE={need} makes this a failure"),
+    );
+}
+
+fn skip_with(need: Need, test: &str, why: &str, note: &str) {
     let why = why.replace(['\n', '\t'], " ");
-    let line =
-        format!("SKIPPED [{need}] {test}: {why} (BLOCKWALK_REQUIRE={need} makes this a failure)\n");
+    let line = format!("SKIPPED [{need}] {test}: {why} ({note})\n");
     // `std::io::stderr()` itself, not `eprintln!`: the harness captures only the macros.
     let _ = std::io::stderr().write_all(line.as_bytes());
     let path = log_path();
