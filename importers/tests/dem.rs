@@ -4,8 +4,8 @@
 //!   names another `shared/`), checked against their READMEs and Nepal's `stats.json`, and, for
 //!   the three uncompressed ones, sample by sample against a decoder written here from the TIFF
 //!   specification (the georeferencing of all five is also recomputed here from the raw tags).
-//!   Without the data the tests skip loudly; the `astana` need (the shared data beside the
-//!   repository, as `.ci/run` requires) makes the absence a failure;
+//!   Without the data the tests skip loudly; the `dem` need (which `.ci/run` requires) makes the
+//!   absence a failure;
 //! - small GeoTIFFs written here byte by byte (strips and tiles, every sample type, both byte
 //!   orders) or with the `tiff` crate's encoder (LZW, Deflate, PackBits, the horizontal
 //!   predictor), whose values and georeferencing are known by construction;
@@ -79,10 +79,10 @@ fn the_shared_folder_beside_the_repository_else_the_variable() {
 
 /// The real file `rel` under the DEM folder, or `None` after a loud skip. The repository's skip
 /// helper (`tests/support/skip.rs`, included by path: this crate needs nothing of `blockwalk`)
-/// knows the shared data beside the repository as the `astana` need, which `.ci/run` requires:
-/// `BLOCKWALK_REQUIRE=astana` turns the skip into a failure.
+/// knows the shared elevation grids as the `dem` need, which `.ci/run` requires:
+/// `BLOCKWALK_REQUIRE=dem` turns the skip into a failure.
 fn real(test: &str, rel: &str) -> Option<PathBuf> {
-    skip::or_skip(skip::Need::Astana, test, dem_dir()).map(|d| d.join(rel))
+    skip::or_skip(skip::Need::Dem, test, dem_dir()).map(|d| d.join(rel))
 }
 
 /// A minimal TIFF reader written from the specification, independent of the `tiff` crate: the
