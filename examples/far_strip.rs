@@ -120,7 +120,12 @@ fn main() -> Result<(), Box<dyn std::error::Error + Send + Sync>> {
                 on = "GPU";
                 r
             }
-            None => field.cpu_renderer(scene.draw_meshes(), &scene.ground, a.size),
+            None => field.cpu_renderer(
+                scene.draw_meshes(),
+                &scene.ground,
+                scene.terrain_draw(),
+                a.size,
+            ),
         };
         let mut sel = field.selector(&scene.bounds, select)?;
         for (col, cam) in cameras.iter().enumerate() {

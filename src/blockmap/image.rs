@@ -32,7 +32,7 @@ use super::layout::{BlockMap, BlockMapMeta};
 use crate::blocks::BlockId;
 use crate::city::Mesh;
 use crate::geom::Camera;
-use crate::visibility::{CpuFrameRenderer, DrawError, DrawnFrame, FrameRenderer};
+use crate::visibility::{CpuFrameRenderer, DrawError, DrawnFrame, FrameRenderer, TerrainDraw};
 use glam::DVec3;
 use rayon::prelude::*;
 
@@ -323,12 +323,24 @@ pub fn cast_image(
 /// ([`oracle::shade_with_ground_depth`]) and far-field maps through [`cast_image`], composited
 /// per pixel by depth (a map pixel wins where its depth is less than the mesh pass's, the GPU's
 /// `Less` test). Wall time.
-#[derive(Clone, Debug)]
+#[derive(Clone)]
 pub struct CpuHybridRenderer<'a> {
     meshes: &'a [(BlockId, Mesh)],
     ground: &'a Mesh,
+    terrain: Option<&'a dyn TerrainDraw>,
     maps: Vec<&'a BlockMap>,
     size: (u32, u32),
+}
+
+impl std::fmt::Debug for CpuHybridRenderer<'_> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("CpuHybridRenderer")
+            .field("meshes", &self.meshes.len())
+            .field("maps", &self.maps.len())
+            .field("terrain", &self.terrain.is_some())
+            .field("size", &self.size)
+            .finish()
+    }
 }
 
 impl<'a> CpuHybridRenderer<'a> {
@@ -343,8 +355,18 @@ impl<'a> CpuHybridRenderer<'a> {
         Self {
             meshes,
             ground,
+            terrain: None,
             maps,
             size,
+        }
+    }
+
+    /// The same renderer drawing `terrain`'s cut under the meshes instead of the flat ground
+    /// ([`CpuFrameRenderer::with_terrain`]); the maps then composite over it by depth.
+    pub fn with_terrain(self, terrain: &'a dyn TerrainDraw) -> Self {
+        Self {
+            terrain: Some(terrain),
+            ..self
         }
     }
 
@@ -354,7 +376,11 @@ impl<'a> CpuHybridRenderer<'a> {
     }
 
     fn meshes_only(&self) -> CpuFrameRenderer<'a> {
-        CpuFrameRenderer::new(self.meshes, self.size).with_ground(self.ground)
+        let r = CpuFrameRenderer::new(self.meshes, self.size).with_ground(self.ground);
+        match self.terrain {
+            Some(t) => r.with_terrain(t),
+            None => r,
+        }
     }
 }
 

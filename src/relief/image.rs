@@ -18,7 +18,7 @@ use crate::blockmap::{FrameRays, MapXform};
 use crate::blocks::BlockId;
 use crate::city::Mesh;
 use crate::geom::Camera;
-use crate::visibility::{CpuFrameRenderer, DrawError, DrawnFrame, FrameRenderer};
+use crate::visibility::{CpuFrameRenderer, DrawError, DrawnFrame, FrameRenderer, TerrainDraw};
 use glam::{DVec3, DVec4};
 use rayon::prelude::*;
 
@@ -331,6 +331,7 @@ pub fn cast_image(
 pub struct CpuReliefRenderer<'a> {
     meshes: &'a [(BlockId, Mesh)],
     ground: &'a Mesh,
+    terrain: Option<&'a dyn TerrainDraw>,
     field: &'a ReliefField,
     prepared: Prepared<'a>,
     sets: std::sync::Mutex<MapSets>,
@@ -348,10 +349,30 @@ impl<'a> CpuReliefRenderer<'a> {
         Self {
             meshes,
             ground,
+            terrain: None,
             field,
             prepared: Prepared::new(field),
             sets: std::sync::Mutex::new(MapSets::new(field.options.blend_frames)),
             size,
+        }
+    }
+}
+
+impl<'a> CpuReliefRenderer<'a> {
+    /// The same renderer drawing `terrain`'s cut under the meshes instead of the flat ground
+    /// ([`CpuFrameRenderer::with_terrain`]); the nodes then composite over it by depth.
+    pub fn with_terrain(self, terrain: &'a dyn TerrainDraw) -> Self {
+        Self {
+            terrain: Some(terrain),
+            ..self
+        }
+    }
+
+    fn meshes_only(&self) -> CpuFrameRenderer<'a> {
+        let r = CpuFrameRenderer::new(self.meshes, self.size).with_ground(self.ground);
+        match self.terrain {
+            Some(t) => r.with_terrain(t),
+            None => r,
         }
     }
 }
@@ -375,9 +396,7 @@ impl FrameRenderer for CpuReliefRenderer<'_> {
         visible: &[BlockId],
         want_image: bool,
     ) -> Result<DrawnFrame, DrawError> {
-        CpuFrameRenderer::new(self.meshes, self.size)
-            .with_ground(self.ground)
-            .draw(camera, visible, want_image)
+        self.meshes_only().draw(camera, visible, want_image)
     }
     fn draw_with_far(
         &self,
@@ -394,8 +413,7 @@ impl FrameRenderer for CpuReliefRenderer<'_> {
             )
             .into());
         }
-        CpuFrameRenderer::new(self.meshes, self.size)
-            .with_ground(self.ground)
+        self.meshes_only()
             .draw_composited(camera, visible, want_image, |w, h| {
                 let mut nodes = frame_nodes(self.prepared.infos(), far, camera, h);
                 self.sets

@@ -10,7 +10,7 @@ use crate::blocks::BlockId;
 use crate::city::Mesh;
 use crate::geom::Camera;
 use crate::relief::ReliefField;
-use crate::visibility::{DrawError, DrawnFrame, FrameRenderer};
+use crate::visibility::{DrawError, DrawnFrame, FrameRenderer, SharedTerrain};
 use crate::walk::{FarField, FarGpu};
 
 /// The far-field pass of one representation, uploaded once: what [`GpuFrameRenderer`] and the
@@ -85,6 +85,8 @@ pub struct GpuFrameRenderer {
     gpu: Gpu,
     renderer: MeshRenderer,
     far: Option<FarRenderer>,
+    /// The terrain whose cut each frame draws (its tiles uploaded in `renderer`).
+    terrain: Option<SharedTerrain>,
 }
 
 impl std::fmt::Debug for GpuFrameRenderer {
@@ -92,6 +94,7 @@ impl std::fmt::Debug for GpuFrameRenderer {
         f.debug_struct("GpuFrameRenderer")
             .field("gpu", &self.gpu)
             .field("far", &self.far)
+            .field("terrain_tiles", &self.renderer.terrain_tiles())
             .finish()
     }
 }
@@ -168,7 +171,51 @@ impl GpuFrameRenderer {
             gpu,
             renderer,
             far: None,
+            terrain: None,
         })
+    }
+
+    /// The same renderer drawing `terrain`: its tiles uploaded once
+    /// ([`MeshRenderer::with_terrain`]), and on every frame its cut for the frame's camera and
+    /// size drawn depth-tested before the meshes and before the far pass (which depth-tests
+    /// against it, so hills hide far-field nodes). The ground plane and the ground layers are
+    /// then not drawn ([`crate::visibility::draws_flat_ground`]).
+    ///
+    /// # Errors
+    /// A malformed tile.
+    pub fn with_terrain(self, terrain: SharedTerrain) -> Result<Self, RenderError> {
+        let renderer = self.renderer.with_terrain(&self.gpu, terrain.as_ref())?;
+        Ok(Self {
+            renderer,
+            terrain: Some(terrain),
+            ..self
+        })
+    }
+
+    /// The terrain tiles a frame from `camera` draws: the terrain's cut (none without one).
+    fn cut(&self, camera: &Camera) -> Vec<usize> {
+        let mut cut = Vec::new();
+        if let Some(t) = &self.terrain {
+            let o = self.renderer.options();
+            t.cut(camera, (o.width, o.height), &mut cut);
+        }
+        cut
+    }
+
+    /// Draws `visible` (and the terrain's cut) with `shading`, reading the image back: the
+    /// frames tests compare with the CPU oracle ([`Shading::Ids`]) and the CPU renderer.
+    ///
+    /// # Errors
+    /// GPU failures; a cut naming a tile that does not exist.
+    pub fn draw_shaded(
+        &self,
+        camera: &Camera,
+        visible: &[BlockId],
+        shading: super::Shading,
+    ) -> Result<super::Frame, RenderError> {
+        let cut = self.cut(camera);
+        self.renderer
+            .draw_tiles(&self.gpu, camera, visible, &cut, shading, true)
     }
 
     /// The same renderer with the far-field `maps` uploaded ([`BlockMapRenderer`]), which
@@ -281,11 +328,16 @@ impl GpuFrameRenderer {
             (None, Some(&index)) => return Err(RenderError::NoSuchMap { index, maps: 0 }),
         };
         // The far pass reads the composite back: the mesh image alone is not needed then.
-        let meshes = if far_renderer.is_some() && read.color {
-            self.renderer.draw_in_place(&self.gpu, camera, visible)?
-        } else {
-            self.renderer.draw(&self.gpu, camera, visible)?
-        };
+        let in_place = far_renderer.is_some() && read.color;
+        let cut = self.cut(camera);
+        let meshes = self.renderer.draw_tiles(
+            &self.gpu,
+            camera,
+            visible,
+            &cut,
+            super::Shading::Lit,
+            !in_place,
+        )?;
         let o = self.renderer.options();
         let Some(fr) = far_renderer else {
             return Ok(HybridFrame {
@@ -334,7 +386,7 @@ impl FrameRenderer for GpuFrameRenderer {
     fn describe(&self) -> String {
         let o = self.renderer.options();
         format!(
-            "GPU: {}{}, {}x{}{}",
+            "GPU: {}{}, {}x{}{}{}",
             self.gpu.adapter_name(),
             if self.gpu.timestamps {
                 ", GPU timestamps"
@@ -343,6 +395,11 @@ impl FrameRenderer for GpuFrameRenderer {
             },
             o.width,
             o.height,
+            if self.terrain.is_some() {
+                ", terrain"
+            } else {
+                ""
+            },
             match &self.far {
                 Some(f) => format!(", {}", f.describe()),
                 None => String::new(),
@@ -359,7 +416,7 @@ impl FrameRenderer for GpuFrameRenderer {
         visible: &[BlockId],
         want_image: bool,
     ) -> Result<DrawnFrame, DrawError> {
-        let frame = self.renderer.draw(&self.gpu, camera, visible)?;
+        let frame = self.draw_shaded(camera, visible, super::Shading::Lit)?;
         Ok(DrawnFrame {
             seconds: frame.timings.best_s(),
             gpu_time: frame.timings.gpu_s.is_some(),
@@ -409,8 +466,11 @@ impl crate::walk::GpuRenderers for WgpuRenderers {
         size: (u32, u32),
         far: Option<&'a dyn crate::walk::FarField>,
     ) -> Result<Box<dyn FrameRenderer + 'a>, String> {
-        let r = GpuFrameRenderer::new(scene.draw_meshes(), &scene.ground, size)
+        let mut r = GpuFrameRenderer::new(scene.draw_meshes(), &scene.ground, size)
             .map_err(|e| e.to_string())?;
+        if let Some(t) = &scene.terrain {
+            r = r.with_terrain(t.clone()).map_err(|e| e.to_string())?;
+        }
         match far {
             None => Ok(Box::new(r)),
             Some(f) => Ok(Box::new(r.with_far(f).map_err(|e| e.to_string())?)),

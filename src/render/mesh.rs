@@ -8,12 +8,13 @@
 //! ([`Batching::PerUnit`]) the triangles reach the rasteriser in the same order, so both give the
 //! same image.
 
-use super::pack::{pack_meshes, BlockRange, PackedMeshes, Vertex, GROUND};
+use super::pack::{pack_meshes, pack_terrain, BlockRange, PackedMeshes, Vertex, GROUND};
 use super::{padded_row_bytes, Gpu, PassTimer, Readback, RenderError};
 use crate::blocks::BlockId;
 use crate::city::appearance;
 use crate::city::Mesh;
 use crate::geom::Camera;
+use crate::visibility::{draws_flat_ground, TerrainDraw};
 use bytemuck::{Pod, Zeroable};
 use std::time::Instant;
 use wgpu::util::DeviceExt;
@@ -140,14 +141,18 @@ impl Frame {
 fn wgsl_constants() -> String {
     use appearance::*;
     let u = unit_rgb(UNDERSIDE);
+    let t = unit_rgb(TERRAIN);
+    let terrain_id = crate::visibility::TERRAIN_ID;
     format!(
         "const SILL: f32 = {SILL:?};\n\
          const LINTEL: f32 = {LINTEL:?};\n\
          const GROUND_SILL: f32 = {GROUND_SILL:?};\n\
          const GROUND_LINTEL: f32 = {GROUND_LINTEL:?};\n\
          const GROUND_FLOOR_SHADE: f32 = {GROUND_FLOOR_SHADE:?};\n\
-         const UNDERSIDE: vec3<f32> = vec3<f32>({:?}, {:?}, {:?});\n",
-        u[0], u[1], u[2]
+         const UNDERSIDE: vec3<f32> = vec3<f32>({:?}, {:?}, {:?});\n\
+         const TERRAIN: vec3<f32> = vec3<f32>({:?}, {:?}, {:?});\n\
+         const TERRAIN_ID: u32 = {terrain_id}u;\n",
+        u[0], u[1], u[2], t[0], t[1], t[2]
     )
 }
 
@@ -205,6 +210,13 @@ fn draw_ranges(
     units
 }
 
+/// A terrain's tiles on the GPU: one vertex and one index buffer, a range of indices per tile.
+struct TerrainBuffers {
+    /// `None` when the tiles hold no triangle (nothing to bind).
+    buffers: Option<(wgpu::Buffer, wgpu::Buffer)>,
+    ranges: Vec<BlockRange>,
+}
+
 /// Uploaded block meshes and the render targets.
 pub struct MeshRenderer {
     options: RenderOptions,
@@ -233,6 +245,8 @@ pub struct MeshRenderer {
     /// The ground layers' triangles, in drawing order.
     ground: BlockRange,
     batching: Batching,
+    /// The terrain's tiles, when uploaded ([`Self::with_terrain`]).
+    terrain: Option<TerrainBuffers>,
     color: wgpu::Texture,
     depth: wgpu::Texture,
     readback: wgpu::Buffer,
@@ -474,12 +488,54 @@ impl MeshRenderer {
             plane,
             ground,
             batching: Batching::default(),
+            terrain: None,
             color,
             depth,
             readback,
             padded_row,
             queries,
         })
+    }
+
+    /// The same renderer with `terrain`'s tiles uploaded (once: one vertex and one index
+    /// buffer, a range per tile). Frames then draw terrain tiles depth-tested and writing depth,
+    /// after the ground layers would be and before the units, in both shadings: lit in
+    /// [`appearance::TERRAIN`] with the first vertex's normal (as
+    /// [`crate::visibility::oracle::shade_with_terrain`]), and with the terrain's id
+    /// ([`crate::visibility::TERRAIN_ID`]) in [`Shading::Ids`] frames. The ground plane and the
+    /// ground layers are no longer drawn ([`draws_flat_ground`]). [`Self::draw`] and its kin draw
+    /// every tile; [`Self::draw_tiles`] draws a terrain's cut.
+    ///
+    /// # Errors
+    /// A malformed tile ([`RenderError::BadMesh`], …, naming the terrain).
+    pub fn with_terrain(self, gpu: &Gpu, terrain: &dyn TerrainDraw) -> Result<Self, RenderError> {
+        let (vertices, indices, ranges) = pack_terrain(terrain.tiles())?;
+        let buffers = (!indices.is_empty()).then(|| {
+            let v = gpu
+                .device
+                .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                    label: Some("terrain vertices"),
+                    contents: bytemuck::cast_slice(&vertices),
+                    usage: wgpu::BufferUsages::VERTEX,
+                });
+            let i = gpu
+                .device
+                .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                    label: Some("terrain indices"),
+                    contents: bytemuck::cast_slice(&indices),
+                    usage: wgpu::BufferUsages::INDEX,
+                });
+            (v, i)
+        });
+        Ok(Self {
+            terrain: Some(TerrainBuffers { buffers, ranges }),
+            ..self
+        })
+    }
+
+    /// Terrain tiles uploaded (`None` without a terrain).
+    pub fn terrain_tiles(&self) -> Option<usize> {
+        self.terrain.as_ref().map(|t| t.ranges.len())
     }
 
     /// The same renderer turning visible units into calls as `batching` says.
@@ -528,7 +584,31 @@ impl MeshRenderer {
         visible: &[BlockId],
         shading: Shading,
     ) -> Result<Frame, RenderError> {
-        self.render(gpu, camera, visible, shading, true)
+        let all = self.all_tiles();
+        self.render(gpu, camera, visible, &all, shading, true)
+    }
+
+    /// As [`Self::draw_shaded`], drawing the terrain tiles `tiles` (a terrain's cut: indices
+    /// into the tiles given to [`Self::with_terrain`]; ignored without a terrain); with `read`
+    /// false the image stays in the targets as with [`Self::draw_in_place`].
+    ///
+    /// # Errors
+    /// [`RenderError::NoSuchTile`] for a tile index that was not uploaded; GPU failures.
+    pub fn draw_tiles(
+        &self,
+        gpu: &Gpu,
+        camera: &Camera,
+        visible: &[BlockId],
+        tiles: &[usize],
+        shading: Shading,
+        read: bool,
+    ) -> Result<Frame, RenderError> {
+        self.render(gpu, camera, visible, tiles, shading, read)
+    }
+
+    /// Every uploaded terrain tile (none without a terrain).
+    fn all_tiles(&self) -> Vec<usize> {
+        (0..self.terrain_tiles().unwrap_or(0)).collect()
     }
 
     /// As [`Self::draw`], but the image stays in [`Self::color_texture`] and
@@ -541,7 +621,8 @@ impl MeshRenderer {
         camera: &Camera,
         visible: &[BlockId],
     ) -> Result<Frame, RenderError> {
-        self.render(gpu, camera, visible, Shading::Lit, false)
+        let all = self.all_tiles();
+        self.render(gpu, camera, visible, &all, Shading::Lit, false)
     }
 
     fn render(
@@ -549,10 +630,25 @@ impl MeshRenderer {
         gpu: &Gpu,
         camera: &Camera,
         visible: &[BlockId],
+        tiles: &[usize],
         shading: Shading,
         read: bool,
     ) -> Result<Frame, RenderError> {
         let start = Instant::now();
+        // The terrain's calls (checked before anything is encoded).
+        let mut terrain_calls: Vec<BlockRange> = Vec::new();
+        if let Some(t) = &self.terrain {
+            for &index in tiles {
+                let r = *t.ranges.get(index).ok_or(RenderError::NoSuchTile {
+                    index,
+                    tiles: t.ranges.len(),
+                })?;
+                if r.index_count > 0 {
+                    terrain_calls.push(r);
+                }
+            }
+        }
+        let flat_ground = draws_flat_ground(self.terrain.is_some());
         let m = crate::city::LocalFrame::round_matrix_to_f32(camera.clip_from_world());
         // appearance::shade: the sun and the ambient term.
         let sun = appearance::sun_direction();
@@ -606,18 +702,31 @@ impl MeshRenderer {
             pass.set_vertex_buffer(0, self.vertices.slice(..));
             pass.set_index_buffer(self.indices.slice(..), wgpu::IndexFormat::Uint32);
             let lit = shading == Shading::Lit;
-            if lit && self.ground.index_count > 0 {
+            if lit && flat_ground && self.ground.index_count > 0 {
                 // Ground layers in order, depth test always passing.
                 pass.set_pipeline(&self.ground_pipeline);
                 let g = self.ground;
                 pass.draw_indexed(g.first_index..g.first_index + g.index_count, 0, 0..1);
             }
             pass.set_pipeline(&self.pipeline);
+            if let Some((tv, ti)) = self.terrain.as_ref().and_then(|t| t.buffers.as_ref()) {
+                // The terrain's tiles, depth-tested like the units (its vertices carry the
+                // terrain's id: mesh.wgsl colours them as terrain), then back to the units.
+                if !terrain_calls.is_empty() {
+                    pass.set_vertex_buffer(0, tv.slice(..));
+                    pass.set_index_buffer(ti.slice(..), wgpu::IndexFormat::Uint32);
+                    for r in &terrain_calls {
+                        pass.draw_indexed(r.first_index..r.first_index + r.index_count, 0, 0..1);
+                    }
+                    pass.set_vertex_buffer(0, self.vertices.slice(..));
+                    pass.set_index_buffer(self.indices.slice(..), wgpu::IndexFormat::Uint32);
+                }
+            }
             // Unit ids travel with the vertices (see mesh.wgsl): a call may span many units.
             for r in &calls {
                 pass.draw_indexed(r.first_index..r.first_index + r.index_count, 0, 0..1);
             }
-            if lit {
+            if lit && flat_ground {
                 // The plane under everything, where nothing else was drawn (see `plane`).
                 pass.set_pipeline(&self.plane_pipeline);
                 let p = self.plane;
@@ -729,6 +838,27 @@ pub(super) fn map_read(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The shader, with its constants, parses and validates without a device (naga, as wgpu
+    /// does at pipeline creation).
+    #[test]
+    fn shader_is_valid_wgsl() {
+        use wgpu::naga;
+        let src = wgsl_constants() + include_str!("mesh.wgsl");
+        let module = naga::front::wgsl::parse_str(&src).unwrap_or_else(|e| {
+            panic!("{}", e.emit_to_string(&src));
+        });
+        naga::valid::Validator::new(
+            naga::valid::ValidationFlags::all(),
+            naga::valid::Capabilities::empty(),
+        )
+        .validate(&module)
+        .unwrap_or_else(|e| panic!("{e:?}"));
+        assert!(src.contains(&format!(
+            "const TERRAIN_ID: u32 = {}u;",
+            crate::visibility::TERRAIN_ID
+        )));
+    }
 
     fn r(first_index: u32, index_count: u32) -> Option<BlockRange> {
         Some(BlockRange {

@@ -5,7 +5,7 @@
 //
 // The colours are `city::appearance`, mirrored here operation for operation (see that module's
 // docs for the formulas and why they reproduce bit for bit). Its constants (SILL, LINTEL,
-// GROUND_SILL, GROUND_LINTEL, GROUND_FLOOR_SHADE, UNDERSIDE) are not written here: `render/mesh.rs`
+// GROUND_SILL, GROUND_LINTEL, GROUND_FLOOR_SHADE, UNDERSIDE, TERRAIN, TERRAIN_ID) are not written here: `render/mesh.rs`
 // prepends them, printed from the Rust values, so there is one definition.
 
 struct Globals {
@@ -39,6 +39,8 @@ struct VsOut {
     // x: along-wall u (m); y: height above the ground z (m).
     @location(2) uz: vec2<f32>,
     @location(3) @interpolate(flat) style: u32,
+    // The first vertex's normal: terrain is shaded flat with it (as visibility::oracle does).
+    @location(4) @interpolate(flat) flat_normal: vec3<f32>,
 };
 
 @vertex
@@ -55,6 +57,7 @@ fn vs_main(
     out.block = block;
     out.uz = vec2<f32>(u_m, position.z);
     out.style = style;
+    out.flat_normal = normal;
     return out;
 }
 
@@ -110,6 +113,12 @@ fn fs_main(in: VsOut) -> @location(0) vec4<f32> {
             f32((id >> 16u) & 255u),
             255.0,
         ) / 255.0;
+    }
+    if in.block == TERRAIN_ID {
+        // Terrain: appearance::TERRAIN, lit with the first vertex's normal.
+        let n = normalize(in.flat_normal);
+        let light = g.sun.w + (1.0 - g.sun.w) * max(dot(n, g.sun.xyz), 0.0);
+        return vec4<f32>(min(TERRAIN * light, vec3<f32>(1.0)), 1.0);
     }
     let n = normalize(in.normal);
     // appearance::shade.

@@ -44,6 +44,8 @@ use crate::blocks::BlockId;
 fn mesh_name(block: crate::blocks::BlockId) -> String {
     if block.0 == mesh::GROUND_ID {
         "the ground".to_string()
+    } else if block.0 == pack::TERRAIN {
+        "the terrain".to_string()
     } else {
         format!("block {}", block.0)
     }
@@ -186,7 +188,16 @@ pub enum RenderError {
         /// Maps the renderer holds.
         maps: usize,
     },
-    /// A block id does not fit the id encoding (24 bits, less the ground's id).
+    /// A terrain tile index (from a terrain's cut) that the renderer does not hold.
+    #[error("render: terrain tile {index} does not exist ({tiles} tiles uploaded)")]
+    NoSuchTile {
+        /// The index asked for.
+        index: usize,
+        /// Tiles the renderer holds.
+        tiles: usize,
+    },
+    /// A block id does not fit the id encoding (24 bits, less the terrain's and the ground's
+    /// ids).
     #[error("render: block id {id} is too large (limit {limit})")]
     BlockIdTooLarge {
         /// The largest id given.

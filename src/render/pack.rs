@@ -11,6 +11,11 @@ use bytemuck::{Pod, Zeroable};
 
 /// Unit id of the ground's vertices (never a block id).
 pub(crate) const GROUND: u32 = 0x00FF_FFFF;
+/// Unit id of the terrain's vertices ([`crate::visibility::TERRAIN_ID`], just below the
+/// ground's; never a block id): the id pass writes it like a block's, the lit pass colours
+/// those vertices as terrain.
+pub(crate) const TERRAIN: u32 = crate::visibility::TERRAIN_ID;
+const _: () = assert!(TERRAIN < GROUND);
 
 /// One vertex as the shader reads it (36 bytes): position and normal (local frame), the
 /// along-wall coordinate `u` (m), the index of its style in the style table and its unit's id
@@ -128,10 +133,10 @@ pub(crate) fn pack_meshes(
         index_count: indices.len() as u32 - plane.index_count,
     };
     let max_id = blocks.iter().map(|b| b.0 .0).max();
-    if max_id.is_some_and(|m| m >= GROUND) {
+    if max_id.is_some_and(|m| m >= TERRAIN) {
         return Err(RenderError::BlockIdTooLarge {
             id: max_id.unwrap_or(0),
-            limit: GROUND - 1,
+            limit: TERRAIN - 1,
         });
     }
     let mut ranges: Vec<Option<BlockRange>> = vec![None; max_id.map_or(0, |m| m as usize + 1)];
@@ -161,6 +166,47 @@ pub(crate) fn pack_meshes(
         plane,
         ground,
     })
+}
+
+/// The terrain's tiles packed into one vertex and one index buffer (indices absolute), and each
+/// tile's range of indices (indexed by tile). Every vertex carries the terrain's id and style 0
+/// (terrain is coloured by its id, not by a style; any appearance is ignored).
+///
+/// # Errors
+/// A malformed tile ([`push_mesh`]'s checks, naming the terrain), or more vertices or indices
+/// than `u32` counts.
+pub(crate) fn pack_terrain(
+    tiles: &[Mesh],
+) -> Result<(Vec<Vertex>, Vec<u32>, Vec<BlockRange>), RenderError> {
+    let mut vertices = Vec::new();
+    let mut indices = Vec::new();
+    let mut scratch = Vec::new();
+    let mut ranges = Vec::with_capacity(tiles.len());
+    for tile in tiles {
+        let first = indices.len();
+        let bare = Mesh {
+            positions: tile.positions.clone(),
+            normals: tile.normals.clone(),
+            indices: tile.indices.clone(),
+            ..Mesh::default()
+        };
+        push_mesh(
+            &mut vertices,
+            &mut indices,
+            &mut scratch,
+            &bare,
+            BlockId(TERRAIN),
+        )?;
+        let too_many = || RenderError::TooManyVertices {
+            block: BlockId(TERRAIN),
+            vertices: vertices.len(),
+        };
+        ranges.push(BlockRange {
+            first_index: u32::try_from(first).map_err(|_| too_many())?,
+            index_count: u32::try_from(indices.len() - first).map_err(|_| too_many())?,
+        });
+    }
+    Ok((vertices, indices, ranges))
 }
 
 /// Appends `mesh` to the shared buffers (indices absolute), its styles to the style table (a
@@ -324,6 +370,37 @@ mod tests {
         assert_eq!((v1.unit, v1.u_m, v1.position[2]), (1, 2.5, 2.0));
         assert_eq!(v1.style as usize, p.styles.len() - 1);
         assert_eq!(p.vertices[pv + 3].style, 0);
+    }
+
+    #[test]
+    fn terrain_tiles_are_packed_back_to_back_with_the_terrain_id() {
+        let (a, b) = (triangle(1.0, true), triangle(2.0, false));
+        let (v, i, r) = pack_terrain(&[a, Mesh::default(), b]).unwrap();
+        assert_eq!(v.len(), 6);
+        assert_eq!(i, vec![0, 1, 2, 3, 4, 5]);
+        let range = |first_index, index_count| BlockRange {
+            first_index,
+            index_count,
+        };
+        assert_eq!(r, vec![range(0, 3), range(3, 0), range(3, 3)]);
+        assert!(v.iter().all(|v| v.unit == TERRAIN && v.style == 0));
+        assert_eq!(v[3].position, [0.0, 0.0, 2.0]);
+        let bad = Mesh {
+            indices: vec![0, 1, 7],
+            ..triangle(0.0, false)
+        };
+        assert!(matches!(
+            pack_terrain(&[bad]),
+            Err(RenderError::IndexOutOfRange { .. })
+        ));
+        // Blocks may not take the terrain's id.
+        assert!(matches!(
+            pack_meshes(
+                &[(BlockId(TERRAIN), &triangle(0.0, false))],
+                &Mesh::default()
+            ),
+            Err(RenderError::BlockIdTooLarge { .. })
+        ));
     }
 
     #[test]

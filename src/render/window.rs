@@ -448,12 +448,17 @@ impl App {
             .iter()
             .map(|(b, m)| (*b, m))
             .collect();
-        MeshRenderer::with_ground(
+        let r = MeshRenderer::with_ground(
             gpu,
             &refs,
             &self.scene.scene.ground,
             RenderOptions { width, height },
-        )
+        )?;
+        // The scene's terrain, when it has one: its cut is drawn on every frame (see `redraw`).
+        match self.scene.scene.terrain_draw() {
+            Some(t) => r.with_terrain(gpu, t),
+            None => Ok(r),
+        }
     }
 
     /// The far-field renderer at `width × height`, when the scene has a far field.
@@ -577,15 +582,20 @@ impl App {
             return Ok(());
         };
         let far_pass = state.far.as_ref().filter(|_| !self.far.is_empty());
+        // The terrain's cut for this camera (none without a terrain).
+        let mut cut = Vec::new();
+        if let Some(t) = self.scene.scene.terrain_draw() {
+            t.cut(&self.camera, (state.config.width, height), &mut cut);
+        }
         // With maps to draw, the far pass reads the composite back, not the mesh pass.
-        let mut frame = match far_pass {
-            Some(_) => state
-                .renderer
-                .draw_in_place(&state.gpu, &self.camera, &self.visible)?,
-            None => state
-                .renderer
-                .draw(&state.gpu, &self.camera, &self.visible)?,
-        };
+        let mut frame = state.renderer.draw_tiles(
+            &state.gpu,
+            &self.camera,
+            &self.visible,
+            &cut,
+            super::Shading::Lit,
+            far_pass.is_none(),
+        )?;
         let mut far_pixels = 0;
         if let Some(far) = far_pass {
             let pass = far.draw(

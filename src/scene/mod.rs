@@ -142,8 +142,14 @@ pub struct Scene {
     /// Pages and buildings as draw units, when asked for ([`Scene::build_units`]; always with
     /// [`Structure::SceneGraph`]).
     pub units: Option<DrawUnits>,
-    /// The ground as drawn, for a city on terrain (`None`: a flat city, ground at z = 0).
-    pub terrain: Option<std::sync::Arc<terrain::SceneTerrain>>,
+    /// The terrain the city stands on, when there is one (`None` by default: flat ground at
+    /// z = 0). The walk hands its full mesh to the oracle (an occluder) and the terrain to the
+    /// renderers, which draw its cut instead of the flat ground
+    /// ([`crate::visibility::draws_flat_ground`]); shared, so that renderers that outlive a
+    /// borrow of the scene (the GPU's) keep it.
+    pub terrain: Option<crate::visibility::SharedTerrain>,
+    /// The same terrain with its level-of-detail tree (errors, cut sizes), for a city on terrain.
+    pub terrain_lod: Option<std::sync::Arc<terrain::SceneTerrain>>,
 }
 
 impl std::fmt::Debug for Scene {
@@ -161,11 +167,22 @@ impl std::fmt::Debug for Scene {
                     .collect::<Vec<_>>(),
             )
             .field("occlusion", &self.occlusion.is_some())
+            .field(
+                "terrain_tiles",
+                &self.terrain.as_ref().map(|t| t.tiles().len()),
+            )
             .finish()
     }
 }
 
 impl Scene {
+    /// The terrain, borrowed as the CPU renderers take it.
+    pub fn terrain_draw(&self) -> Option<&dyn crate::visibility::TerrainDraw> {
+        self.terrain
+            .as_deref()
+            .map(|t| t as &dyn crate::visibility::TerrainDraw)
+    }
+
     /// Loads the city from `source` (default height rules) and builds its scene.
     ///
     /// # Errors
@@ -280,7 +297,10 @@ impl Scene {
             indexes,
             occlusion,
             units: None,
-            terrain,
+            terrain: terrain
+                .clone()
+                .map(|t| t as crate::visibility::SharedTerrain),
+            terrain_lod: terrain,
         };
         if let Some(at) = opts
             .structures

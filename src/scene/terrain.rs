@@ -83,3 +83,15 @@ impl SceneTerrain {
         )
     }
 }
+
+impl crate::visibility::TerrainDraw for SceneTerrain {
+    fn tiles(&self) -> &[Mesh] {
+        &self.tiles
+    }
+    fn cut(&self, camera: &Camera, size: (u32, u32), out: &mut Vec<usize>) {
+        SceneTerrain::cut(self, camera, size, out);
+    }
+    fn full(&self) -> &Mesh {
+        &self.full
+    }
+}

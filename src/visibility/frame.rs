@@ -11,6 +11,7 @@
 //! `visibility` never needs the GPU stack.
 
 use super::oracle;
+use super::terrain::TerrainDraw;
 use super::OcclusionCuller;
 use crate::blocks::BlockId;
 use crate::city::Mesh;
@@ -57,17 +58,23 @@ pub trait VisibilityOracle: Sync {
     fn visible(&self, camera: &Camera, width: u32, height: u32) -> HashSet<BlockId>;
 }
 
-/// The CPU z-buffer oracle over block meshes ([`oracle::visible_blocks`]).
+/// The CPU z-buffer oracle over block meshes ([`oracle::visible_blocks`]), optionally over a
+/// terrain that occludes ([`MeshOracle::with_terrain`]).
 #[derive(Clone, Copy, Debug)]
 pub struct MeshOracle<'a> {
     meshes: &'a [(BlockId, Mesh)],
     samples: u32,
+    terrain: Option<&'a Mesh>,
 }
 
 impl<'a> MeshOracle<'a> {
     /// An oracle over the meshes (local frame), one sample at each pixel centre.
     pub fn new(meshes: &'a [(BlockId, Mesh)]) -> Self {
-        Self { meshes, samples: 1 }
+        Self {
+            meshes,
+            samples: 1,
+            terrain: None,
+        }
     }
 
     /// The stricter oracle of the tests: `samples × samples` samples per pixel (at least 1;
@@ -76,6 +83,18 @@ impl<'a> MeshOracle<'a> {
         Self {
             meshes,
             samples: samples.max(1),
+            terrain: None,
+        }
+    }
+
+    /// The same oracle with `terrain` (the full-resolution mesh, local frame: see
+    /// [`TerrainDraw::full`]) drawn into the z-buffer as an occluder
+    /// ([`oracle::render_ids_with_terrain`]): a block behind a hill is not visible; the terrain
+    /// is never reported.
+    pub fn with_terrain(self, terrain: &'a Mesh) -> Self {
+        Self {
+            terrain: Some(terrain),
+            ..self
         }
     }
 
@@ -89,16 +108,39 @@ impl VisibilityOracle for MeshOracle<'_> {
     fn describe(&self, width: u32, height: u32) -> String {
         if self.samples > 1 {
             let s = self.samples;
-            format!("CPU z-buffer oracle at {width}x{height}, {s}x{s} samples per pixel")
+            format!(
+                "CPU z-buffer oracle at {width}x{height}, {s}x{s} samples per pixel{}",
+                self.terrain_words()
+            )
         } else {
-            format!("CPU z-buffer oracle at {width}x{height}")
+            format!(
+                "CPU z-buffer oracle at {width}x{height}{}",
+                self.terrain_words()
+            )
         }
     }
     fn visible(&self, camera: &Camera, width: u32, height: u32) -> HashSet<BlockId> {
         let refs: Vec<(BlockId, &Mesh)> = self.meshes.iter().map(|(b, m)| (*b, m)).collect();
-        oracle::visible_blocks_supersampled(&refs, camera, width, height, self.samples)
-            .into_iter()
-            .collect()
+        oracle::visible_blocks_with_terrain(
+            &refs,
+            self.terrain,
+            camera,
+            width,
+            height,
+            self.samples,
+        )
+        .into_iter()
+        .collect()
+    }
+}
+
+impl MeshOracle<'_> {
+    fn terrain_words(&self) -> &'static str {
+        if self.terrain.is_some() {
+            ", terrain occluding"
+        } else {
+            ""
+        }
     }
 }
 
@@ -158,11 +200,23 @@ pub trait FrameRenderer {
 }
 
 /// The CPU fallback: the oracle's shaded z-buffer image of the listed blocks, wall time.
-#[derive(Clone, Copy, Debug)]
+#[derive(Clone, Copy)]
 pub struct CpuFrameRenderer<'a> {
     meshes: &'a [(BlockId, Mesh)],
     ground: Option<&'a Mesh>,
+    terrain: Option<&'a dyn TerrainDraw>,
     size: (u32, u32),
+}
+
+impl std::fmt::Debug for CpuFrameRenderer<'_> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("CpuFrameRenderer")
+            .field("meshes", &self.meshes.len())
+            .field("ground", &self.ground.is_some())
+            .field("terrain_tiles", &self.terrain.map(|t| t.tiles().len()))
+            .field("size", &self.size)
+            .finish()
+    }
 }
 
 impl<'a> CpuFrameRenderer<'a> {
@@ -171,6 +225,7 @@ impl<'a> CpuFrameRenderer<'a> {
         Self {
             meshes,
             ground: None,
+            terrain: None,
             size,
         }
     }
@@ -181,6 +236,44 @@ impl<'a> CpuFrameRenderer<'a> {
         Self {
             ground: Some(ground),
             ..self
+        }
+    }
+
+    /// The same renderer drawing `terrain`: each frame the tiles of its cut
+    /// ([`TerrainDraw::cut`]), lit and depth-tested before the blocks
+    /// ([`oracle::shade_with_terrain_depth`]). The ground plane and the ground layers are then
+    /// not drawn ([`super::draws_flat_ground`]).
+    pub fn with_terrain(self, terrain: &'a dyn TerrainDraw) -> Self {
+        Self {
+            terrain: Some(terrain),
+            ..self
+        }
+    }
+
+    /// The lit image and depth of the listed blocks: over the terrain's cut when there is a
+    /// terrain, else on the ground plane and the ground layers.
+    fn shade_depth(&self, camera: &Camera, visible: &[BlockId]) -> (image::RgbaImage, Vec<f32>) {
+        let (w, h) = self.size;
+        let keep: HashSet<BlockId> = visible.iter().copied().collect();
+        let list: Vec<(BlockId, &Mesh)> = self
+            .meshes
+            .iter()
+            .filter(|(b, _)| keep.contains(b))
+            .map(|(b, m)| (*b, m))
+            .collect();
+        match self.terrain {
+            // A terrain replaces the flat ground (`draws_flat_ground`).
+            Some(t) => {
+                let mut cut = Vec::new();
+                t.cut(camera, self.size, &mut cut);
+                let tiles: Vec<&Mesh> = cut.iter().filter_map(|&i| t.tiles().get(i)).collect();
+                oracle::shade_with_terrain_depth(&list, &tiles, camera, w, h)
+            }
+            None => {
+                let empty = Mesh::default();
+                let ground = self.ground.unwrap_or(&empty);
+                oracle::shade_with_ground_depth(&list, ground, camera, w, h)
+            }
         }
     }
 
@@ -201,16 +294,7 @@ impl<'a> CpuFrameRenderer<'a> {
     ) -> Result<DrawnFrame, DrawError> {
         let (w, h) = self.size;
         let t0 = Instant::now();
-        let keep: HashSet<BlockId> = visible.iter().copied().collect();
-        let list: Vec<(BlockId, &Mesh)> = self
-            .meshes
-            .iter()
-            .filter(|(b, _)| keep.contains(b))
-            .map(|(b, m)| (*b, m))
-            .collect();
-        let empty = Mesh::default();
-        let ground = self.ground.unwrap_or(&empty);
-        let (mut img, mesh_depth) = oracle::shade_with_ground_depth(&list, ground, camera, w, h);
+        let (mut img, mesh_depth) = self.shade_depth(camera, visible);
         let meshes_s = t0.elapsed().as_secs_f64();
         let t1 = Instant::now();
         let layer = far(w, h)?;
@@ -237,8 +321,14 @@ impl<'a> CpuFrameRenderer<'a> {
 impl FrameRenderer for CpuFrameRenderer<'_> {
     fn describe(&self) -> String {
         format!(
-            "CPU z-buffer shading (visibility::oracle::shade), wall time, {}x{}",
-            self.size.0, self.size.1
+            "CPU z-buffer shading (visibility::oracle::shade), wall time, {}x{}{}",
+            self.size.0,
+            self.size.1,
+            if self.terrain.is_some() {
+                ", terrain"
+            } else {
+                ""
+            }
         )
     }
     fn size(&self) -> (u32, u32) {
@@ -251,17 +341,7 @@ impl FrameRenderer for CpuFrameRenderer<'_> {
         want_image: bool,
     ) -> Result<DrawnFrame, DrawError> {
         let t0 = Instant::now();
-        let keep: HashSet<BlockId> = visible.iter().copied().collect();
-        let list: Vec<(BlockId, &Mesh)> = self
-            .meshes
-            .iter()
-            .filter(|(b, _)| keep.contains(b))
-            .map(|(b, m)| (*b, m))
-            .collect();
-        let img = match self.ground {
-            Some(g) => oracle::shade_with_ground(&list, g, camera, self.size.0, self.size.1),
-            None => oracle::shade(&list, camera, self.size.0, self.size.1),
-        };
+        let img = self.shade_depth(camera, visible).0;
         Ok(DrawnFrame {
             seconds: t0.elapsed().as_secs_f64(),
             gpu_time: false,

@@ -12,6 +12,8 @@
 //! - [`views`]: seeded random street-level and flying views over a city.
 //! - [`adversarial`]: seeded adversarial views (eyes at the near plane's distance from corners
 //!   and walls, on wall planes, over roofs, straight up and down).
+//! - [`terrain`]: [`TerrainDraw`], a terrain as the oracle and the renderers draw it (tiles, a
+//!   per-frame cut, the full mesh), [`FixedTerrain`] and height fields on a grid.
 //! - [`synthetic`]: a synthetic grid city with exact meshes, for tests and benches.
 //! - [`buildings`]: per-building culling inside the blocks that survived (Willmott et al., §3.2.8).
 //! - [`bench`]: the culler against the oracle over random views, per cull map resolution.
@@ -29,6 +31,7 @@ pub mod oracle;
 pub mod route_proof;
 pub mod shadow;
 pub mod synthetic;
+pub mod terrain;
 pub mod views;
 
 pub use culler::{CullerOptions, OcclusionCuller, OcclusionStats, SkipReason};
@@ -39,6 +42,9 @@ pub use frame::{
 };
 pub use occluders::{BlockOccluders, OccluderOptions};
 pub use shadow::{NoShadow, Occluder, OccluderShadow};
+pub use terrain::{
+    draws_flat_ground, FixedTerrain, HeightGrid, SharedTerrain, TerrainDraw, TERRAIN_ID,
+};
 
 /// What went wrong in occlusion culling or the oracle.
 #[derive(Debug, thiserror::Error)]

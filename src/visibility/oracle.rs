@@ -12,6 +12,7 @@ use crate::city::appearance::{self, BuildingStyle};
 use crate::city::Mesh;
 use crate::geom::clip::clip_polygon;
 use crate::geom::Camera;
+use crate::visibility::terrain::TERRAIN_ID;
 use glam::{DMat4, DVec2, DVec3, DVec4, Vec3};
 use rayon::prelude::*;
 use std::collections::BTreeSet;
@@ -33,9 +34,15 @@ pub struct IdBuffer {
 }
 
 impl IdBuffer {
-    /// The set of blocks with at least one pixel.
+    /// The set of blocks with at least one pixel ([`SKY`] and terrain, [`TERRAIN_ID`], are no
+    /// blocks).
     pub fn visible(&self) -> BTreeSet<BlockId> {
-        let mut seen: Vec<u32> = self.ids.iter().copied().filter(|&i| i != SKY).collect();
+        let mut seen: Vec<u32> = self
+            .ids
+            .iter()
+            .copied()
+            .filter(|&i| i != SKY && i != TERRAIN_ID)
+            .collect();
         seen.sort_unstable();
         seen.dedup();
         seen.into_iter().map(BlockId).collect()
@@ -50,6 +57,9 @@ const GROUND_ID: u32 = u32::MAX - 1;
 #[derive(Clone, Copy, Debug)]
 struct TriShading {
     style: BuildingStyle,
+    /// A terrain triangle (layer id [`TERRAIN_ID`]): coloured [`appearance::TERRAIN`], not by
+    /// `style`.
+    terrain: bool,
     /// The mesh normal (flat: that of the first vertex), as the shader gets it.
     normal: Vec3,
     /// 1/w of the three screen vertices, for perspective-correct interpolation.
@@ -192,6 +202,7 @@ fn project(
                     let q = [poly[0], poly[k], poly[k + 1]];
                     shadings.push(TriShading {
                         style,
+                        terrain: id == TERRAIN_ID,
                         normal,
                         inv_w: q.map(|v| 1.0 / v.c.w),
                         uz: q.map(|v| v.a),
@@ -302,7 +313,11 @@ fn pixel_color(s: &TriShading, e: [f64; 3]) -> [u8; 3] {
         s.uz[0]
     };
     let n = s.normal.normalize_or_zero();
-    let base = appearance::surface_color(&s.style, n, uz.x as f32, uz.y as f32);
+    let base = if s.terrain {
+        appearance::unit_rgb(appearance::TERRAIN)
+    } else {
+        appearance::surface_color(&s.style, n, uz.x as f32, uz.y as f32)
+    };
     appearance::to_rgb8(appearance::shade(base, n))
 }
 
@@ -432,6 +447,105 @@ pub fn visible_blocks_supersampled(
     .visible()
 }
 
+/// The id layers of blocks over a terrain: the terrain first (id [`TERRAIN_ID`], depth-tested
+/// like every block), then the blocks.
+fn terrain_layers<'a>(blocks: &[(BlockId, &'a Mesh)], terrain: &[&'a Mesh]) -> Vec<Layer<'a>> {
+    let mut layers: Vec<Layer<'a>> = terrain.iter().map(|&m| (TERRAIN_ID, false, m)).collect();
+    layers.extend(block_layers(blocks));
+    layers
+}
+
+/// As [`render_ids`], with `terrain` (local frame) drawn first as an occluder: its pixels carry
+/// [`TERRAIN_ID`] (which [`IdBuffer::visible`] never reports) and its depth hides what is behind
+/// it.
+pub fn render_ids_with_terrain(
+    blocks: &[(BlockId, &Mesh)],
+    terrain: &Mesh,
+    camera: &Camera,
+    width: u32,
+    height: u32,
+) -> IdBuffer {
+    render(
+        &terrain_layers(blocks, &[terrain]),
+        camera,
+        width,
+        height,
+        false,
+    )
+    .0
+}
+
+/// [`visible_blocks_supersampled`] with an optional `terrain` occluder (see
+/// [`render_ids_with_terrain`]); without one it is [`visible_blocks_supersampled`] itself.
+pub fn visible_blocks_with_terrain(
+    blocks: &[(BlockId, &Mesh)],
+    terrain: Option<&Mesh>,
+    camera: &Camera,
+    width: u32,
+    height: u32,
+    samples: u32,
+) -> BTreeSet<BlockId> {
+    let Some(terrain) = terrain else {
+        return visible_blocks_supersampled(blocks, camera, width, height, samples);
+    };
+    let s = samples.max(1);
+    render_ids_with_terrain(
+        blocks,
+        terrain,
+        camera,
+        width.saturating_mul(s),
+        height.saturating_mul(s),
+    )
+    .visible()
+}
+
+/// A lit image of the blocks on a terrain given as meshes (`terrain`: the tiles to draw, local
+/// frame), and the depth buffer: the terrain in [`appearance::TERRAIN`] lit by
+/// [`appearance::shade`] with the normal of each triangle's first vertex, then the blocks, both
+/// with the `<` depth test, under the sky. No ground plane and no flat ground layers
+/// ([`crate::visibility::draws_flat_ground`]). The GPU mesh renderer's terrain frames, pixel for
+/// pixel up to rounding.
+pub fn shade_with_terrain_depth(
+    blocks: &[(BlockId, &Mesh)],
+    terrain: &[&Mesh],
+    camera: &Camera,
+    width: u32,
+    height: u32,
+) -> (image::RgbaImage, Vec<f32>) {
+    let (buf, colors) = render(
+        &terrain_layers(blocks, terrain),
+        camera,
+        width,
+        height,
+        true,
+    );
+    (lit_image(&buf, &colors), buf.depth)
+}
+
+/// [`shade_with_terrain_depth`]'s image.
+pub fn shade_with_terrain(
+    blocks: &[(BlockId, &Mesh)],
+    terrain: &[&Mesh],
+    camera: &Camera,
+    width: u32,
+    height: u32,
+) -> image::RgbaImage {
+    shade_with_terrain_depth(blocks, terrain, camera, width, height).0
+}
+
+/// The lit image of a colour pass: the colours where something was drawn, sky elsewhere.
+fn lit_image(buf: &IdBuffer, colors: &[[u8; 3]]) -> image::RgbaImage {
+    let [r, g, b] = appearance::SKY;
+    let mut img = image::RgbaImage::from_pixel(buf.width, buf.height, image::Rgba([r, g, b, 255]));
+    for (k, px) in img.pixels_mut().enumerate() {
+        if buf.ids[k] != SKY {
+            let [r, g, b] = colors[k];
+            *px = image::Rgba([r, g, b, 255]);
+        }
+    }
+    img
+}
+
 /// A lit image of the blocks on the ground plane under the sky: the CPU fallback of the GPU
 /// mesh renderer's lit frames, with the same appearance ([`crate::city::appearance`]: facade
 /// windows, roofs, ground floors, the same sun and ambient term). See [`shade_with_ground`].
@@ -473,15 +587,7 @@ pub fn shade_with_ground_depth(
     let mut layers: Vec<Layer<'_>> = vec![(GROUND_ID, true, &plane), (GROUND_ID, true, ground)];
     layers.extend(block_layers(blocks));
     let (buf, colors) = render(&layers, camera, width, height, true);
-    let [r, g, b] = appearance::SKY;
-    let mut img = image::RgbaImage::from_pixel(width, height, image::Rgba([r, g, b, 255]));
-    for (k, px) in img.pixels_mut().enumerate() {
-        if buf.ids[k] != SKY {
-            let [r, g, b] = colors[k];
-            *px = image::Rgba([r, g, b, 255]);
-        }
-    }
-    (img, buf.depth)
+    (lit_image(&buf, &colors), buf.depth)
 }
 
 /// A closed box mesh (12 triangles, outward normals) in the local frame: a test and fallback

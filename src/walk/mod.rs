@@ -370,7 +370,12 @@ pub fn run_walk_with_far(
     let mut notes = Vec::new();
     let modes = cull_modes(scene, params.occlusion, &mut notes)?;
     let cameras = params.route.sample(params.frames);
-    let cpu = CpuFrameRenderer::new(scene.draw_meshes(), params.size).with_ground(&scene.ground);
+    let mut cpu =
+        CpuFrameRenderer::new(scene.draw_meshes(), params.size).with_ground(&scene.ground);
+    if let Some(t) = scene.terrain_draw() {
+        // The terrain's cut replaces the flat ground (visibility::draws_flat_ground).
+        cpu = cpu.with_terrain(t);
+    }
     let (renderer, renderer_desc) = pick_renderer(&drawing, &cpu, &mut notes);
     // The far field's hybrid renderer: the walk's own, or the far field's CPU reference for the
     // CPU fallback.
@@ -378,6 +383,7 @@ pub fn run_walk_with_far(
         (Some(f), Drawing::CpuFallback { .. }) => Some(f.field.cpu_renderer(
             scene.block_meshes(),
             &scene.ground,
+            scene.terrain_draw(),
             params.size,
         )),
         _ => None,
@@ -508,7 +514,13 @@ struct Oracles<'s> {
 
 impl<'s> Oracles<'s> {
     fn new(scene: &'s Scene, size: Option<(u32, u32)>, notes: &mut Vec<String>) -> Self {
-        let blocks = MeshOracle::new(scene.block_meshes());
+        // The terrain, at full resolution, occludes in both oracles.
+        let terrain = scene.terrain.as_ref().map(|t| t.full());
+        let with_terrain = |o: MeshOracle<'s>| match terrain {
+            Some(t) => o.with_terrain(t),
+            None => o,
+        };
+        let blocks = with_terrain(MeshOracle::new(scene.block_meshes()));
         if let Some((w, h)) = size {
             notes.push(format!(
                 "false culls counted against the {}",
@@ -522,7 +534,7 @@ impl<'s> Oracles<'s> {
             buildings: scene
                 .units
                 .as_ref()
-                .map(|u| MeshOracle::new(u.building_meshes())),
+                .map(|u| with_terrain(MeshOracle::new(u.building_meshes()))),
         }
     }
 

@@ -47,6 +47,14 @@
 //! ([`GROUND`]), then these, in that order, with the depth test set to always pass (painter's
 //! order, no z offsets and so no z-fighting), and the buildings after them with the normal depth
 //! test. Ground geometry never takes part in the block-id pass.
+//!
+//! # Terrain
+//! With a terrain ([`crate::visibility::TerrainDraw`]) the ground is no longer z = 0: the
+//! renderers then draw neither the ground plane nor the flat ground layers
+//! ([`crate::visibility::draws_flat_ground`] is the one rule; draping them is future work), and
+//! draw the terrain's tiles depth-tested, in [`TERRAIN`] lit by [`shade`] with the normal of each
+//! triangle's first vertex (flat, as buildings). In id frames terrain carries
+//! [`crate::visibility::TERRAIN_ID`], never a block.
 
 mod ground;
 mod streets;
@@ -92,6 +100,9 @@ fn rgb(r: u8, g: u8, b: u8) -> [f32; 3] {
 pub const GROUND: [u8; 3] = [140, 148, 128];
 /// The ground of a block (yards, pavements): greyer than [`GROUND`].
 pub const BLOCK_GROUND: [u8; 3] = [158, 156, 142];
+/// Terrain ([`crate::visibility::TerrainDraw`]): lit by [`shade`] with the terrain's normals;
+/// `mesh.wgsl` gets it from `render/mesh.rs`, printed from this value.
+pub const TERRAIN: [u8; 3] = [126, 142, 98];
 /// Undersides of raised parts (facing down).
 pub const UNDERSIDE: [u8; 3] = [89, 89, 89];
 /// The sky (clear colour of lit frames).

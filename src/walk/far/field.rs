@@ -23,7 +23,7 @@ use crate::city::Mesh;
 use crate::geom::Camera;
 use crate::index::BlockBounds;
 use crate::scene::Scene;
-use crate::visibility::FrameRenderer;
+use crate::visibility::{FrameRenderer, TerrainDraw};
 use serde::Serialize;
 
 use super::super::bound::{BoundFigures, BoundGeometry, FrameBound};
@@ -55,12 +55,13 @@ pub trait FarField: Sync {
     ) -> Result<Selector, SelectError>;
 
     /// The CPU reference renderer of hybrid frames: `meshes` (the scene's draw meshes) and
-    /// `ground` by a z-buffer, the nodes by the representation's reference caster, composited by
-    /// depth, at `size`.
+    /// `ground` (or, when given, the `terrain`'s cut instead) by a z-buffer, the nodes by the
+    /// representation's reference caster, composited by depth, at `size`.
     fn cpu_renderer<'a>(
         &'a self,
         meshes: &'a [(BlockId, Mesh)],
         ground: &'a Mesh,
+        terrain: Option<&'a dyn TerrainDraw>,
         size: (u32, u32),
     ) -> Box<dyn FrameRenderer + 'a>;
 
@@ -196,14 +197,19 @@ impl FarField for MapTree {
         &'a self,
         meshes: &'a [(BlockId, Mesh)],
         ground: &'a Mesh,
+        terrain: Option<&'a dyn TerrainDraw>,
         size: (u32, u32),
     ) -> Box<dyn FrameRenderer + 'a> {
-        Box::new(crate::blockmap::CpuHybridRenderer::new(
+        let r = crate::blockmap::CpuHybridRenderer::new(
             meshes,
             ground,
             self.maps.iter().map(|m| &m.map).collect(),
             size,
-        ))
+        );
+        match terrain {
+            Some(t) => Box::new(r.with_terrain(t)),
+            None => Box::new(r),
+        }
     }
 
     fn gpu(&self) -> FarGpu<'_> {

@@ -13,7 +13,7 @@ use crate::index::BlockBounds;
 use crate::relief::cast::{cast_f32, cast_f64, cast_flat};
 use crate::relief::{CpuReliefRenderer, NodeMaps, ReliefError, ReliefField, ReliefOptions};
 use crate::scene::Scene;
-use crate::visibility::FrameRenderer;
+use crate::visibility::{FrameRenderer, TerrainDraw};
 use crate::walk::bound::{BoundGeometry, BoundMaps, FrameCaster};
 use glam::{DVec2, DVec3};
 
@@ -59,9 +59,14 @@ impl FarField for ReliefField {
         &'a self,
         meshes: &'a [(BlockId, Mesh)],
         ground: &'a Mesh,
+        terrain: Option<&'a dyn TerrainDraw>,
         size: (u32, u32),
     ) -> Box<dyn FrameRenderer + 'a> {
-        Box::new(CpuReliefRenderer::new(meshes, ground, self, size))
+        let r = CpuReliefRenderer::new(meshes, ground, self, size);
+        match terrain {
+            Some(t) => Box::new(r.with_terrain(t)),
+            None => Box::new(r),
+        }
     }
 
     fn gpu(&self) -> FarGpu<'_> {
