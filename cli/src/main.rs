@@ -46,6 +46,7 @@ mod jobs;
 mod occlusion_bench;
 mod relief;
 mod relief_tree;
+mod terrain;
 mod tileset;
 mod view;
 mod walk;
@@ -72,6 +73,9 @@ enum Command {
     ReliefTree(relief_tree::Args),
     /// Multi-level relief impostors: every node's maps, their cost and coverage error.
     Relief(relief::Args),
+    /// A city on an elevation model: its terrain tree, the per-frame cut at τ px and its error
+    /// against the full-resolution terrain along a route.
+    Terrain(terrain::Args),
     /// The city as a 3D Tiles 1.1 tileset (block quadtree, BlockMap height fields, building meshes).
     Tileset(tileset::Args),
     /// Compare spatial structures on frustum culling.
@@ -185,6 +189,7 @@ fn dispatch(command: Command) -> anyhow::Result<()> {
         Command::Blocks(a) => blocks::run(a),
         Command::Blockmaps(a) => blockmaps::run(a),
         Command::ReliefTree(a) => relief_tree::run(a),
+        Command::Terrain(a) => terrain::run(a),
         Command::Relief(a) => relief::run(a),
         Command::Tileset(a) => tileset::run(a),
         Command::CullBench(a) => cull_bench::run(a),

@@ -535,6 +535,21 @@ impl TerrainTree {
         }
     }
 
+    /// The projected error of node `id` for `camera` (local to `frame`) on an image
+    /// `viewport_h_px` high, pixels: the quantity [`Self::select`] keeps at most τ.
+    pub fn projected_error_px(
+        &self,
+        id: NodeId,
+        camera: &Camera,
+        frame: &LocalFrame,
+        viewport_h_px: u32,
+    ) -> f64 {
+        let n = &self.nodes[id.0 as usize];
+        let eye = frame.to_world(camera.position);
+        let focal = viewport_h_px as f64 / (2.0 * (0.5 * camera.fov_y).tan());
+        n.error_m * focal / box_distance(&n.extent, eye).max(camera.near)
+    }
+
     /// Per level: stride, node count, the declared bound and the largest measured error.
     pub fn levels(&self) -> Vec<LevelStats> {
         self.levels

@@ -15,6 +15,7 @@ pub mod proof;
 pub mod step;
 mod summary;
 pub mod sweep;
+pub mod terrain;
 
 pub use bound::{BoundFigures, BoundGeometry, FrameBound};
 pub use far::{

@@ -28,7 +28,7 @@ pub const DEFAULT_STEEP_M: f64 = 3.0;
 
 /// Default terrain kept around the city's footprints, metres (streets, routes and views beyond
 /// the last building stand on it too).
-pub const DEFAULT_MARGIN_M: f64 = 1000.0;
+pub const DEFAULT_MARGIN_M: f64 = 3000.0;
 
 /// Buildings listed by id in the report per kind (the counts are complete).
 const LISTED: usize = 50;
