@@ -369,7 +369,8 @@ fn building_object(
     }
     let mut values = vec![0u32, 1];
     values.extend(std::iter::repeat_n(2, surfaces.len() - 2));
-    let bottom_type = if z0 > 0.0 {
+    // Raised above its own ground (not merely standing on ground above z = 0).
+    let bottom_type = if z0 > b.base_m {
         "OuterCeilingSurface"
     } else {
         "GroundSurface"
