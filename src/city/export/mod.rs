@@ -3,10 +3,13 @@
 //!
 //! - [`gltf`]: [`write_glb`], [`write_glb_to`] (streamed to any writer), [`glb_bytes`].
 //! - [`geojson`]: [`write_geojson`], [`geojson_value`].
+//! - [`terrain`]: [`TerrainTin`], the terrain surface the CityJSON, glTF and 3D Tiles writers
+//!   take beside the buildings.
 
 pub mod cityjson;
 pub mod geojson;
 pub mod gltf;
+pub mod terrain;
 
 use std::path::PathBuf;
 
@@ -15,6 +18,7 @@ pub use self::gltf::{
     glb_bytes, tile_glb_bytes, write_glb, write_glb_to, GlbStats, TileFeature, TileMesh,
     GLB_MAX_BYTES,
 };
+pub use self::terrain::{TerrainError, TerrainTin};
 
 /// Why an export failed. Every variant names the file.
 #[derive(Debug, thiserror::Error)]
@@ -68,6 +72,15 @@ pub enum ExportError {
         /// The largest size allowed.
         limit: u64,
     },
+    /// The terrain given with the city cannot be exported (see [`TerrainTin::check`]).
+    #[error("{file}: {source}")]
+    Terrain {
+        /// The file (`<glb>` when no file is written).
+        file: PathBuf,
+        /// What is wrong with it.
+        #[source]
+        source: TerrainError,
+    },
     /// The JSON (the glTF document or the GeoJSON) could not be serialised or written.
     #[error("{file}: writing the JSON failed: {source}")]
     Json {
@@ -110,6 +123,10 @@ impl ExportError {
                 file: file.to_path_buf(),
                 bytes,
                 limit,
+            },
+            ExportError::Terrain { source, .. } => ExportError::Terrain {
+                file: file.to_path_buf(),
+                source,
             },
             ExportError::Json { source, .. } => ExportError::Json {
                 file: file.to_path_buf(),
