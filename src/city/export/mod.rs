@@ -15,7 +15,8 @@ use std::path::PathBuf;
 
 pub use self::geojson::{geojson_value, write_geojson};
 pub use self::gltf::{
-    glb_bytes, tile_glb_bytes, write_glb, write_glb_to, GlbStats, TileFeature, TileMesh,
+    glb_bytes, glb_bytes_with_terrain, tile_glb_bytes, write_glb, write_glb_to,
+    write_glb_to_with_terrain, write_glb_with_terrain, GlbStats, TileFeature, TileMesh,
     GLB_MAX_BYTES,
 };
 pub use self::terrain::{TerrainError, TerrainTin};
