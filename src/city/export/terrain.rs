@@ -10,6 +10,10 @@ use glam::{DVec2, DVec3};
 
 use crate::city::{LocalFrame, Mesh};
 
+/// The terrain's colour in the exports (linear RGB; the `.glb` material's base colour and the
+/// terrain tiles' vertex colour): a green grey, unlike the buildings' warm grey.
+pub const TERRAIN_COLOR: [f32; 3] = [0.42, 0.50, 0.36];
+
 /// A terrain surface to export: a TIN in metric world coordinates (f64), CCW seen from above.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct TerrainTin {

@@ -60,10 +60,11 @@ const UNSIGNED_BYTE: u32 = 5121;
 /// The terrain's material (the city's `.glb` and the terrain tiles): a green grey, unlike the
 /// buildings' warm grey.
 fn terrain_material() -> Value {
+    let c = super::terrain::TERRAIN_COLOR;
     serde_json::json!({
         "name": "terrain",
         "pbrMetallicRoughness": {
-            "baseColorFactor": [0.42, 0.50, 0.36, 1.0],
+            "baseColorFactor": [c[0], c[1], c[2], 1.0],
             "metallicFactor": 0.0,
             "roughnessFactor": 1.0,
         },
