@@ -14,6 +14,15 @@ pub fn height(o: DVec2, x: f64, y: f64) -> f64 {
 /// nodes within 2.5 cells of a point a third of the way across missing (NaN); the grid origin
 /// and the node counts.
 pub fn grid(city: &City, spacing: f64) -> (DVec2, usize, usize, Vec<f64>) {
+    grid_with(city, spacing, height)
+}
+
+/// [`grid`] with heights from `f(origin, x, y)`.
+pub fn grid_with(
+    city: &City,
+    spacing: f64,
+    f: impl Fn(DVec2, f64, f64) -> f64,
+) -> (DVec2, usize, usize, Vec<f64>) {
     let (mut lo, mut hi) = (DVec2::splat(f64::INFINITY), DVec2::splat(f64::NEG_INFINITY));
     for b in &city.buildings {
         for c in &b.footprint.exterior().0 {
@@ -32,7 +41,7 @@ pub fn grid(city: &City, spacing: f64) -> (DVec2, usize, usize, Vec<f64>) {
             h.push(if p.distance(hole) < 2.5 * spacing {
                 f64::NAN
             } else {
-                height(o, p.x, p.y)
+                f(o, p.x, p.y)
             });
         }
     }
@@ -42,12 +51,21 @@ pub fn grid(city: &City, spacing: f64) -> (DVec2, usize, usize, Vec<f64>) {
 /// The TIN of [`grid`] and the city with every building's base on the terrain's height at its
 /// footprint's first corner.
 pub fn terrain_city(city: &City, spacing: f64) -> (City, TerrainTin) {
-    let (o, nx, ny, h) = grid(city, spacing);
+    terrain_city_with(city, spacing, height)
+}
+
+/// [`terrain_city`] with heights from `f(origin, x, y)`.
+pub fn terrain_city_with(
+    city: &City,
+    spacing: f64,
+    f: impl Fn(DVec2, f64, f64) -> f64 + Copy,
+) -> (City, TerrainTin) {
+    let (o, nx, ny, h) = grid_with(city, spacing, f);
     let tin = TerrainTin::from_grid(o, spacing, nx, ny, &h).unwrap();
     let mut city = city.clone();
     for b in &mut city.buildings {
         let c = b.footprint.exterior().0[0];
-        b.base_m = height(o, c.x, c.y);
+        b.base_m = f(o, c.x, c.y);
     }
     (city, tin)
 }
