@@ -247,8 +247,10 @@ mod tests {
         h[4 + 1] = f64::NAN;
         let tin = TerrainTin::from_grid(DVec2::new(10.0, 20.0), 2.0, 4, 4, &h).unwrap();
         assert_eq!(tin.triangles.len(), 10);
-        // Every kept node is used, the missing one is not there.
-        assert_eq!(tin.vertices.len(), 15);
+        // Only the nodes of kept cells: not the missing one, nor (0, 0), (1, 0) and (0, 1),
+        // which only left-out cells use.
+        assert_eq!(tin.vertices.len(), 12);
+        assert!(!tin.vertices.iter().any(|v| v.x < 14.0 && v.y < 22.5));
         assert!(tin.vertices.iter().all(|v| v.z.is_finite()));
         assert!(tin.check().is_ok());
         // Node (3, 2) at origin + (6, 4) with height 2·4 + 3.
