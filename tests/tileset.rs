@@ -670,7 +670,7 @@ fn terrain_tileset_holds_every_triangle_once_beside_the_buildings() {
         leaves += 1;
         bytes += std::fs::metadata(tdir.join(uri)).unwrap().len();
         let (doc, buffers, _) =
-            gltf::import_slice(&std::fs::read(tdir.join(uri)).unwrap()).expect("import");
+            gltf::import_slice(std::fs::read(tdir.join(uri)).unwrap()).expect("import");
         let prim = doc.meshes().next().unwrap().primitives().next().unwrap();
         let reader = prim.reader(|buf| Some(&buffers[buf.index()]));
         let pos: Vec<Vec3> = reader.read_positions().unwrap().map(Vec3::from).collect();
