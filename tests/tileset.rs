@@ -711,6 +711,37 @@ fn terrain_tileset_holds_every_triangle_once_beside_the_buildings() {
         b.summary.bytes
     );
 
+    // Deterministic: a second export gives the same bytes, terrain files included.
+    let again = build_with(
+        "data/helsinki/buildings.shp",
+        Some("data/helsinki/streets_blockclass.shp"),
+        &opts,
+        |c| support::terrain::terrain_city(&c, 20.0).0,
+    );
+    let files = |d: &Path| -> Vec<(PathBuf, Vec<u8>)> {
+        let mut v: Vec<(PathBuf, Vec<u8>)> = ["tileset.json", "terrain/tileset.json"]
+            .iter()
+            .map(|f| d.join(f))
+            .chain(
+                std::fs::read_dir(d.join("terrain/tiles"))
+                    .unwrap()
+                    .map(|e| e.unwrap().path()),
+            )
+            .map(|p| {
+                (
+                    p.strip_prefix(d).unwrap().to_path_buf(),
+                    std::fs::read(&p).unwrap(),
+                )
+            })
+            .collect();
+        v.sort();
+        v
+    };
+    assert!(
+        files(b.dir.path()) == files(again.dir.path()),
+        "two exports differ"
+    );
+
     let Some(node) = support::node::or_skip(
         "terrain_tileset_holds_every_triangle_once_beside_the_buildings",
         support::node::node_with(&["gltf-validator"]),
