@@ -723,6 +723,59 @@ fn terrain_is_a_valid_tin_relief_with_the_buildings_on_it() {
     assert_eq!(text.lines().count(), 1 + city.buildings.len() + 1);
     println!("CityJSONSeq with terrain: {} bytes", sstats.bytes);
 
+    // Bubeneč (Web Mercator input, written in UTM 33N): the terrain is reprojected with the
+    // buildings; its vertices land where proj4rs alone puts them (local tmerc → UTM).
+    let (bcity, btin) = support::terrain::terrain_city(
+        &load_city(
+            Path::new("data/bubenec/buildings.shp"),
+            Some("data/bubenec/streets.shp"),
+        ),
+        10.0,
+    );
+    let (bdoc, bstats) = cityjson_value_with_terrain(&bcity, Some(&btin)).unwrap();
+    let failures = validate_cityjson(&bdoc.to_string());
+    assert!(
+        failures.is_empty(),
+        "Bubeneč + terrain: cjval: {failures:#?}"
+    );
+    let rs = bdoc["metadata"]["referenceSystem"].as_str();
+    assert_eq!(rs, Some("https://www.opengis.net/def/crs/EPSG/0/32633"));
+    let ring: Vec<geo_types::Coord<f64>> = btin
+        .vertices
+        .iter()
+        .map(|v| geo_types::Coord { x: v.x, y: v.y })
+        .collect();
+    let utm = written_footprint(
+        &bcity,
+        rs,
+        &geo_types::Polygon::new(geo_types::LineString(ring), vec![]),
+    );
+    let expected: Vec<[f64; 3]> = utm
+        .exterior()
+        .0
+        .iter()
+        .zip(&btin.vertices)
+        .map(|(c, v)| [c.x, c.y, v.z])
+        .collect();
+    let bvs = world_vertices(&bdoc, &bdoc);
+    let surfaces = bdoc["CityObjects"]["terrain"]["geometry"][0]["boundaries"]
+        .as_array()
+        .unwrap();
+    assert_eq!(surfaces.len(), btin.triangles.len());
+    let (mut worst_xy, mut worst_z) = (0.0f64, 0.0f64);
+    for (k, sf) in surfaces.iter().enumerate() {
+        for (c, &vi) in rings(sf)[0].iter().enumerate() {
+            let (got, want) = (bvs[vi], expected[btin.triangles[k][c] as usize]);
+            worst_xy = worst_xy
+                .max((got[0] - want[0]).abs())
+                .max((got[1] - want[1]).abs());
+            worst_z = worst_z.max((got[2] - want[2]).abs());
+        }
+    }
+    println!("Bubeneč terrain in UTM: {} triangles, plan within {worst_xy:.2e} m, heights within {worst_z:.2e} m", surfaces.len());
+    assert!(worst_xy <= 1e-4 + 0.5 * bstats.scale_m, "plan {worst_xy}");
+    assert!(worst_z <= 0.5 * bstats.scale_m + 1e-9, "height {worst_z}");
+
     // A terrain the exporters cannot trust is refused before anything is written.
     let mut bad = tin.clone();
     bad.triangles[0].swap(1, 2);
