@@ -556,3 +556,230 @@ fn a_city_in_us_feet_is_written_where_its_metre_copy_is() {
         assert!((a - b).abs() < 0.002, "extent {k}: {a} vs {b}");
     }
 }
+
+/// The dequantised vertices of a document (world coordinates: `q · scale + translate`).
+fn world_vertices(doc: &Value, header: &Value) -> Vec<[f64; 3]> {
+    let t: Vec<f64> = header["transform"]["translate"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|x| x.as_f64().unwrap())
+        .collect();
+    vertices(doc, header)
+        .into_iter()
+        .map(|v| [v[0] + t[0], v[1] + t[1], v[2] + t[2]])
+        .collect()
+}
+
+/// The `TINRelief`'s triangles, dequantised, against the input TIN: the same count, and each
+/// surface a triangle whose corners are the input triangle's (same order) within half a step.
+fn check_tin(
+    label: &str,
+    o: &Value,
+    vs: &[[f64; 3]],
+    tin: &blockwalk::city::export::TerrainTin,
+    scale: f64,
+) {
+    assert_eq!(o["type"], "TINRelief", "{label}");
+    let geoms = o["geometry"].as_array().unwrap();
+    assert_eq!(geoms.len(), 1);
+    assert_eq!(geoms[0]["type"], "CompositeSurface");
+    assert_eq!(geoms[0]["lod"], "1");
+    let surfaces = geoms[0]["boundaries"].as_array().unwrap();
+    assert_eq!(
+        surfaces.len(),
+        tin.triangles.len(),
+        "{label}: triangle count"
+    );
+    let mut worst = 0.0f64;
+    for (k, s) in surfaces.iter().enumerate() {
+        let r = rings(s);
+        assert_eq!(r.len(), 1, "{label}: triangle {k} has holes");
+        assert_eq!(r[0].len(), 3, "{label}: surface {k} is not a triangle");
+        for (c, &vi) in r[0].iter().enumerate() {
+            let want = tin.vertices[tin.triangles[k][c] as usize];
+            let got = vs[vi];
+            for (a, b) in got.iter().zip(want.to_array()) {
+                worst = worst.max((a - b).abs());
+            }
+        }
+    }
+    // Half a step, and the f64 rounding of coordinates of a few hundred kilometres.
+    assert!(
+        worst <= 0.5 * scale + 1e-9,
+        "{label}: a terrain vertex {worst} m off"
+    );
+    println!(
+        "{label}: {} terrain triangles, vertices within {worst:.2e} m (step {scale} m)",
+        surfaces.len()
+    );
+}
+
+#[test]
+fn terrain_is_a_valid_tin_relief_with_the_buildings_on_it() {
+    use blockwalk::city::export::cityjson::{
+        cityjson_value_with_terrain, write_cityjson_seq_with_terrain, write_cityjson_with_terrain,
+    };
+    // Helsinki (EPSG:3067, written as it is) on hills of 20 m cells with a hole.
+    let (city, tin) = support::terrain::terrain_city(
+        &load_city(Path::new("data/helsinki/buildings.shp"), None),
+        20.0,
+    );
+    let (t_lo, _) = tin.bounds().unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("city.city.json");
+    let stats = write_cityjson_with_terrain(&city, Some(&tin), &path).unwrap();
+    let text = std::fs::read_to_string(&path).unwrap();
+    let t = std::time::Instant::now();
+    let failures = validate_cityjson(&text);
+    println!(
+        "helsinki + terrain: {} bytes, {} buildings, {} terrain triangles, {} vertices; cjval {:.1} s: {failures:?}",
+        stats.bytes,
+        stats.buildings,
+        stats.terrain_triangles,
+        stats.vertices,
+        t.elapsed().as_secs_f64()
+    );
+    assert!(failures.is_empty(), "cjval: {failures:#?}");
+    assert_eq!(stats.terrain_triangles, tin.triangles.len());
+    assert_eq!(stats.terrain_dropped, 0);
+    let doc: Value = serde_json::from_str(&text).unwrap();
+    // The transform covers the terrain: nothing below its lowest point is cut.
+    let tr = &doc["transform"]["translate"];
+    assert!(tr[2].as_f64().unwrap() <= t_lo.z);
+    assert!(tr[0].as_f64().unwrap() <= t_lo.x);
+    let vs = world_vertices(&doc, &doc);
+    let objects = doc["CityObjects"].as_object().unwrap();
+    assert_eq!(objects.len(), city.buildings.len() + 1);
+    check_tin("city.json", &objects["terrain"], &vs, &tin, stats.scale_m);
+    // Buildings stand at their bases: every solid's lowest vertex is its bottom, its LoD0
+    // footprint lies there, and it is closed and outward as without terrain.
+    let by_source: HashMap<&str, &blockwalk::city::Building> = city
+        .buildings
+        .iter()
+        .map(|b| (b.source_id.as_str(), b))
+        .collect();
+    let rel = vertices(&doc, &doc);
+    for (id, o) in objects.iter().filter(|(id, _)| id.as_str() != "terrain") {
+        let b = by_source[o["attributes"]["source_id"].as_str().unwrap()];
+        assert_eq!(o["attributes"]["base_m"].as_f64(), Some(b.base_m));
+        check_building(id, o, &rel, None);
+        let lod0 = &o["geometry"][0];
+        let zs: Vec<f64> = rings(&lod0["boundaries"][0])
+            .concat()
+            .iter()
+            .map(|&i| vs[i][2])
+            .collect();
+        for z in zs {
+            assert!(
+                (z - b.bottom_z()).abs() <= 0.5 * stats.scale_m + 1e-9,
+                "{id}: {z} vs {}",
+                b.bottom_z()
+            );
+        }
+        let solid = o["geometry"][1]["boundaries"][0].as_array().unwrap();
+        let zmin = solid
+            .iter()
+            .flat_map(|s| rings(s).concat())
+            .map(|i| vs[i][2])
+            .fold(f64::INFINITY, f64::min);
+        assert!(
+            (zmin - b.bottom_z()).abs() <= 0.5 * stats.scale_m + 1e-9,
+            "{id}"
+        );
+        // On the ground (min height 0), the bottom stays a ground surface.
+        if b.min_height_m == 0.0 {
+            assert_eq!(
+                o["geometry"][1]["semantics"]["surfaces"][1]["type"],
+                "GroundSurface"
+            );
+        }
+    }
+    // The same document in memory.
+    let (mem, _) = cityjson_value_with_terrain(&city, Some(&tin)).unwrap();
+    assert!(mem == doc, "the streamed document with terrain differs");
+
+    // CityJSONSeq: the terrain is the last feature, valid, with the same triangles.
+    let seq = dir.path().join("city.city.jsonl");
+    let sstats = write_cityjson_seq_with_terrain(&city, Some(&tin), &seq).unwrap();
+    let text = std::fs::read_to_string(&seq).unwrap();
+    let failures = validate_seq(&text);
+    assert!(failures.is_empty(), "cjval (seq): {failures:#?}");
+    let last = text.lines().last().unwrap();
+    let mut v = cjval::CJValidator::from_str(text.lines().next().unwrap());
+    v.from_str_cjfeature(last).unwrap();
+    assert!(cjval_failures(&v).is_empty(), "the terrain feature");
+    let header: Value = serde_json::from_str(text.lines().next().unwrap()).unwrap();
+    assert_eq!(header["transform"], doc["transform"]);
+    let f: Value = serde_json::from_str(last).unwrap();
+    assert_eq!(f["id"], "terrain");
+    check_tin(
+        "city.jsonl",
+        &f["CityObjects"]["terrain"],
+        &world_vertices(&f, &header),
+        &tin,
+        sstats.scale_m,
+    );
+    assert_eq!(text.lines().count(), 1 + city.buildings.len() + 1);
+    println!("CityJSONSeq with terrain: {} bytes", sstats.bytes);
+
+    // Bubeneč (Web Mercator input, written in UTM 33N): the terrain is reprojected with the
+    // buildings; its vertices land where proj4rs alone puts them (local tmerc → UTM).
+    let (bcity, btin) = support::terrain::terrain_city(
+        &load_city(
+            Path::new("data/bubenec/buildings.shp"),
+            Some("data/bubenec/streets.shp"),
+        ),
+        10.0,
+    );
+    let (bdoc, bstats) = cityjson_value_with_terrain(&bcity, Some(&btin)).unwrap();
+    let failures = validate_cityjson(&bdoc.to_string());
+    assert!(
+        failures.is_empty(),
+        "Bubeneč + terrain: cjval: {failures:#?}"
+    );
+    let rs = bdoc["metadata"]["referenceSystem"].as_str();
+    assert_eq!(rs, Some("https://www.opengis.net/def/crs/EPSG/0/32633"));
+    let ring: Vec<geo_types::Coord<f64>> = btin
+        .vertices
+        .iter()
+        .map(|v| geo_types::Coord { x: v.x, y: v.y })
+        .collect();
+    let utm = written_footprint(
+        &bcity,
+        rs,
+        &geo_types::Polygon::new(geo_types::LineString(ring), vec![]),
+    );
+    let expected: Vec<[f64; 3]> = utm
+        .exterior()
+        .0
+        .iter()
+        .zip(&btin.vertices)
+        .map(|(c, v)| [c.x, c.y, v.z])
+        .collect();
+    let bvs = world_vertices(&bdoc, &bdoc);
+    let surfaces = bdoc["CityObjects"]["terrain"]["geometry"][0]["boundaries"]
+        .as_array()
+        .unwrap();
+    assert_eq!(surfaces.len(), btin.triangles.len());
+    let (mut worst_xy, mut worst_z) = (0.0f64, 0.0f64);
+    for (k, sf) in surfaces.iter().enumerate() {
+        for (c, &vi) in rings(sf)[0].iter().enumerate() {
+            let (got, want) = (bvs[vi], expected[btin.triangles[k][c] as usize]);
+            worst_xy = worst_xy
+                .max((got[0] - want[0]).abs())
+                .max((got[1] - want[1]).abs());
+            worst_z = worst_z.max((got[2] - want[2]).abs());
+        }
+    }
+    println!("Bubeneč terrain in UTM: {} triangles, plan within {worst_xy:.2e} m, heights within {worst_z:.2e} m", surfaces.len());
+    assert!(worst_xy <= 1e-4 + 0.5 * bstats.scale_m, "plan {worst_xy}");
+    assert!(worst_z <= 0.5 * bstats.scale_m + 1e-9, "height {worst_z}");
+
+    // A terrain the exporters cannot trust is refused before anything is written.
+    let mut bad = tin.clone();
+    bad.triangles[0].swap(1, 2);
+    let refused = dir.path().join("refused.city.json");
+    assert!(write_cityjson_with_terrain(&city, Some(&bad), &refused).is_err());
+    assert!(!refused.exists());
+}

@@ -160,3 +160,103 @@ fn the_validator_is_not_vacuous() {
         messages(&report)
     );
 }
+
+/// Helsinki on a terrain (20 m cells with a hole): the `.glb` read back with the `gltf` crate
+/// holds a node `terrain` whose mesh has the input's vertices (each at its local position, to
+/// the f32 rounding), its triangles, unit normals pointing up, its accessor bounds the input's,
+/// and a material of its own; the buildings are still there. Then the Khronos validator: 0 errors,
+/// 0 warnings.
+#[test]
+fn a_glb_with_terrain_reads_back_and_is_valid_gltf() {
+    use blockwalk::city::export::glb_bytes_with_terrain;
+    let (city, tin) = support::terrain::terrain_city(
+        &load_city(Path::new("data/helsinki/buildings.shp"), None),
+        20.0,
+    );
+    let (meshes, errors) = try_extrude_city(&city);
+    assert!(errors.is_empty());
+    let (bytes, stats) = glb_bytes_with_terrain(&city, &meshes, Some(&tin)).unwrap();
+    assert_eq!(stats.terrain_triangles, tin.triangles.len());
+    assert_eq!(stats.nodes, city.buildings.len() + 1);
+    let (doc, buffers, _) = gltf::import_slice(&bytes).expect("import");
+    let root = doc.scenes().next().unwrap().nodes().next().unwrap();
+    assert_eq!(root.children().count(), city.buildings.len() + 1);
+    let terrain: Vec<_> = root
+        .children()
+        .filter(|n| n.name() == Some("terrain"))
+        .collect();
+    assert_eq!(terrain.len(), 1, "one terrain node");
+    let mesh = terrain[0].mesh().unwrap();
+    assert_eq!(mesh.name(), Some("terrain"));
+    let prim = mesh.primitives().next().unwrap();
+    let reader = prim.reader(|buf| Some(&buffers[buf.index()]));
+    let pos: Vec<[f32; 3]> = reader.read_positions().unwrap().collect();
+    assert_eq!(pos.len(), tin.vertices.len(), "terrain vertex count");
+    // Every vertex where the input puts it: glTF (x, z, −y) of world − origin, to f32.
+    let o = city.frame.origin;
+    let mut worst = 0.0f64;
+    for (p, w) in pos.iter().zip(&tin.vertices) {
+        let local = glam::DVec3::new(p[0] as f64, -(p[2] as f64), p[1] as f64);
+        worst = worst.max((local - (*w - o)).abs().max_element());
+    }
+    assert!(worst < 1e-3, "a terrain vertex {worst} m off");
+    let idx: Vec<u32> = reader.read_indices().unwrap().into_u32().collect();
+    assert_eq!(idx, tin.triangles.concat());
+    let normals: Vec<[f32; 3]> = reader.read_normals().unwrap().collect();
+    assert_eq!(normals.len(), pos.len());
+    assert!(normals
+        .iter()
+        .all(|n| (glam::Vec3::from(*n).length() - 1.0).abs() < 1e-5 && n[1] > 0.5));
+    // The accessor's bounds are the input's bounds, in the local frame.
+    let (lo, hi) = tin.bounds().unwrap();
+    let (lo, hi) = (lo - o, hi - o);
+    let acc = prim.get(&gltf::Semantic::Positions).unwrap();
+    let f = |v: serde_json::Value| -> Vec<f64> {
+        v.as_array()
+            .unwrap()
+            .iter()
+            .map(|x| x.as_f64().unwrap())
+            .collect()
+    };
+    let (amin, amax) = (f(acc.min().unwrap()), f(acc.max().unwrap()));
+    let want_min = [lo.x, hi.z.min(lo.z), -hi.y];
+    let want_max = [hi.x, hi.z.max(lo.z), -lo.y];
+    for k in 0..3 {
+        assert!(
+            (amin[k] - want_min[k]).abs() < 1e-3,
+            "min {k}: {amin:?} vs {want_min:?}"
+        );
+        assert!(
+            (amax[k] - want_max[k]).abs() < 1e-3,
+            "max {k}: {amax:?} vs {want_max:?}"
+        );
+    }
+    let mat = prim.material();
+    assert_eq!(mat.name(), Some("terrain"));
+    let building_mat = root.children().next().unwrap().mesh().unwrap();
+    let building_mat = building_mat.primitives().next().unwrap().material();
+    assert_ne!(
+        mat.pbr_metallic_roughness().base_color_factor(),
+        building_mat.pbr_metallic_roughness().base_color_factor()
+    );
+
+    let Some(node) = validator_or_skip("a_glb_with_terrain_reads_back_and_is_valid_gltf") else {
+        return;
+    };
+    let dir = tempfile::tempdir().unwrap();
+    let file = dir.path().join("helsinki_terrain.glb");
+    std::fs::write(&file, &bytes).unwrap();
+    let report = validate(&node, &file);
+    let [e, w, i, h] = counts(&report);
+    println!(
+        "helsinki_terrain.glb: {} bytes, {} terrain triangles, {} vertices: {e} errors, {w} warnings, {i} infos, {h} hints",
+        bytes.len(),
+        tin.triangles.len(),
+        tin.vertices.len()
+    );
+    assert_eq!((e, w), (0, 0), "{:#?}", messages(&report));
+    assert_eq!(
+        report["info"]["drawCallCount"].as_u64().unwrap(),
+        city.buildings.len() as u64 + 1
+    );
+}

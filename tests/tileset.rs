@@ -31,6 +31,16 @@ struct Built {
 }
 
 fn build(input: &str, streets: Option<&str>) -> Built {
+    build_with(input, streets, &TilesetOptions::default(), |c| c)
+}
+
+/// [`build`] with options, the city changed by `edit` first (e.g. stood on a terrain).
+fn build_with(
+    input: &str,
+    streets: Option<&str>,
+    opts: &TilesetOptions<'_>,
+    edit: impl FnOnce(blockwalk::city::City) -> blockwalk::city::City,
+) -> Built {
     let source = CitySource::parse(Path::new(input), streets.map(PathBuf::from), None, &[], 0)
         .expect("source");
     let scene = Scene::load(
@@ -42,6 +52,8 @@ fn build(input: &str, streets: Option<&str>) -> Built {
         &mut |_| {},
     )
     .expect("scene");
+    let mut scene = scene;
+    scene.city = edit(scene.city);
     let meshes = extrude_city(&scene.city);
     let dir = tempfile::tempdir().unwrap();
     let (set, summary) = build_tileset(
@@ -50,7 +62,7 @@ fn build(input: &str, streets: Option<&str>) -> Built {
         &scene.bounds,
         &meshes,
         dir.path(),
-        &TilesetOptions::default(),
+        opts,
         &|_, _| {},
     )
     .expect("tileset");
@@ -509,4 +521,249 @@ fn every_tile_is_valid_gltf() {
         );
         assert!(files > 1);
     }
+}
+
+/// Helsinki on a terrain of 20 m cells (with a hole), cut into terrain leaves of at most 1000
+/// triangles: the main `tileset.json` holds both trees under a root refined by `ADD`, the
+/// terrain's own `tileset.json` stands where the buildings do (same root transform), its leaves
+/// together hold every input triangle exactly once (matched by its three vertices, orientation
+/// kept) in the cell holding its centroid, boxes hold the positions read back, errors are 0 at
+/// the leaves and never grow downwards; every terrain `.glb` passes the Khronos validator.
+#[test]
+fn terrain_tileset_holds_every_triangle_once_beside_the_buildings() {
+    let base = support::data::load_city(Path::new("data/helsinki/buildings.shp"), None);
+    let (_, tin) = support::terrain::terrain_city(&base, 20.0);
+    let opts = TilesetOptions {
+        terrain: Some(&tin),
+        terrain_leaf_triangles: 1000,
+        ..TilesetOptions::default()
+    };
+    let b = build_with(
+        "data/helsinki/buildings.shp",
+        Some("data/helsinki/streets_blockclass.shp"),
+        &opts,
+        |c| support::terrain::terrain_city(&c, 20.0).0,
+    );
+    let g = b.set.georef.expect("Helsinki is georeferenced");
+    let terrain = b.set.terrain.as_ref().expect("a terrain tileset");
+    assert_eq!(b.summary.terrain_triangles, tin.triangles.len());
+
+    // The main tileset: a group of the buildings' tree (with the transform) and the terrain's.
+    let main: Value =
+        serde_json::from_slice(&std::fs::read(b.dir.path().join("tileset.json")).unwrap()).unwrap();
+    let root = &main["root"];
+    assert_eq!(root["refine"], "ADD");
+    assert!(root.get("content").is_none() && root.get("transform").is_none());
+    let kids = root["children"].as_array().unwrap();
+    assert_eq!(kids.len(), 2);
+    let t: Vec<f64> = kids[0]["transform"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|x| x.as_f64().unwrap())
+        .collect();
+    assert_eq!(t, g.ecef_from_local.to_vec());
+    assert_eq!(kids[0]["refine"], "REPLACE");
+    assert_eq!(kids[1]["content"]["uri"], "terrain/tileset.json");
+    assert!(kids[1].get("transform").is_none() && kids[1].get("children").is_none());
+    let ge = |v: &Value| v["geometricError"].as_f64().unwrap();
+    assert!(ge(&main) >= ge(root) && ge(root) >= ge(&kids[0]) && ge(root) >= ge(&kids[1]));
+    // The reference's box (ECEF) holds the terrain's corners placed by the transform.
+    let ecef_box = |v: &Value| -> (DVec3, [DVec3; 3]) {
+        let b: Vec<f64> = v["boundingVolume"]["box"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|x| x.as_f64().unwrap())
+            .collect();
+        (
+            DVec3::new(b[0], b[1], b[2]),
+            [
+                DVec3::new(b[3], b[4], b[5]),
+                DVec3::new(b[6], b[7], b[8]),
+                DVec3::new(b[9], b[10], b[11]),
+            ],
+        )
+    };
+    let inside = |(c, axes): &(DVec3, [DVec3; 3]), p: DVec3| {
+        axes.iter()
+            .all(|a| ((p - *c).dot(*a) / a.length_squared()).abs() <= 1.0 + 1e-6)
+    };
+    let o = b.scene.city.frame.origin;
+    let (lo, hi) = tin.bounds().unwrap();
+    for corner in 0..8 {
+        let pick = |k: usize, l: f64, h: f64| if corner >> k & 1 == 1 { h } else { l };
+        let w = DVec3::new(
+            pick(0, lo.x, hi.x),
+            pick(1, lo.y, hi.y),
+            pick(2, lo.z, hi.z),
+        );
+        let p = local_to_ecef(&g, w - o);
+        assert!(
+            inside(&ecef_box(&kids[1]), p),
+            "terrain corner {w:?} outside the reference box"
+        );
+        assert!(
+            inside(&ecef_box(root), p),
+            "terrain corner {w:?} outside the root box"
+        );
+    }
+
+    // The terrain's own tileset.
+    let tdir = b.dir.path().join("terrain");
+    let doc: Value =
+        serde_json::from_slice(&std::fs::read(tdir.join("tileset.json")).unwrap()).unwrap();
+    assert_eq!(doc["asset"]["version"], "1.1");
+    let t: Vec<f64> = doc["root"]["transform"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|x| x.as_f64().unwrap())
+        .collect();
+    assert_eq!(t, g.ecef_from_local.to_vec(), "the same root transform");
+    let tiles = json_tiles(&doc);
+    assert_eq!(tiles.len(), terrain.tiles.len());
+    // Input vertices by their f32 local position (world − origin, rounded once), input
+    // triangles by their vertices starting from the smallest (orientation kept).
+    let key = |p: Vec3| p.to_array().map(f32::to_bits);
+    let vertex_of: std::collections::HashMap<[u32; 3], u32> = tin
+        .vertices
+        .iter()
+        .enumerate()
+        .map(|(i, w)| (key((*w - o).as_vec3()), i as u32))
+        .collect();
+    assert_eq!(
+        vertex_of.len(),
+        tin.vertices.len(),
+        "distinct f32 positions"
+    );
+    let canon = |t: [u32; 3]| {
+        let k = (0..3).min_by_key(|&k| t[k]).unwrap();
+        [t[k], t[(k + 1) % 3], t[(k + 2) % 3]]
+    };
+    let triangle_of: std::collections::HashMap<[u32; 3], usize> = tin
+        .triangles
+        .iter()
+        .enumerate()
+        .map(|(i, t)| (canon(*t), i))
+        .collect();
+    let mut seen = vec![0u32; tin.triangles.len()];
+    let (mut leaves, mut bytes) = (0, 0);
+    for (i, (parent, t)) in tiles.iter().enumerate() {
+        assert_eq!(t["extras"]["kind"], "terrain");
+        let leaf = t.get("children").is_none();
+        assert_eq!(leaf, terrain.tiles[i].children.is_empty());
+        if leaf {
+            assert_eq!(ge(t), 0.0, "terrain leaves are full resolution");
+        } else {
+            assert!(ge(t) > 0.0 && t.get("content").is_none());
+        }
+        let (blo, bhi) = box_of(t);
+        if let Some(p) = parent {
+            assert!(ge(&tiles[*p].1) >= ge(t));
+            let (plo, phi) = box_of(&tiles[*p].1);
+            assert!(blo.cmpge(plo - 1e-6).all() && bhi.cmple(phi + 1e-6).all());
+        }
+        let Some(uri) = t["content"]["uri"].as_str() else {
+            continue;
+        };
+        leaves += 1;
+        bytes += std::fs::metadata(tdir.join(uri)).unwrap().len();
+        let (doc, buffers, _) =
+            gltf::import_slice(std::fs::read(tdir.join(uri)).unwrap()).expect("import");
+        let prim = doc.meshes().next().unwrap().primitives().next().unwrap();
+        let reader = prim.reader(|buf| Some(&buffers[buf.index()]));
+        let pos: Vec<Vec3> = reader.read_positions().unwrap().map(Vec3::from).collect();
+        let idx: Vec<u32> = reader.read_indices().unwrap().into_u32().collect();
+        let (cell_sw, side) = terrain.tiles[i].cell;
+        for tri in idx.chunks(3) {
+            let vs = [0, 1, 2].map(|k| {
+                let local = local_from_gltf(pos[tri[k] as usize]);
+                assert!(
+                    local.cmpge(blo - 1e-3).all() && local.cmple(bhi + 1e-3).all(),
+                    "{uri}: vertex {local:?} outside its box"
+                );
+                *vertex_of
+                    .get(&key(local.as_vec3()))
+                    .unwrap_or_else(|| panic!("{uri}: {local:?} is no input vertex"))
+            });
+            let n = *triangle_of
+                .get(&canon(vs))
+                .unwrap_or_else(|| panic!("{uri}: {vs:?} is no input triangle (or turned over)"));
+            seen[n] += 1;
+            let c = (tin.centroid(n) - o).truncate();
+            assert!(
+                c.cmpge(cell_sw - 1e-6).all() && c.cmple(cell_sw + side + 1e-6).all(),
+                "{uri}: triangle {n}'s centroid outside the tile's cell"
+            );
+        }
+    }
+    assert!(
+        seen.iter().all(|&n| n == 1),
+        "every input triangle exactly once"
+    );
+    assert!(leaves > 4, "the terrain is cut into tiles: {leaves} leaves");
+    println!(
+        "helsinki terrain: {} triangles in {} tiles ({leaves} leaves, {bytes} bytes of .glb), root error {:.1} m; whole tileset {} bytes",
+        tin.triangles.len(),
+        tiles.len(),
+        terrain.geometric_error,
+        b.summary.bytes
+    );
+
+    // Deterministic: a second export gives the same bytes, terrain files included.
+    let again = build_with(
+        "data/helsinki/buildings.shp",
+        Some("data/helsinki/streets_blockclass.shp"),
+        &opts,
+        |c| support::terrain::terrain_city(&c, 20.0).0,
+    );
+    let files = |d: &Path| -> Vec<(PathBuf, Vec<u8>)> {
+        let mut v: Vec<(PathBuf, Vec<u8>)> = ["tileset.json", "terrain/tileset.json"]
+            .iter()
+            .map(|f| d.join(f))
+            .chain(
+                std::fs::read_dir(d.join("terrain/tiles"))
+                    .unwrap()
+                    .map(|e| e.unwrap().path()),
+            )
+            .map(|p| {
+                (
+                    p.strip_prefix(d).unwrap().to_path_buf(),
+                    std::fs::read(&p).unwrap(),
+                )
+            })
+            .collect();
+        v.sort();
+        v
+    };
+    assert!(
+        files(b.dir.path()) == files(again.dir.path()),
+        "two exports differ"
+    );
+
+    let Some(node) = support::node::or_skip(
+        "terrain_tileset_holds_every_triangle_once_beside_the_buildings",
+        support::node::node_with(&["gltf-validator"]),
+    ) else {
+        return;
+    };
+    let mut totals = [0u64; 4];
+    for (_, t) in &tiles {
+        let Some(uri) = t["content"]["uri"].as_str() else {
+            continue;
+        };
+        let r = support::node::run_json(&node, "validate_gltf.js", &tdir.join(uri));
+        let i = &r["issues"];
+        let c =
+            ["numErrors", "numWarnings", "numInfos", "numHints"].map(|k| i[k].as_u64().unwrap());
+        assert_eq!(c[..2], [0, 0], "{uri}: {:#}", i["messages"]);
+        for k in 0..4 {
+            totals[k] += c[k];
+        }
+    }
+    println!(
+        "terrain tiles validated: {} errors, {} warnings, {} infos, {} hints",
+        totals[0], totals[1], totals[2], totals[3]
+    );
 }

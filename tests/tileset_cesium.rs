@@ -7,6 +7,10 @@
 //! camera (`visibility::oracle::shade`, `ours_<view>.png`) and a side-by-side `pair_<view>.png`,
 //! in `target/tileset-cesium/` (or `$BLOCKWALK_SCREENSHOT_DIR`).
 //!
+//! The city stands on a terrain (gentle hills within about a metre of the ground, 20 m cells, a
+//! hole) written as the second tileset beside the buildings': both views draw terrain tiles too,
+//! and both trees' files are requested.
+//!
 //! Needs `node`, `chromium` and `npm ci --prefix tests/tools` (what `.ci/run` does). Without them
 //! the test skips loudly, unless the validators are required (`BLOCKWALK_REQUIRE=validators`).
 
@@ -64,19 +68,29 @@ fn cesium_loads_the_helsinki_tileset_and_refines_it() {
         &mut |_| {},
     )
     .unwrap();
-    let meshes = extrude_city(&scene.city);
+    // Hills of ±1.3 m around the ground, so that our rendering (buildings on a flat ground)
+    // still sees the same skyline; the buildings stand on them.
+    let (city, tin) = support::terrain::terrain_city_with(&scene.city, 20.0, |o, x, y| {
+        0.1 * (support::terrain::height(o, x, y) - 30.0)
+    });
+    let meshes = extrude_city(&city);
     let work = tempfile::tempdir().unwrap();
     let tiles_dir = work.path().join("tileset");
-    let (set, _) = build_tileset(
-        &scene.city,
+    let (set, summary) = build_tileset(
+        &city,
         &scene.layout,
         &scene.bounds,
         &meshes,
         &tiles_dir,
-        &TilesetOptions::default(),
+        &TilesetOptions {
+            terrain: Some(&tin),
+            terrain_leaf_triangles: 2000,
+            ..TilesetOptions::default()
+        },
         &|_, _| {},
     )
     .unwrap();
+    assert!(summary.terrain_tiles > 1);
     let g = set.georef.expect("Helsinki is georeferenced");
 
     // Views over the middle of the city: from 3 km away (the root's map alone is fine enough)
@@ -112,6 +126,32 @@ fn cesium_loads_the_helsinki_tileset_and_refines_it() {
     .unwrap();
     let errors = report["page_errors"].as_array().unwrap();
     assert!(errors.is_empty(), "page errors: {errors:#?}");
+    // Both trees were requested: the buildings' contents and the terrain's tileset and tiles;
+    // nothing asked for was missing.
+    let files: Vec<&str> = report["requests"]["tileset_files"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|f| f.as_str().unwrap())
+        .collect();
+    for want in [
+        "tileset.json",
+        "tiles/leaf_",
+        "terrain/tileset.json",
+        "terrain/tiles/t_",
+    ] {
+        assert!(
+            files.iter().any(|f| f.starts_with(want)),
+            "{want} never requested: {files:?}"
+        );
+    }
+    let missing = report["requests"]["missing"].as_array().unwrap();
+    assert!(
+        missing
+            .iter()
+            .all(|m| !files.contains(&m.as_str().unwrap())),
+        "tileset files missing: {missing:?}"
+    );
     let setup = &report["setup"];
     assert_eq!(setup["webgl2"], true, "{setup}");
     // Cesium puts the local origin where our transform says.
@@ -142,12 +182,14 @@ fn cesium_loads_the_helsinki_tileset_and_refines_it() {
             !v["loaded"].as_array().unwrap().is_empty(),
             "{name}: nothing loaded"
         );
-        let (maps, leaves) = (
+        let (maps, leaves, terrain) = (
             kinds(v, "visible", "blockmap"),
             kinds(v, "visible", "buildings"),
+            kinds(v, "visible", "terrain:"),
         );
+        assert!(terrain > 0, "{name}: no terrain tile drawn: {v}");
         println!(
-            "{name}: {} tiles loaded, drawn: {maps} BlockMap tiles, {leaves} building leaves, {} triangles, {:.1} s",
+            "{name}: {} tiles loaded, drawn: {maps} BlockMap tiles, {leaves} building leaves, {terrain} terrain tiles, {} triangles, {:.1} s",
             v["loaded"].as_array().unwrap().len(),
             v["triangles"],
             v["seconds"].as_f64().unwrap()

@@ -57,6 +57,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let opts = TilesetOptions {
         k: args.k,
         stop: args.levels.map_or(Stop::Competitive, Stop::Levels),
+        ..TilesetOptions::default()
     };
     let (_, summary) = build_tileset(
         &scene.city,

@@ -23,17 +23,28 @@
 //!   says so).
 //! - glTF is Y-up and 3D Tiles rotates glTF content Y-up → Z-up: the content is written with
 //!   local (x, y, z) as glTF (x, z, −y), which that rotation takes back to (x, y, z).
+//! - Terrain (optional, [`TilesetOptions::terrain`]): a second tileset, `terrain/tileset.json`
+//!   ([`terrain`]: a quadtree of square cells, leaves holding the TIN's triangles by centroid at
+//!   full resolution, the same root transform). The main `tileset.json` then gets a root without
+//!   content and without transform, refined by `ADD`, with two children: the buildings' tree as
+//!   above (carrying the root transform) and a tile whose content is `terrain/tileset.json`
+//!   (an external tileset, whose own root transform places it; its bounding box written in
+//!   ECEF). A viewer loading `tileset.json` gets both, each refined on its own; one loading
+//!   `terrain/tileset.json` gets the terrain alone. Without terrain `tileset.json` is as before.
 //! - Output is deterministic: the same city gives the same bytes.
 
 pub mod geodesy;
 pub mod heightfield;
+pub mod terrain;
 
 use crate::blockmap::{
     build_tree, BlockMapError, BuildOptions, MapTree, Source, Stop, TreeOptions,
 };
 use crate::blocks::{BlockId, BlockLayout};
 use crate::city::appearance::{surface_color, to_rgb8, BuildingStyle};
-use crate::city::export::{tile_glb_bytes, ExportError, TileFeature, TileMesh};
+use crate::city::export::{
+    tile_glb_bytes, ExportError, TerrainError, TerrainTin, TileFeature, TileMesh,
+};
 use crate::city::{City, Mesh};
 use crate::geom::Aabb3;
 use crate::index::{BlockBounds, BqrParams, BqrTree};
@@ -84,6 +95,13 @@ pub enum TilesError {
         /// Why.
         what: String,
     },
+    /// The terrain given cannot be tiled (see [`TerrainTin::check`]).
+    #[error("terrain: {source}")]
+    Terrain {
+        /// What is wrong with it.
+        #[source]
+        source: TerrainError,
+    },
     /// The city has no block with a building: there is nothing to tile.
     #[error("tileset of {city}: no block holds a building, nothing to export")]
     Empty {
@@ -94,19 +112,27 @@ pub enum TilesError {
 
 /// Options of [`build_tileset`].
 #[derive(Clone, Copy, Debug, PartialEq, Serialize)]
-pub struct TilesetOptions {
+pub struct TilesetOptions<'a> {
     /// BlockMap height-map side K of the inner tiles (32, 64 or 128).
     pub k: u32,
     /// Which quadtree nodes get a map (inner tiles); [`Stop::Competitive`] by default (Cignoni et al.
     /// §4: a map where it costs fewer bytes than the meshes).
     pub stop: Stop,
+    /// A terrain to write as a second tileset, `terrain/tileset.json` (see the module
+    /// documentation); `None` by default.
+    #[serde(skip)]
+    pub terrain: Option<&'a TerrainTin>,
+    /// Most triangles in one terrain leaf (a cell with more is cut in four); 16 384 by default.
+    pub terrain_leaf_triangles: usize,
 }
 
-impl Default for TilesetOptions {
+impl Default for TilesetOptions<'_> {
     fn default() -> Self {
         Self {
             k: 64,
             stop: Stop::Competitive,
+            terrain: None,
+            terrain_leaf_triangles: 16_384,
         }
     }
 }
@@ -174,6 +200,8 @@ pub struct Tileset {
     pub crs: String,
     /// Top-level geometric error (≥ the root's).
     pub geometric_error: f64,
+    /// The terrain's tileset (`terrain/tileset.json`), when a terrain was given.
+    pub terrain: Option<terrain::TerrainTiles>,
 }
 
 /// What [`build_tileset`] wrote, as `blockwalk tileset` prints it.
@@ -195,6 +223,10 @@ pub struct TilesetSummary {
     pub seconds: f64,
     /// Buildings in leaf contents.
     pub buildings: usize,
+    /// Terrain tiles (0 without terrain).
+    pub terrain_tiles: usize,
+    /// Terrain triangles in terrain leaves (0 without terrain).
+    pub terrain_triangles: usize,
     /// Root geometric error, metres.
     pub root_geometric_error: f64,
     /// Where the tileset stands, or `None` (no transform written).
@@ -422,11 +454,12 @@ fn plan(tree: &BqrTree, maps: &MapTree, layout: &BlockLayout, meshes: &[Mesh]) -
 /// True for the entries a tileset folder holds (`tileset.json`, `tiles`): a folder of only
 /// these may be replaced by a new tileset.
 pub fn is_tileset_entry(name: &std::ffi::OsStr) -> bool {
-    name == "tileset.json" || name == "tiles"
+    name == "tileset.json" || name == "tiles" || name == "terrain"
 }
 
-/// Builds the tileset of a city and writes it to `dir`: `tileset.json` and `tiles/*.glb` (see
-/// the module documentation). `meshes` are the buildings' meshes (`city::extrude::extrude_city`);
+/// Builds the tileset of a city and writes it to `dir`: `tileset.json` and `tiles/*.glb`, and
+/// with a terrain `terrain/tileset.json` and `terrain/tiles/*.glb` (see the module
+/// documentation). `meshes` are the buildings' meshes (`city::extrude::extrude_city`);
 /// `bounds` the blocks' bounds (`index::block_bounds`). `progress(done, total)` is called as
 /// maps are built, then as contents are written. The folder is written under a temporary name
 /// beside `dir` and swapped in when complete: a killed run or a full disk leaves `dir` as it
@@ -440,10 +473,13 @@ pub fn build_tileset(
     bounds: &[BlockBounds],
     meshes: &[Mesh],
     dir: &Path,
-    opts: &TilesetOptions,
+    opts: &TilesetOptions<'_>,
     progress: &(dyn Fn(usize, usize) + Sync),
 ) -> Result<(Tileset, TilesetSummary), TilesError> {
     let t0 = std::time::Instant::now();
+    if let Some(t) = opts.terrain {
+        t.check().map_err(|source| TilesError::Terrain { source })?;
+    }
     // Checked before any work: a folder holding anything but a previous tileset is refused.
     let staged = crate::output::StagedDir::create(
         dir,
@@ -562,11 +598,26 @@ pub fn build_tileset(
     }
     let root_ge = tiles[0].geometric_error;
     let root_box = tiles[0].aabb;
+    let georef = georef(city);
+    let crs = city.transform.describe();
+    let terrain = match opts.terrain {
+        Some(tin) => Some(terrain::write_terrain(
+            tin,
+            &city.frame,
+            opts.terrain_leaf_triangles,
+            georef.as_ref(),
+            &crs,
+            &staged.path().join("terrain"),
+            &dir.join("terrain"),
+        )?),
+        None => None,
+    };
     let set = Tileset {
         geometric_error: root_ge.max(0.5 * root_box.extent().length()),
-        georef: georef(city),
-        crs: city.transform.describe(),
+        georef,
+        crs,
         tiles,
+        terrain,
     };
     let doc = set.to_json();
     let path = dir.join("tileset.json");
@@ -601,10 +652,18 @@ pub fn build_tileset(
                 .tiles
                 .iter()
                 .map(|t| t.content_bytes as u64)
-                .sum::<u64>(),
+                .sum::<u64>()
+            + set.terrain.as_ref().map_or(0, |t| {
+                t.json_bytes as u64 + t.tiles.iter().map(|t| t.content_bytes as u64).sum::<u64>()
+            }),
         depth,
         seconds: t0.elapsed().as_secs_f64(),
         buildings: set.tiles.iter().map(|t| t.buildings.len()).sum(),
+        terrain_tiles: set.terrain.as_ref().map_or(0, |t| t.tiles.len()),
+        terrain_triangles: set
+            .terrain
+            .as_ref()
+            .map_or(0, |t| t.tiles.iter().map(|t| t.triangles.len()).sum()),
         root_geometric_error: root_ge,
         georef: set.georef,
         crs: set.crs.clone(),
@@ -618,6 +677,16 @@ fn box_json(a: &Aabb3) -> Value {
     let c = a.center();
     let h = 0.5 * a.extent();
     json!([c.x, c.y, c.z, h.x, 0.0, 0.0, 0.0, h.y, 0.0, 0.0, 0.0, h.z])
+}
+
+/// A local box as an oriented box through `m` (local → the tile's frame, e.g. ECEF): the centre
+/// and the three half-axes mapped (an affine map takes the box onto exactly that box).
+fn box_json_through(a: &Aabb3, m: &DMat4) -> Value {
+    let c = m.transform_point3(a.center());
+    let h = 0.5 * a.extent();
+    let [x, y, z] =
+        [DVec3::X * h.x, DVec3::Y * h.y, DVec3::Z * h.z].map(|v| m.transform_vector3(v));
+    json!([c.x, c.y, c.z, x.x, x.y, x.z, y.x, y.y, y.z, z.x, z.y, z.z])
 }
 
 impl Tileset {
@@ -644,8 +713,34 @@ impl Tileset {
             v
         }
         let mut root = tile(self, 0);
+        let m = self.georef.map_or(DMat4::IDENTITY, |g| {
+            DMat4::from_cols_array(&g.ecef_from_local)
+        });
         if let Some(g) = &self.georef {
             root["transform"] = json!(g.ecef_from_local);
+        }
+        let mut geometric_error = self.geometric_error;
+        if let Some(t) = &self.terrain {
+            // Both trees under one root without content or transform, refined by ADD: the
+            // buildings' tree carries the transform, the terrain's tileset its own.
+            let t_root = &t.tiles[0];
+            let both = self.tiles[0].aabb.union(t_root.aabb);
+            geometric_error = geometric_error.max(t.geometric_error);
+            root = json!({
+                "boundingVolume": { "box": box_json_through(&both, &m) },
+                "geometricError": geometric_error,
+                "refine": "ADD",
+                "extras": { "kind": "group" },
+                "children": [
+                    root,
+                    {
+                        "boundingVolume": { "box": box_json_through(&t_root.aabb, &m) },
+                        "geometricError": t.geometric_error,
+                        "content": { "uri": "terrain/tileset.json" },
+                        "extras": { "kind": "external_terrain" },
+                    },
+                ],
+            });
         }
         json!({
             "asset": {
@@ -657,7 +752,7 @@ impl Tileset {
                     "georeferenced": self.georef.is_some(),
                 },
             },
-            "geometricError": self.geometric_error,
+            "geometricError": geometric_error,
             "root": root,
         })
     }

@@ -13,6 +13,7 @@ pub mod data;
 pub mod gpu;
 pub mod node;
 pub mod skip;
+pub mod terrain;
 
 use std::path::{Path, PathBuf};
 

@@ -11,7 +11,8 @@
 //         "sky": [r, g, b], "ground": [r, g, b], "sun_local": [x, y, z],
 //         "views": [{ "name": "far", "eye": [x, y, z], "target": [x, y, z], "fov_y_deg": 60 }] }
 // Eye and target are in the tileset's local frame (x east, y north, z up, metres), placed on the
-// globe through the root tile's transform. Prints one JSON report on stdout; exit status 0 when
+// globe through the root tile's transform (or, for a tileset whose root groups the buildings'
+// tree and an external terrain tileset, `extras.kind` "group", through its first child's). Prints one JSON report on stdout; exit status 0 when
 // the script ran (the caller judges the report), 2 when it could not run.
 import fs from 'node:fs';
 import http from 'node:http';
@@ -45,7 +46,7 @@ const types = {
   '.css': 'text/css', '.glb': 'model/gltf-binary', '.wasm': 'application/wasm',
   '.png': 'image/png', '.jpg': 'image/jpeg', '.svg': 'image/svg+xml', '.html': 'text/html',
 };
-const requests = { served: 0, missing: [] };
+const requests = { served: 0, missing: [], tileset_files: [] };
 function serveFile(res, root, rel) {
   const file = path.normalize(path.join(root, rel));
   if (!file.startsWith(root)) {
@@ -71,6 +72,7 @@ const server = http.createServer((req, res) => {
   } else if (url.startsWith('/cesium/')) {
     serveFile(res, cesiumDir, url.slice('/cesium/'.length));
   } else if (url.startsWith('/tileset/')) {
+    requests.tileset_files.push(url.slice('/tileset/'.length));
     serveFile(res, tilesetRoot, url.slice('/tileset/'.length));
   } else {
     requests.missing.push(url);
@@ -130,7 +132,8 @@ try {
       maximumScreenSpaceError: spec.maximum_screen_space_error,
     });
     scene.primitives.add(tileset);
-    const t = tileset.root.computedTransform;
+    const group = tileset.root.extras && tileset.root.extras.kind === 'group';
+    const t = (group ? tileset.root.children[0] : tileset.root).computedTransform;
     const toWorld = (p) => C.Matrix4.multiplyByPoint(t, new C.Cartesian3(p[0], p[1], p[2]), new C.Cartesian3());
     const dirToWorld = (d) => C.Cartesian3.normalize(
       C.Matrix4.multiplyByPointAsVector(t, new C.Cartesian3(d[0], d[1], d[2]), new C.Cartesian3()),

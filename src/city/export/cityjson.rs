@@ -31,6 +31,14 @@
 //!   is not defined, and for a city in an unnamed local frame, no `referenceSystem` is written
 //!   and [`CityJsonStats::crs_note`] says why; the local projection is then written as a PROJ
 //!   string in `metadata["+proj"]`, a property the CityJSON schema allows and readers ignore.
+//! - Terrain (optional, the `*_with_terrain` forms): one `TINRelief` city object (id `terrain`,
+//!   or `terrain#2`, … when a building has that id) whose LoD1 geometry is a `CompositeSurface`
+//!   (the only geometry CityJSON 2.0 allows a `TINRelief`) of one triangle per surface, sharing
+//!   the quantised vertices and `transform` with the buildings: the scale and `translate` are
+//!   chosen over the terrain's extent and heights too, so a building's base vertices and the
+//!   terrain vertex at the same place are one vertex. A triangle whose corners collapse at the
+//!   quantisation step is left out and counted ([`CityJsonStats::terrain_dropped`]). In
+//!   CityJSONSeq the terrain is its own feature, the last line.
 //! - `write_cityjson` streams the document: objects are written as they are made; only the
 //!   shared vertex list is held until the end.
 
@@ -43,6 +51,7 @@ use geo_types::{Coord, LineString};
 use serde_json::{json, Map, Value};
 use std::borrow::Cow;
 
+use super::terrain::TerrainTin;
 use super::ExportError;
 use crate::city::build::{source_name, HeightFields};
 use crate::city::{Building, City};
@@ -68,6 +77,11 @@ pub struct CityJsonStats {
     /// smaller than a step), with the building's source id; a building whose outer ring
     /// collapses is left out whole and named here too.
     pub dropped_rings: Vec<String>,
+    /// Terrain triangles written (0 without terrain).
+    pub terrain_triangles: usize,
+    /// Terrain triangles left out because two of their corners are one vertex at the
+    /// quantisation step.
+    pub terrain_dropped: usize,
     /// Bytes written.
     pub bytes: u64,
 }
@@ -194,12 +208,30 @@ fn local_projection_of(t: &MetricTransform, frame: &Crs) -> Option<String> {
     }
 }
 
-/// The buildings with their footprints in the written CRS (borrowed when it is the city's own);
-/// a building whose footprint the projection refuses is named in the error.
-fn in_frame<'a>(city: &'a City, f: &ExportFrame) -> Result<Cow<'a, [Building]>, String> {
+/// The buildings (footprints) and the terrain (vertices) in the written CRS, borrowed when it is
+/// the city's own; a building or terrain vertex the projection refuses is named in the error.
+#[allow(clippy::type_complexity)]
+fn in_frame<'a>(
+    city: &'a City,
+    terrain: Option<&'a TerrainTin>,
+    f: &ExportFrame,
+) -> Result<(Cow<'a, [Building]>, Option<Cow<'a, TerrainTin>>), String> {
     if f.to_utm.is_none() {
-        return Ok(Cow::Borrowed(&city.buildings));
+        return Ok((Cow::Borrowed(&city.buildings), terrain.map(Cow::Borrowed)));
     }
+    let terrain = match terrain {
+        None => None,
+        Some(t) => {
+            let mut t2 = t.clone();
+            for (k, p) in t2.vertices.iter_mut().enumerate() {
+                let c = f
+                    .map(Coord { x: p.x, y: p.y })
+                    .ok_or_else(|| format!("terrain vertex {k} could not be reprojected"))?;
+                (p.x, p.y) = (c.x, c.y);
+            }
+            Some(Cow::Owned(t2))
+        }
+    };
     let ring = |r: &LineString<f64>, id: &str| -> Result<LineString<f64>, String> {
         r.0.iter()
             .map(|&c| {
@@ -222,13 +254,19 @@ fn in_frame<'a>(city: &'a City, f: &ExportFrame) -> Result<Cow<'a, [Building]>, 
         );
         out.push(b2);
     }
-    Ok(Cow::Owned(out))
+    Ok((Cow::Owned(out), terrain))
 }
 
 /// The quantisation step for these buildings: the coarsest of 1 mm, 0.1 mm, 10 µm and 1 µm at
 /// which every footprint edge is at least [`STEPS_PER_SHORTEST_EDGE`] steps long, but never so
 /// fine that the model's extent exceeds `i32::MAX` steps (what 32-bit readers hold).
 pub fn choose_scale(buildings: &[Building]) -> f64 {
+    choose_scale_with_terrain(buildings, None)
+}
+
+/// [`choose_scale`] over the buildings and a terrain: its triangles' plan edges count among the
+/// edges, its plan extent and its height range in the model's extent.
+pub fn choose_scale_with_terrain(buildings: &[Building], terrain: Option<&TerrainTin>) -> f64 {
     let mut shortest = f64::INFINITY;
     let mut lo = [f64::INFINITY; 2];
     let mut hi = [f64::NEG_INFINITY; 2];
@@ -247,6 +285,25 @@ pub fn choose_scale(buildings: &[Building]) -> f64 {
             }
         }
         top = top.max(b.top_z().abs()).max(b.bottom_z().abs());
+    }
+    if let Some(t) = terrain {
+        for tri in &t.triangles {
+            for k in 0..3 {
+                let (p, q) = (
+                    t.vertices[tri[k] as usize],
+                    t.vertices[tri[(k + 1) % 3] as usize],
+                );
+                let d = (q - p).truncate().length();
+                if d > 0.0 {
+                    shortest = shortest.min(d);
+                }
+            }
+        }
+        if let Some((l, h)) = t.bounds() {
+            lo = [lo[0].min(l.x), lo[1].min(l.y)];
+            hi = [hi[0].max(h.x), hi[1].max(h.y)];
+            top = top.max(l.z.abs()).max(h.z.abs());
+        }
     }
     let extent = (hi[0] - lo[0]).max(hi[1] - lo[1]).max(top).max(0.0);
     const STEPS: [f64; 4] = [1e-3, 1e-4, 1e-5, 1e-6];
@@ -369,7 +426,8 @@ fn building_object(
     }
     let mut values = vec![0u32, 1];
     values.extend(std::iter::repeat_n(2, surfaces.len() - 2));
-    let bottom_type = if z0 > 0.0 {
+    // Raised above its own ground (not merely standing on ground above z = 0).
+    let bottom_type = if z0 > b.base_m {
         "OuterCeilingSurface"
     } else {
         "GroundSurface"
@@ -433,8 +491,9 @@ fn attr_json(a: &AttrValue) -> Value {
     }
 }
 
-/// The model's minimum and maximum corners (x, y over the footprints, z over the prisms).
-fn bounds(buildings: &[Building]) -> ([f64; 3], [f64; 3]) {
+/// The model's minimum and maximum corners (x, y over the footprints and the terrain, z over the
+/// prisms and the terrain).
+fn bounds(buildings: &[Building], terrain: Option<&TerrainTin>) -> ([f64; 3], [f64; 3]) {
     let mut lo = [f64::INFINITY; 3];
     let mut hi = [f64::NEG_INFINITY; 3];
     for b in buildings {
@@ -448,6 +507,10 @@ fn bounds(buildings: &[Building]) -> ([f64; 3], [f64; 3]) {
         }
         lo[2] = lo[2].min(b.bottom_z());
         hi[2] = hi[2].max(b.top_z());
+    }
+    if let Some((l, h)) = terrain.and_then(TerrainTin::bounds) {
+        lo = [lo[0].min(l.x), lo[1].min(l.y), lo[2].min(l.z)];
+        hi = [hi[0].max(h.x), hi[1].max(h.y), hi[2].max(h.z)];
     }
     if lo[0] > hi[0] {
         return ([0.0; 3], [0.0; 3]);
@@ -472,9 +535,49 @@ fn object_ids(buildings: &[Building]) -> Vec<String> {
         .collect()
 }
 
+/// The terrain's city-object id: `terrain`, or `terrain#2`, … when a building has that id.
+fn terrain_id(building_ids: &[String]) -> String {
+    let taken: std::collections::HashSet<&str> = building_ids.iter().map(String::as_str).collect();
+    std::iter::once("terrain".to_string())
+        .chain((2..).map(|n| format!("terrain#{n}")))
+        .find(|id| !taken.contains(id.as_str()))
+        .expect("an unused id exists")
+}
+
+/// The terrain as a `TINRelief` city object, its vertices added to `v`: one triangle per surface
+/// of an LoD1 `CompositeSurface`. Returns the object, the triangles written and those left out
+/// (collapsed at the quantisation step); `None` when none is left.
+fn terrain_object(t: &TerrainTin, v: &mut Vertices) -> (Option<Value>, usize, usize) {
+    let mut surfaces: Vec<Value> = Vec::with_capacity(t.triangles.len());
+    let mut dropped = 0;
+    for tri in &t.triangles {
+        let q = tri.map(|k| {
+            let p = t.vertices[k as usize];
+            v.quantise(Coord { x: p.x, y: p.y }, p.z)
+        });
+        if q[0] == q[1] || q[1] == q[2] || q[0] == q[2] {
+            dropped += 1;
+            continue;
+        }
+        let ids = q.map(|q| v.id(q));
+        surfaces.push(json!([ids]));
+    }
+    let n = surfaces.len();
+    if n == 0 {
+        return (None, 0, dropped);
+    }
+    let o = json!({
+        "type": "TINRelief",
+        "attributes": { "triangles": n },
+        "geometry": [{ "type": "CompositeSurface", "lod": "1", "boundaries": surfaces }],
+    });
+    (Some(o), n, dropped)
+}
+
 /// What both forms share: the buildings in the written CRS, the frame, the quantisation.
 struct Prepared<'a> {
     buildings: Cow<'a, [Building]>,
+    terrain: Option<Cow<'a, TerrainTin>>,
     reference_system: Option<String>,
     local_projection: Option<String>,
     note: Option<String>,
@@ -483,41 +586,57 @@ struct Prepared<'a> {
     hi: [f64; 3],
 }
 
-fn prepare(city: &City) -> Prepared<'_> {
+fn prepare<'a>(
+    city: &'a City,
+    terrain: Option<&'a TerrainTin>,
+    path: &Path,
+) -> Result<Prepared<'a>, ExportError> {
+    if let Some(t) = terrain {
+        t.check().map_err(|source| ExportError::Terrain {
+            file: path.to_path_buf(),
+            source,
+        })?;
+    }
     let frame = export_frame(&city.transform);
-    let (buildings, reference_system, local_projection, note) = match in_frame(city, &frame) {
-        Ok(b) => (
-            b,
-            frame.reference_system,
-            frame.local_projection,
-            frame.note,
-        ),
-        Err(why) => (
-            Cow::Borrowed(&city.buildings[..]),
-            None,
-            local_projection_of(
-                &city.transform,
-                city.transform
-                    .frame_crs
-                    .as_ref()
-                    .unwrap_or(&city.transform.crs),
+    let (buildings, reference_system, local_projection, note) =
+        match in_frame(city, terrain, &frame) {
+            Ok(b) => (
+                b,
+                frame.reference_system,
+                frame.local_projection,
+                frame.note,
             ),
-            Some(format!(
-                "{why}: written in the city's own frame, without referenceSystem"
-            )),
-        ),
-    };
-    let scale = choose_scale(&buildings);
-    let (lo, hi) = bounds(&buildings);
-    Prepared {
+            Err(why) => (
+                (
+                    Cow::Borrowed(&city.buildings[..]),
+                    terrain.map(Cow::Borrowed),
+                ),
+                None,
+                local_projection_of(
+                    &city.transform,
+                    city.transform
+                        .frame_crs
+                        .as_ref()
+                        .unwrap_or(&city.transform.crs),
+                ),
+                Some(format!(
+                    "{why}: written in the city's own frame, without referenceSystem"
+                )),
+            ),
+        };
+    let (buildings, terrain) = buildings;
+    let scale = choose_scale_with_terrain(&buildings, terrain.as_deref());
+    let (lo, hi) = bounds(&buildings, terrain.as_deref());
+    Ok(Prepared {
         buildings,
+        terrain,
         reference_system,
         local_projection,
         note,
         scale,
         lo,
         hi,
-    }
+    })
 }
 
 impl Prepared<'_> {
@@ -529,6 +648,8 @@ impl Prepared<'_> {
             reference_system: self.reference_system.clone(),
             crs_note: self.note.clone(),
             dropped_rings: dropped,
+            terrain_triangles: 0,
+            terrain_dropped: 0,
             bytes: 0,
         }
     }
@@ -563,21 +684,43 @@ fn quantised_json(v: &Vertices) -> Value {
 /// The city as one CityJSON 2.0 document, with what was written (`bytes` is 0). Holds the whole
 /// document; [`write_cityjson`] streams the same document instead.
 pub fn cityjson_value(city: &City) -> (Value, CityJsonStats) {
-    let p = prepare(city);
+    cityjson_value_with_terrain(city, None).expect("without terrain nothing is refused")
+}
+
+/// [`cityjson_value`] with an optional terrain (a `TINRelief`, see the module documentation).
+///
+/// # Errors
+/// [`ExportError::Terrain`] (file `<cityjson>`) when the terrain fails [`TerrainTin::check`].
+pub fn cityjson_value_with_terrain(
+    city: &City,
+    terrain: Option<&TerrainTin>,
+) -> Result<(Value, CityJsonStats), ExportError> {
+    let p = prepare(city, terrain, Path::new("<cityjson>"))?;
     let mut doc = p.header(&city.name);
     let mut v = Vertices::new(p.scale, p.lo);
     let levels = HeightFields::default().levels;
     let mut dropped = Vec::new();
     let mut objects = Map::new();
-    for (b, id) in p.buildings.iter().zip(object_ids(&p.buildings)) {
+    let ids = object_ids(&p.buildings);
+    for (b, id) in p.buildings.iter().zip(&ids) {
         if let Some(o) = building_object(b, &mut v, &levels, &mut dropped) {
-            objects.insert(id, o);
+            objects.insert(id.clone(), o);
         }
     }
-    let stats = p.stats(objects.len(), v.list.len(), dropped);
+    let buildings = objects.len();
+    let (mut t_written, mut t_dropped) = (0, 0);
+    if let Some(t) = p.terrain.as_deref() {
+        let (o, n, d) = terrain_object(t, &mut v);
+        (t_written, t_dropped) = (n, d);
+        if let Some(o) = o {
+            objects.insert(terrain_id(&ids), o);
+        }
+    }
+    let mut stats = p.stats(buildings, v.list.len(), dropped);
+    (stats.terrain_triangles, stats.terrain_dropped) = (t_written, t_dropped);
     doc["CityObjects"] = Value::Object(objects);
     doc["vertices"] = quantised_json(&v);
-    (doc, stats)
+    Ok((doc, stats))
 }
 
 fn io_err(path: &Path) -> impl Fn(std::io::Error) -> ExportError + '_ {
@@ -601,7 +744,21 @@ fn json_err(path: &Path) -> impl Fn(serde_json::Error) -> ExportError + '_ {
 /// # Errors
 /// [`ExportError`] naming the file.
 pub fn write_cityjson(city: &City, path: &Path) -> Result<CityJsonStats, ExportError> {
-    let p = prepare(city);
+    write_cityjson_with_terrain(city, None, path)
+}
+
+/// [`write_cityjson`] with an optional terrain: one `TINRelief` after the buildings, sharing
+/// their vertices and transform (see the module documentation).
+///
+/// # Errors
+/// [`ExportError`] naming the file; [`ExportError::Terrain`] when the terrain fails
+/// [`TerrainTin::check`] (nothing is written then).
+pub fn write_cityjson_with_terrain(
+    city: &City,
+    terrain: Option<&TerrainTin>,
+    path: &Path,
+) -> Result<CityJsonStats, ExportError> {
+    let p = prepare(city, terrain, path)?;
     let mut head = p.header(&city.name);
     let head = head.as_object_mut().expect("the header is an object");
     head.remove("CityObjects");
@@ -622,17 +779,32 @@ pub fn write_cityjson(city: &City, path: &Path) -> Result<CityJsonStats, ExportE
     let levels = HeightFields::default().levels;
     let mut dropped = Vec::new();
     let mut buildings = 0;
-    for (b, id) in p.buildings.iter().zip(object_ids(&p.buildings)) {
+    let ids = object_ids(&p.buildings);
+    let mut objects = 0;
+    let mut put = |w: &mut crate::output::AtomicFile, id: &str, o: &Value| {
+        if objects > 0 {
+            w.write_all(b",").map_err(&io)?;
+        }
+        serde_json::to_writer(&mut *w, id).map_err(&js)?;
+        w.write_all(b":").map_err(&io)?;
+        serde_json::to_writer(&mut *w, o).map_err(&js)?;
+        objects += 1;
+        Ok::<(), ExportError>(())
+    };
+    for (b, id) in p.buildings.iter().zip(&ids) {
         let Some(o) = building_object(b, &mut v, &levels, &mut dropped) else {
             continue;
         };
-        if buildings > 0 {
-            w.write_all(b",").map_err(&io)?;
-        }
-        serde_json::to_writer(&mut w, &id).map_err(&js)?;
-        w.write_all(b":").map_err(&io)?;
-        serde_json::to_writer(&mut w, &o).map_err(&js)?;
+        put(&mut w, id, &o)?;
         buildings += 1;
+    }
+    let (mut t_written, mut t_dropped) = (0, 0);
+    if let Some(t) = p.terrain.as_deref() {
+        let (o, n, d) = terrain_object(t, &mut v);
+        (t_written, t_dropped) = (n, d);
+        if let Some(o) = o {
+            put(&mut w, &terrain_id(&ids), &o)?;
+        }
     }
     w.write_all(b"},\"vertices\":[").map_err(&io)?;
     for (i, q) in v.list.iter().enumerate() {
@@ -643,6 +815,7 @@ pub fn write_cityjson(city: &City, path: &Path) -> Result<CityJsonStats, ExportE
     }
     w.write_all(b"]}").map_err(&io)?;
     let mut stats = p.stats(buildings, v.list.len(), dropped);
+    (stats.terrain_triangles, stats.terrain_dropped) = (t_written, t_dropped);
     stats.bytes = w.commit()?;
     Ok(stats)
 }
@@ -655,7 +828,22 @@ pub fn write_cityjson(city: &City, path: &Path) -> Result<CityJsonStats, ExportE
 /// # Errors
 /// [`ExportError`] naming the file.
 pub fn write_cityjson_seq(city: &City, path: &Path) -> Result<CityJsonStats, ExportError> {
-    let p = prepare(city);
+    write_cityjson_seq_with_terrain(city, None, path)
+}
+
+/// [`write_cityjson_seq`] with an optional terrain: its `TINRelief` is one more feature, the
+/// last line, with its own vertex list quantised with the header's transform (chosen over the
+/// terrain too).
+///
+/// # Errors
+/// [`ExportError`] naming the file; [`ExportError::Terrain`] when the terrain fails
+/// [`TerrainTin::check`] (nothing is written then).
+pub fn write_cityjson_seq_with_terrain(
+    city: &City,
+    terrain: Option<&TerrainTin>,
+    path: &Path,
+) -> Result<CityJsonStats, ExportError> {
+    let p = prepare(city, terrain, path)?;
     let io = io_err(path);
     let js = json_err(path);
     let mut w = crate::output::AtomicFile::create(path)?;
@@ -665,25 +853,40 @@ pub fn write_cityjson_seq(city: &City, path: &Path) -> Result<CityJsonStats, Exp
     let levels = HeightFields::default().levels;
     let mut dropped = Vec::new();
     let (mut buildings, mut vertices) = (0, 0);
-    for (b, id) in p.buildings.iter().zip(object_ids(&p.buildings)) {
-        v.clear();
-        let Some(o) = building_object(b, &mut v, &levels, &mut dropped) else {
-            continue;
-        };
+    let mut feature = |w: &mut crate::output::AtomicFile, id: &str, o: Value, v: &Vertices| {
         let mut objects = Map::new();
-        objects.insert(id.clone(), o);
+        objects.insert(id.to_string(), o);
         let feature = json!({
             "type": "CityJSONFeature",
             "id": id,
             "CityObjects": objects,
-            "vertices": quantised_json(&v),
+            "vertices": quantised_json(v),
         });
-        serde_json::to_writer(&mut w, &feature).map_err(&js)?;
+        serde_json::to_writer(&mut *w, &feature).map_err(&js)?;
         w.write_all(b"\n").map_err(&io)?;
-        buildings += 1;
         vertices += v.list.len();
+        Ok::<(), ExportError>(())
+    };
+    let ids = object_ids(&p.buildings);
+    for (b, id) in p.buildings.iter().zip(&ids) {
+        v.clear();
+        let Some(o) = building_object(b, &mut v, &levels, &mut dropped) else {
+            continue;
+        };
+        feature(&mut w, id, o, &v)?;
+        buildings += 1;
+    }
+    let (mut t_written, mut t_dropped) = (0, 0);
+    if let Some(t) = p.terrain.as_deref() {
+        v.clear();
+        let (o, n, d) = terrain_object(t, &mut v);
+        (t_written, t_dropped) = (n, d);
+        if let Some(o) = o {
+            feature(&mut w, &terrain_id(&ids), o, &v)?;
+        }
     }
     let mut stats = p.stats(buildings, vertices, dropped);
+    (stats.terrain_triangles, stats.terrain_dropped) = (t_written, t_dropped);
     stats.bytes = w.commit()?;
     Ok(stats)
 }

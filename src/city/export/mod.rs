@@ -3,18 +3,23 @@
 //!
 //! - [`gltf`]: [`write_glb`], [`write_glb_to`] (streamed to any writer), [`glb_bytes`].
 //! - [`geojson`]: [`write_geojson`], [`geojson_value`].
+//! - [`terrain`]: [`TerrainTin`], the terrain surface the CityJSON, glTF and 3D Tiles writers
+//!   take beside the buildings.
 
 pub mod cityjson;
 pub mod geojson;
 pub mod gltf;
+pub mod terrain;
 
 use std::path::PathBuf;
 
 pub use self::geojson::{geojson_value, write_geojson};
 pub use self::gltf::{
-    glb_bytes, tile_glb_bytes, write_glb, write_glb_to, GlbStats, TileFeature, TileMesh,
+    glb_bytes, glb_bytes_with_terrain, tile_glb_bytes, write_glb, write_glb_to,
+    write_glb_to_with_terrain, write_glb_with_terrain, GlbStats, TileFeature, TileMesh,
     GLB_MAX_BYTES,
 };
+pub use self::terrain::{TerrainError, TerrainTin};
 
 /// Why an export failed. Every variant names the file.
 #[derive(Debug, thiserror::Error)]
@@ -68,6 +73,15 @@ pub enum ExportError {
         /// The largest size allowed.
         limit: u64,
     },
+    /// The terrain given with the city cannot be exported (see [`TerrainTin::check`]).
+    #[error("{file}: {source}")]
+    Terrain {
+        /// The file (`<glb>` when no file is written).
+        file: PathBuf,
+        /// What is wrong with it.
+        #[source]
+        source: TerrainError,
+    },
     /// The JSON (the glTF document or the GeoJSON) could not be serialised or written.
     #[error("{file}: writing the JSON failed: {source}")]
     Json {
@@ -110,6 +124,10 @@ impl ExportError {
                 file: file.to_path_buf(),
                 bytes,
                 limit,
+            },
+            ExportError::Terrain { source, .. } => ExportError::Terrain {
+                file: file.to_path_buf(),
+                source,
             },
             ExportError::Json { source, .. } => ExportError::Json {
                 file: file.to_path_buf(),

@@ -1,4 +1,5 @@
-//! The city's `.glb`: one node per building, streamed from the meshes.
+//! The city's `.glb`: one node per building, streamed from the meshes, and optionally a terrain
+//! node.
 
 use std::io::Write;
 use std::path::Path;
@@ -7,6 +8,7 @@ use glam::Vec3;
 use serde_json::json;
 
 use super::*;
+use crate::city::export::terrain::TerrainTin;
 use crate::city::export::ExportError;
 use crate::city::{City, Mesh};
 
@@ -17,8 +19,10 @@ pub struct GlbStats {
     pub nodes: usize,
     /// Meshes (buildings with at least one triangle).
     pub meshes: usize,
-    /// Triangles.
+    /// Triangles (buildings' and terrain's).
     pub triangles: usize,
+    /// Terrain triangles (0 without terrain).
+    pub terrain_triangles: usize,
     /// File size in bytes.
     pub bytes: usize,
 }
@@ -33,12 +37,30 @@ struct Prepared {
     stats: GlbStats,
 }
 
-/// Sizes and JSON chunk of the `.glb` of `city` (see the module documentation), refusing a file
-/// over `limit` bytes.
+/// The terrain's mesh in the city's local frame, after checking it.
+fn terrain_mesh(city: &City, terrain: Option<&TerrainTin>) -> Result<Option<Mesh>, ExportError> {
+    terrain
+        .map(|t| {
+            t.check().map_err(|source| ExportError::Terrain {
+                file: "<glb>".into(),
+                source,
+            })?;
+            Ok(t.local_mesh(&city.frame))
+        })
+        .transpose()
+}
+
+/// Sizes and JSON chunk of the `.glb` of `city` and its terrain mesh (see the module
+/// documentation), refusing a file over `limit` bytes.
 ///
 /// The document's members are written in the order `serde_json` gives an object's keys (sorted),
 /// so the bytes are those of serialising the whole document as one [`Value`].
-fn prepare(city: &City, meshes: &[Mesh], limit: u64) -> Result<Prepared, ExportError> {
+fn prepare(
+    city: &City,
+    meshes: &[Mesh],
+    terrain: Option<&Mesh>,
+    limit: u64,
+) -> Result<Prepared, ExportError> {
     if meshes.len() != city.buildings.len() {
         return Err(ExportError::MeshCount {
             file: "<glb>".into(),
@@ -46,10 +68,11 @@ fn prepare(city: &City, meshes: &[Mesh], limit: u64) -> Result<Prepared, ExportE
             buildings: city.buildings.len(),
         });
     }
+    // The terrain's data follows the buildings' in each buffer view, as one more mesh.
+    let terrain = terrain.filter(|t| t.triangle_count() > 0);
+    let all = || meshes.iter().chain(terrain);
     let sum = |f: fn(&Mesh) -> usize| -> Option<u64> {
-        meshes
-            .iter()
-            .try_fold(0u64, |acc, m| acc.checked_add(f(m) as u64))
+        all().try_fold(0u64, |acc, m| acc.checked_add(f(m) as u64))
     };
     let n_vert = sum(|m| m.positions.len());
     let n_idx = sum(|m| m.indices.len());
@@ -76,11 +99,14 @@ fn prepare(city: &City, meshes: &[Mesh], limit: u64) -> Result<Prepared, ExportE
             .zip(meshes)
             .filter(|(_, m)| m.triangle_count() > 0)
     };
-    let n_meshes = with_tris().count();
+    let n_building_meshes = with_tris().count();
+    let n_meshes = n_building_meshes + usize::from(terrain.is_some());
+    let terrain_triangles = terrain.map_or(0, Mesh::triangle_count);
     let mut stats = GlbStats {
-        nodes: city.buildings.len(),
+        nodes: city.buildings.len() + usize::from(terrain.is_some()),
         meshes: n_meshes,
-        triangles: with_tris().map(|(_, m)| m.triangle_count()).sum(),
+        triangles: with_tris().map(|(_, m)| m.triangle_count()).sum::<usize>() + terrain_triangles,
+        terrain_triangles,
         bytes: 0,
     };
 
@@ -90,7 +116,7 @@ fn prepare(city: &City, meshes: &[Mesh], limit: u64) -> Result<Prepared, ExportE
         // Accessors: POSITION, NORMAL and indices of each mesh, at the mesh's offsets.
         let mut offsets = Vec::with_capacity(n_meshes);
         let (mut vert_off, mut idx_off) = (0u64, 0u64);
-        for m in meshes {
+        for m in all() {
             if m.triangle_count() > 0 {
                 offsets.push((vert_off, idx_off, m));
             }
@@ -145,18 +171,18 @@ fn prepare(city: &City, meshes: &[Mesh], limit: u64) -> Result<Prepared, ExportE
         put_array(&mut out, "buffers", [json!({ "byteLength": bin_len })])?;
     }
     out.push(b',');
-    put_array(
-        &mut out,
-        "materials",
-        [json!({
-            "name": "building",
-            "pbrMetallicRoughness": {
-                "baseColorFactor": [0.82, 0.80, 0.76, 1.0],
-                "metallicFactor": 0.0,
-                "roughnessFactor": 0.9,
-            },
-        })],
-    )?;
+    let mut materials = vec![json!({
+        "name": "building",
+        "pbrMetallicRoughness": {
+            "baseColorFactor": [0.82, 0.80, 0.76, 1.0],
+            "metallicFactor": 0.0,
+            "roughnessFactor": 0.9,
+        },
+    })];
+    if terrain.is_some() {
+        materials.push(terrain_material());
+    }
+    put_array(&mut out, "materials", materials)?;
     if n_meshes > 0 {
         out.push(b',');
         let gl_meshes = with_tris().enumerate().map(|(k, (b, _))| {
@@ -171,21 +197,35 @@ fn prepare(city: &City, meshes: &[Mesh], limit: u64) -> Result<Prepared, ExportE
                 }]
             })
         });
-        put_array(&mut out, "meshes", gl_meshes)?;
+        let a_pos = 3 * n_building_meshes;
+        let terrain_mesh = terrain.map(|_| {
+            json!({
+                "name": "terrain",
+                "primitives": [{
+                    "attributes": { "POSITION": a_pos, "NORMAL": a_pos + 1 },
+                    "indices": a_pos + 2,
+                    "material": 1,
+                    "mode": 4,
+                }]
+            })
+        });
+        put_array(&mut out, "meshes", gl_meshes.chain(terrain_mesh))?;
     }
     out.push(b',');
-    // Nodes: the root (children 1..=n), then one per building.
+    // Nodes: the root (children 1..=n, and n + 1 for the terrain), then one per building, then
+    // the terrain.
     let o = city.frame.origin;
+    let n_children = city.buildings.len() + usize::from(terrain.is_some());
     let mut root = json!({
         "name": city.name,
-        "children": (1..=city.buildings.len()).collect::<Vec<usize>>(),
+        "children": (1..=n_children).collect::<Vec<usize>>(),
         "extras": {
             "origin": [o.x, o.y, o.z],
             "crs": city.transform.describe(),
             "frame": "local metres: x east, y up, z south of the origin (glTF Y-up)",
         }
     });
-    if city.buildings.is_empty() {
+    if n_children == 0 {
         root.as_object_mut().map(|n| n.remove("children"));
     }
     let mut mesh_idx = 0usize;
@@ -205,6 +245,14 @@ fn prepare(city: &City, meshes: &[Mesh], limit: u64) -> Result<Prepared, ExportE
         }
         node
     }));
+    let terrain_node = terrain.map(|t| {
+        json!({
+            "name": "terrain",
+            "mesh": n_building_meshes,
+            "extras": { "kind": "terrain", "triangles": t.triangle_count(), "vertices": t.positions.len() },
+        })
+    });
+    let nodes = nodes.chain(terrain_node);
     put_array(&mut out, "nodes", nodes)?;
     out.extend_from_slice(br#","scene":0,"#);
     put_array(
@@ -239,8 +287,15 @@ fn prepare(city: &City, meshes: &[Mesh], limit: u64) -> Result<Prepared, ExportE
     }
 }
 
-/// Writes a prepared `.glb`: header, JSON chunk, then the binary chunk from the meshes.
-fn emit<W: Write>(p: &Prepared, meshes: &[Mesh], w: &mut W) -> std::io::Result<()> {
+/// Writes a prepared `.glb`: header, JSON chunk, then the binary chunk from the meshes (the
+/// terrain's after the buildings').
+fn emit<W: Write>(
+    p: &Prepared,
+    meshes: &[Mesh],
+    terrain: Option<&Mesh>,
+    w: &mut W,
+) -> std::io::Result<()> {
+    let terrain = terrain.filter(|t| t.triangle_count() > 0);
     // `prepare` refused totals over u32::MAX, so every length below fits.
     let u32_of = |n: u64| u32::try_from(n).expect("checked against GLB_MAX_BYTES");
     let json_padded = padded(p.json.len() as u64).expect("checked in prepare");
@@ -253,7 +308,7 @@ fn emit<W: Write>(p: &Prepared, meshes: &[Mesh], w: &mut W) -> std::io::Result<(
     // One mesh at a time through a small buffer.
     let mut buf: Vec<u8> = Vec::new();
     let mut vec3s = |w: &mut W, f: fn(&Mesh) -> &[Vec3]| -> std::io::Result<()> {
-        for m in meshes {
+        for m in meshes.iter().chain(terrain) {
             buf.clear();
             for v in f(m) {
                 for c in y_up(*v) {
@@ -266,7 +321,7 @@ fn emit<W: Write>(p: &Prepared, meshes: &[Mesh], w: &mut W) -> std::io::Result<(
     };
     vec3s(w, |m| &m.positions)?;
     vec3s(w, |m| &m.normals)?;
-    for m in meshes {
+    for m in meshes.iter().chain(terrain) {
         buf.clear();
         for i in &m.indices {
             buf.extend_from_slice(&i.to_le_bytes());
@@ -289,17 +344,36 @@ pub fn write_glb_to<W: Write>(
     meshes: &[Mesh],
     w: &mut W,
 ) -> Result<GlbStats, ExportError> {
-    write_glb_to_limited(city, meshes, w, GLB_MAX_BYTES)
+    write_glb_to_limited(city, meshes, None, w, GLB_MAX_BYTES)
+}
+
+/// [`write_glb_to`] with an optional terrain: one more node under the root, named `terrain`,
+/// holding one mesh `terrain` (positions in the buildings' local frame, normals from the
+/// triangles, every vertex shared between its triangles) with its own material (`terrain`, a
+/// green grey, where buildings are a warm grey).
+///
+/// # Errors
+/// As [`write_glb_to`]; [`ExportError::Terrain`] when the terrain fails [`TerrainTin::check`]
+/// (nothing is written then).
+pub fn write_glb_to_with_terrain<W: Write>(
+    city: &City,
+    meshes: &[Mesh],
+    terrain: Option<&TerrainTin>,
+    w: &mut W,
+) -> Result<GlbStats, ExportError> {
+    let t = terrain_mesh(city, terrain)?;
+    write_glb_to_limited(city, meshes, t.as_ref(), w, GLB_MAX_BYTES)
 }
 
 pub(super) fn write_glb_to_limited<W: Write>(
     city: &City,
     meshes: &[Mesh],
+    terrain: Option<&Mesh>,
     w: &mut W,
     limit: u64,
 ) -> Result<GlbStats, ExportError> {
-    let p = prepare(city, meshes, limit)?;
-    emit(&p, meshes, w).map_err(|source| ExportError::Io {
+    let p = prepare(city, meshes, terrain, limit)?;
+    emit(&p, meshes, terrain, w).map_err(|source| ExportError::Io {
         file: "<glb>".into(),
         source,
     })?;
@@ -311,8 +385,20 @@ pub(super) fn write_glb_to_limited<W: Write>(
 /// # Errors
 /// As [`write_glb_to`].
 pub fn glb_bytes(city: &City, meshes: &[Mesh]) -> Result<(Vec<u8>, GlbStats), ExportError> {
+    glb_bytes_with_terrain(city, meshes, None)
+}
+
+/// [`glb_bytes`] with an optional terrain (see [`write_glb_to_with_terrain`]).
+///
+/// # Errors
+/// As [`write_glb_to_with_terrain`].
+pub fn glb_bytes_with_terrain(
+    city: &City,
+    meshes: &[Mesh],
+    terrain: Option<&TerrainTin>,
+) -> Result<(Vec<u8>, GlbStats), ExportError> {
     let mut out = Vec::new();
-    let stats = write_glb_to(city, meshes, &mut out)?;
+    let stats = write_glb_to_with_terrain(city, meshes, terrain, &mut out)?;
     Ok((out, stats))
 }
 
@@ -324,22 +410,38 @@ pub fn glb_bytes(city: &City, meshes: &[Mesh]) -> Result<(Vec<u8>, GlbStats), Ex
 /// created. The file is written under a temporary name and renamed when complete: a failed or
 /// killed write leaves whatever was at `path` as it was.
 pub fn write_glb(city: &City, meshes: &[Mesh], path: &Path) -> Result<GlbStats, ExportError> {
-    write_glb_limited(city, meshes, path, GLB_MAX_BYTES)
+    write_glb_limited(city, meshes, None, path, GLB_MAX_BYTES)
+}
+
+/// [`write_glb`] with an optional terrain (see [`write_glb_to_with_terrain`]).
+///
+/// # Errors
+/// As [`write_glb`]; [`ExportError::Terrain`] naming the file when the terrain fails
+/// [`TerrainTin::check`] (nothing is written then).
+pub fn write_glb_with_terrain(
+    city: &City,
+    meshes: &[Mesh],
+    terrain: Option<&TerrainTin>,
+    path: &Path,
+) -> Result<GlbStats, ExportError> {
+    let t = terrain_mesh(city, terrain).map_err(|e| e.for_file(path))?;
+    write_glb_limited(city, meshes, t.as_ref(), path, GLB_MAX_BYTES)
 }
 
 pub(super) fn write_glb_limited(
     city: &City,
     meshes: &[Mesh],
+    terrain: Option<&Mesh>,
     path: &Path,
     limit: u64,
 ) -> Result<GlbStats, ExportError> {
-    let p = prepare(city, meshes, limit).map_err(|e| e.for_file(path))?;
+    let p = prepare(city, meshes, terrain, limit).map_err(|e| e.for_file(path))?;
     let io = |source| ExportError::Io {
         file: path.to_path_buf(),
         source,
     };
     let mut f = crate::output::AtomicFile::create(path)?;
-    emit(&p, meshes, &mut f).map_err(io)?;
+    emit(&p, meshes, terrain, &mut f).map_err(io)?;
     f.commit()?;
     Ok(p.stats)
 }

@@ -1,5 +1,8 @@
 //! glTF 2.0 binary (`.glb`) export of the extruded city.
 //!
+//! Optionally (`*_with_terrain`) a terrain: one more node `terrain` under the root with one mesh
+//! `terrain` and its own material, its data after the buildings' in the same buffer views.
+//!
 //! One node per building (`name` = source id; `extras` = `{source_id, height_m, min_height_m, base_m}`)
 //! holding one mesh with one primitive (POSITION with the min/max the specification requires,
 //! NORMAL, u32 indices) and a shared default material. All buildings hang under one root node
@@ -31,7 +34,10 @@ mod city;
 mod tests;
 mod tile;
 
-pub use city::{glb_bytes, write_glb, write_glb_to, GlbStats};
+pub use city::{
+    glb_bytes, glb_bytes_with_terrain, write_glb, write_glb_to, write_glb_to_with_terrain,
+    write_glb_with_terrain, GlbStats,
+};
 pub use tile::{tile_glb_bytes, TileFeature, TileMesh};
 
 use std::io::Write;
@@ -50,6 +56,20 @@ const ELEMENT_ARRAY_BUFFER: u32 = 34963;
 const FLOAT: u32 = 5126;
 const UNSIGNED_INT: u32 = 5125;
 const UNSIGNED_BYTE: u32 = 5121;
+
+/// The terrain's material (the city's `.glb` and the terrain tiles): a green grey, unlike the
+/// buildings' warm grey.
+fn terrain_material() -> Value {
+    let c = super::terrain::TERRAIN_COLOR;
+    serde_json::json!({
+        "name": "terrain",
+        "pbrMetallicRoughness": {
+            "baseColorFactor": [c[0], c[1], c[2], 1.0],
+            "metallicFactor": 0.0,
+            "roughnessFactor": 1.0,
+        },
+    })
+}
 
 fn y_up(v: Vec3) -> [f32; 3] {
     [v.x, v.z, -v.y]

@@ -208,12 +208,14 @@ fn files_over_the_limit_are_refused_before_anything_is_written() {
     let f = dir.path().join("big.glb");
     // Exactly at the limit: written.
     assert_eq!(
-        write_glb_limited(&city, &meshes, &f, size).unwrap().bytes as u64,
+        write_glb_limited(&city, &meshes, None, &f, size)
+            .unwrap()
+            .bytes as u64,
         size
     );
     std::fs::remove_file(&f).unwrap();
     // One byte less: refused, naming the file and both sizes; no file left behind.
-    let e = write_glb_limited(&city, &meshes, &f, size - 1).unwrap_err();
+    let e = write_glb_limited(&city, &meshes, None, &f, size - 1).unwrap_err();
     assert!(
         matches!(&e, ExportError::TooLarge { file, bytes: Some(b), limit }
             if file == &f && *b == size && *limit == size - 1),
@@ -228,7 +230,7 @@ fn files_over_the_limit_are_refused_before_anything_is_written() {
     assert!(!f.exists());
     // A limit below the binary chunk alone: refused before the JSON is made.
     let mut sink = Vec::new();
-    let e = write_glb_to_limited(&city, &meshes, &mut sink, 1000).unwrap_err();
+    let e = write_glb_to_limited(&city, &meshes, None, &mut sink, 1000).unwrap_err();
     assert!(
         matches!(e, ExportError::TooLarge { bytes: Some(b), limit: 1000, .. } if b > 1000),
         "{e:?}"
