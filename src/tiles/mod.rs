@@ -477,6 +477,19 @@ pub fn build_tileset(
     progress: &(dyn Fn(usize, usize) + Sync),
 ) -> Result<(Tileset, TilesetSummary), TilesError> {
     let t0 = std::time::Instant::now();
+    // A city on terrain brings its own, unless the options give one.
+    let own;
+    let opts = &match (opts.terrain, &city.terrain) {
+        (None, Some(t)) => {
+            own = crate::city::export::TerrainTin::from_terrain(t)
+                .map_err(|source| TilesError::Terrain { source })?;
+            TilesetOptions {
+                terrain: Some(&own),
+                ..*opts
+            }
+        }
+        _ => *opts,
+    };
     if let Some(t) = opts.terrain {
         t.check().map_err(|source| TilesError::Terrain { source })?;
     }

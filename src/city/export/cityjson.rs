@@ -744,7 +744,8 @@ fn json_err(path: &Path) -> impl Fn(serde_json::Error) -> ExportError + '_ {
 /// # Errors
 /// [`ExportError`] naming the file.
 pub fn write_cityjson(city: &City, path: &Path) -> Result<CityJsonStats, ExportError> {
-    write_cityjson_with_terrain(city, None, path)
+    let tin = crate::city::export::terrain::city_tin(city, path)?;
+    write_cityjson_with_terrain(city, tin.as_ref(), path)
 }
 
 /// [`write_cityjson`] with an optional terrain: one `TINRelief` after the buildings, sharing
@@ -828,7 +829,8 @@ pub fn write_cityjson_with_terrain(
 /// # Errors
 /// [`ExportError`] naming the file.
 pub fn write_cityjson_seq(city: &City, path: &Path) -> Result<CityJsonStats, ExportError> {
-    write_cityjson_seq_with_terrain(city, None, path)
+    let tin = crate::city::export::terrain::city_tin(city, path)?;
+    write_cityjson_seq_with_terrain(city, tin.as_ref(), path)
 }
 
 /// [`write_cityjson_seq`] with an optional terrain: its `TINRelief` is one more feature, the

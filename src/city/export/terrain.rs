@@ -236,6 +236,44 @@ fn plan_area2([a, b, c]: [DVec3; 3]) -> f64 {
     (b.x - a.x) * (c.y - a.y) - (b.y - a.y) * (c.x - a.x)
 }
 
+/// The TIN of `city`'s terrain when it stands on one (`None` for a flat city), or why it
+/// cannot be made, as an export error naming `file`.
+pub fn city_tin(
+    city: &crate::city::City,
+    file: &std::path::Path,
+) -> Result<Option<TerrainTin>, super::ExportError> {
+    city.terrain
+        .as_deref()
+        .map(|t| {
+            TerrainTin::from_terrain(t).map_err(|source| super::ExportError::Terrain {
+                file: file.to_path_buf(),
+                source,
+            })
+        })
+        .transpose()
+}
+
+impl TerrainTin {
+    /// The full-resolution surface of `terrain` (metric world coordinates): two triangles per
+    /// cell, as [`TerrainTin::from_grid`] makes them (the same diagonal as the drawn terrain),
+    /// cells touching nodata left out.
+    ///
+    /// # Errors
+    /// As [`TerrainTin::from_grid`].
+    pub fn from_terrain(terrain: &crate::terrain::Terrain) -> Result<TerrainTin, TerrainError> {
+        let (o, s) = (terrain.origin(), terrain.spacing());
+        let mut tin = Self::from_grid(o, s.x, terrain.nx(), terrain.ny(), terrain.heights())?;
+        if s.y != s.x {
+            // Rows were laid out at the x spacing: put each back on its own row.
+            for v in &mut tin.vertices {
+                let j = ((v.y - o.y) / s.x).round();
+                v.y = o.y + j * s.y;
+            }
+        }
+        Ok(tin)
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -403,14 +403,18 @@ pub fn glb_bytes_with_terrain(
 }
 
 /// Writes the city's meshes as a `.glb` file (see the module documentation), streaming it
-/// through a buffered writer.
+/// through a buffered writer; a city on terrain gets its terrain as a `terrain` node
+/// ([`write_glb_with_terrain`]).
 ///
 /// # Errors
 /// [`ExportError`] naming the file; a file over [`GLB_MAX_BYTES`] is refused before it is
 /// created. The file is written under a temporary name and renamed when complete: a failed or
 /// killed write leaves whatever was at `path` as it was.
 pub fn write_glb(city: &City, meshes: &[Mesh], path: &Path) -> Result<GlbStats, ExportError> {
-    write_glb_limited(city, meshes, None, path, GLB_MAX_BYTES)
+    match crate::city::export::terrain::city_tin(city, path)? {
+        Some(tin) => write_glb_with_terrain(city, meshes, Some(&tin), path),
+        None => write_glb_limited(city, meshes, None, path, GLB_MAX_BYTES),
+    }
 }
 
 /// [`write_glb`] with an optional terrain (see [`write_glb_to_with_terrain`]).
