@@ -374,9 +374,9 @@ mod gpu {
         let blocks = oracle::render_ids(refs, cam, w, h);
         let ground = oracle::render_ids_with_terrain(&[], full, cam, w, h);
         let (mut differ, mut ties) = (0, 0);
-        for k in 0..(w * h) as usize {
+        for (k, got) in gpu_ids.iter().enumerate() {
             let want = (cpu.ids[k] != SKY).then_some(BlockId(cpu.ids[k]));
-            if gpu_ids[k] != want {
+            if *got != want {
                 differ += 1;
                 let (a, b) = (blocks.depth[k], ground.depth[k]);
                 if blocks.ids[k] != SKY && ground.ids[k] != SKY && (a - b).abs() <= 1e-6 {

@@ -168,6 +168,9 @@ pub(crate) fn pack_meshes(
     })
 }
 
+/// A terrain packed for upload: vertices, indices (absolute) and each tile's range.
+pub(crate) type PackedTerrain = (Vec<Vertex>, Vec<u32>, Vec<BlockRange>);
+
 /// The terrain's tiles packed into one vertex and one index buffer (indices absolute), and each
 /// tile's range of indices (indexed by tile). Every vertex carries the terrain's id and style 0
 /// (terrain is coloured by its id, not by a style; any appearance is ignored).
@@ -175,9 +178,7 @@ pub(crate) fn pack_meshes(
 /// # Errors
 /// A malformed tile ([`push_mesh`]'s checks, naming the terrain), or more vertices or indices
 /// than `u32` counts.
-pub(crate) fn pack_terrain(
-    tiles: &[Mesh],
-) -> Result<(Vec<Vertex>, Vec<u32>, Vec<BlockRange>), RenderError> {
+pub(crate) fn pack_terrain(tiles: &[Mesh]) -> Result<PackedTerrain, RenderError> {
     let mut vertices = Vec::new();
     let mut indices = Vec::new();
     let mut scratch = Vec::new();
