@@ -354,7 +354,7 @@ mod gpu {
     use super::*;
     use blockwalk::blockmap::{build_map, BuildOptions, Source};
     use blockwalk::city::extrude::extrude_city;
-    use blockwalk::render::{Gpu, GpuFrameRenderer, Shading, NO_MAP};
+    use blockwalk::render::{Gpu, GpuFrameRenderer, RenderError, Shading, NO_MAP};
     use blockwalk::visibility::synthetic::SyntheticCity;
     use glam::DVec2;
     use std::sync::Arc;
@@ -451,6 +451,15 @@ mod gpu {
                 );
             }
         }
+        // With a terrain, no block may take the terrain's id.
+        let taken = vec![(BlockId(TERRAIN_ID), box_mesh(Vec3::ZERO, Vec3::ONE))];
+        let r = GpuFrameRenderer::with_gpu(Gpu::new_headless().unwrap(), &taken, &street(), (w, h))
+            .unwrap();
+        let e = r.with_terrain(Arc::new(terrain(ridge, 50.0))).unwrap_err();
+        assert!(
+            matches!(e, RenderError::BlockIdTooLarge { id: TERRAIN_ID, .. }),
+            "{e:?}"
+        );
     }
 
     #[test]

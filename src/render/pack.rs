@@ -12,8 +12,9 @@ use bytemuck::{Pod, Zeroable};
 /// Unit id of the ground's vertices (never a block id).
 pub(crate) const GROUND: u32 = 0x00FF_FFFF;
 /// Unit id of the terrain's vertices ([`crate::visibility::TERRAIN_ID`], just below the
-/// ground's; never a block id): the id pass writes it like a block's, the lit pass colours
-/// those vertices as terrain.
+/// ground's; never a block id when a terrain is drawn, which `MeshRenderer::with_terrain`
+/// checks): the id pass writes it like a block's, the lit pass colours those vertices as
+/// terrain.
 pub(crate) const TERRAIN: u32 = crate::visibility::TERRAIN_ID;
 const _: () = assert!(TERRAIN < GROUND);
 
@@ -133,10 +134,10 @@ pub(crate) fn pack_meshes(
         index_count: indices.len() as u32 - plane.index_count,
     };
     let max_id = blocks.iter().map(|b| b.0 .0).max();
-    if max_id.is_some_and(|m| m >= TERRAIN) {
+    if max_id.is_some_and(|m| m >= GROUND) {
         return Err(RenderError::BlockIdTooLarge {
             id: max_id.unwrap_or(0),
-            limit: TERRAIN - 1,
+            limit: GROUND - 1,
         });
     }
     let mut ranges: Vec<Option<BlockRange>> = vec![None; max_id.map_or(0, |m| m as usize + 1)];
@@ -393,14 +394,6 @@ mod tests {
         assert!(matches!(
             pack_terrain(&[bad]),
             Err(RenderError::IndexOutOfRange { .. })
-        ));
-        // Blocks may not take the terrain's id.
-        assert!(matches!(
-            pack_meshes(
-                &[(BlockId(TERRAIN), &triangle(0.0, false))],
-                &Mesh::default()
-            ),
-            Err(RenderError::BlockIdTooLarge { .. })
         ));
     }
 
