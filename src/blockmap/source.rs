@@ -47,9 +47,21 @@ pub struct Source<'a> {
     pub meshes: &'a [Mesh],
     /// The city (for the appearance).
     pub city: &'a City,
+    /// The terrain the buildings stand on (full-resolution mesh, local frame), when there is
+    /// one: the ground is then that surface, not z = 0 ([`Source::with_terrain`]).
+    pub terrain: Option<&'a Mesh>,
 }
 
 impl<'a> Source<'a> {
+    /// The same buildings standing on `terrain` (the full mesh, local frame: see
+    /// `visibility::TerrainDraw::full`).
+    pub fn with_terrain(self, terrain: &'a Mesh) -> Self {
+        Self {
+            terrain: Some(terrain),
+            ..self
+        }
+    }
+
     /// Prepares the buildings of `city` that `layout` assigns to a block.
     ///
     /// # Errors
@@ -132,6 +144,7 @@ impl<'a> Source<'a> {
             buildings,
             meshes,
             city,
+            terrain: None,
         })
     }
 

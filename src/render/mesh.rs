@@ -507,8 +507,19 @@ impl MeshRenderer {
     /// every tile; [`Self::draw_tiles`] draws a terrain's cut.
     ///
     /// # Errors
-    /// A malformed tile ([`RenderError::BadMesh`], …, naming the terrain).
+    /// A malformed tile ([`RenderError::BadMesh`], …, naming the terrain);
+    /// [`RenderError::BlockIdTooLarge`] when a unit's id is the terrain's or above (ids
+    /// must stay below [`crate::visibility::TERRAIN_ID`] when a terrain is drawn).
     pub fn with_terrain(self, gpu: &Gpu, terrain: &dyn TerrainDraw) -> Result<Self, RenderError> {
+        let terrain_id = crate::visibility::TERRAIN_ID;
+        if let Some(id) = self.ranges.len().checked_sub(1) {
+            if id >= terrain_id as usize {
+                return Err(RenderError::BlockIdTooLarge {
+                    id: id as u32,
+                    limit: terrain_id - 1,
+                });
+            }
+        }
         let (vertices, indices, ranges) = pack_terrain(terrain.tiles())?;
         let buffers = (!indices.is_empty()).then(|| {
             let v = gpu

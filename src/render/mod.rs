@@ -196,8 +196,8 @@ pub enum RenderError {
         /// Tiles the renderer holds.
         tiles: usize,
     },
-    /// A block id does not fit the id encoding (24 bits, less the terrain's and the ground's
-    /// ids).
+    /// A block id does not fit the id encoding (24 bits, less the ground's id; less the
+    /// terrain's too when a terrain is drawn).
     #[error("render: block id {id} is too large (limit {limit})")]
     BlockIdTooLarge {
         /// The largest id given.

@@ -12,8 +12,9 @@ use bytemuck::{Pod, Zeroable};
 /// Unit id of the ground's vertices (never a block id).
 pub(crate) const GROUND: u32 = 0x00FF_FFFF;
 /// Unit id of the terrain's vertices ([`crate::visibility::TERRAIN_ID`], just below the
-/// ground's; never a block id): the id pass writes it like a block's, the lit pass colours
-/// those vertices as terrain.
+/// ground's; never a block id when a terrain is drawn, which `MeshRenderer::with_terrain`
+/// checks): the id pass writes it like a block's, the lit pass colours those vertices as
+/// terrain.
 pub(crate) const TERRAIN: u32 = crate::visibility::TERRAIN_ID;
 const _: () = assert!(TERRAIN < GROUND);
 
@@ -133,10 +134,10 @@ pub(crate) fn pack_meshes(
         index_count: indices.len() as u32 - plane.index_count,
     };
     let max_id = blocks.iter().map(|b| b.0 .0).max();
-    if max_id.is_some_and(|m| m >= TERRAIN) {
+    if max_id.is_some_and(|m| m >= GROUND) {
         return Err(RenderError::BlockIdTooLarge {
             id: max_id.unwrap_or(0),
-            limit: TERRAIN - 1,
+            limit: GROUND - 1,
         });
     }
     let mut ranges: Vec<Option<BlockRange>> = vec![None; max_id.map_or(0, |m| m as usize + 1)];
@@ -168,6 +169,9 @@ pub(crate) fn pack_meshes(
     })
 }
 
+/// A terrain packed for upload: vertices, indices (absolute) and each tile's range.
+pub(crate) type PackedTerrain = (Vec<Vertex>, Vec<u32>, Vec<BlockRange>);
+
 /// The terrain's tiles packed into one vertex and one index buffer (indices absolute), and each
 /// tile's range of indices (indexed by tile). Every vertex carries the terrain's id and style 0
 /// (terrain is coloured by its id, not by a style; any appearance is ignored).
@@ -175,9 +179,7 @@ pub(crate) fn pack_meshes(
 /// # Errors
 /// A malformed tile ([`push_mesh`]'s checks, naming the terrain), or more vertices or indices
 /// than `u32` counts.
-pub(crate) fn pack_terrain(
-    tiles: &[Mesh],
-) -> Result<(Vec<Vertex>, Vec<u32>, Vec<BlockRange>), RenderError> {
+pub(crate) fn pack_terrain(tiles: &[Mesh]) -> Result<PackedTerrain, RenderError> {
     let mut vertices = Vec::new();
     let mut indices = Vec::new();
     let mut scratch = Vec::new();
@@ -392,14 +394,6 @@ mod tests {
         assert!(matches!(
             pack_terrain(&[bad]),
             Err(RenderError::IndexOutOfRange { .. })
-        ));
-        // Blocks may not take the terrain's id.
-        assert!(matches!(
-            pack_meshes(
-                &[(BlockId(TERRAIN), &triangle(0.0, false))],
-                &Mesh::default()
-            ),
-            Err(RenderError::BlockIdTooLarge { .. })
         ));
     }
 

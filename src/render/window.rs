@@ -12,6 +12,10 @@
 //! targets ([`FarRenderer`]: BlockMaps or relief impostors), as `blockwalk walk --far blockmaps`
 //! (or `--far relief`) draws it.
 //!
+//! When the scene has a terrain (`Scene::terrain`), its tiles are uploaded with the meshes and
+//! each frame draws the terrain's cut for the camera, depth-tested before the meshes and the far
+//! field, instead of the flat ground ([`crate::visibility::draws_flat_ground`]).
+//!
 //! The frame is drawn by the same [`MeshRenderer`] as the headless tools (so what the window shows
 //! is exactly what `blockwalk walk --render` writes), read back and written into the surface
 //! texture with `Queue::write_texture`, swapping red and blue for `Bgra8` surfaces. This costs a

@@ -176,6 +176,21 @@ impl std::fmt::Debug for Scene {
 }
 
 impl Scene {
+    /// The city's buildings as exact prisms (`blockmap::Source` over the scene's building
+    /// meshes), standing on the scene's terrain when it has one: what the silhouette bound and
+    /// the diagnosis check frames with.
+    ///
+    /// # Errors
+    /// As [`crate::blockmap::Source::new`].
+    pub fn exact_prisms(
+        &self,
+    ) -> Result<crate::blockmap::Source<'_>, crate::blockmap::BlockMapError> {
+        let source = crate::blockmap::Source::new(&self.city, &self.layout, &self.building_meshes)?;
+        Ok(match &self.terrain {
+            Some(t) => source.with_terrain(t.full()),
+            None => source,
+        })
+    }
     /// The terrain, borrowed as the CPU renderers take it.
     pub fn terrain_draw(&self) -> Option<&dyn crate::visibility::TerrainDraw> {
         self.terrain

@@ -207,7 +207,7 @@ mod tests {
             v.sort_unstable();
             v
         };
-        let mut from_tiles: Vec<[[u32; 3]; 3]> = t.tiles.iter().flat_map(|m| tris(m)).collect();
+        let mut from_tiles: Vec<[[u32; 3]; 3]> = t.tiles.iter().flat_map(&tris).collect();
         from_tiles.sort_unstable();
         assert_eq!(from_tiles, tris(&t.full));
         assert_eq!(t.full.triangle_count(), 2 * 7 * 5);

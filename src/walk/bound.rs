@@ -22,7 +22,9 @@
 //!      the original point projects within `e_px·e/ε` of the pixel (`e` the hit's distance,
 //!      `e_px` the map's projected ε): sub-pixel as `blockmap::compare` argues. (Deviation,
 //!      stricter than `compare`: a hit whose nearest original surface is the ground, not a
-//!      prism, is not accepted, since the mesh frame covers nothing there.)
+//!      prism, is not accepted, since the mesh frame covers nothing there. The ground is the
+//!      plane z = 0, or the terrain when the buildings stand on one, `Source::terrain`: a hit
+//!      within its distance of a terrain triangle is the terrain's, which both frames draw.)
 //!    - a pixel only the mesh frame covers: a ray through a lattice point that meets the hybrid
 //!      frame's geometry (a drawn map, by the f32 caster the GPU runs; a near mesh's building,
 //!      by its exact prism). Else, when the building the pixel shows is one a drawn map declares
@@ -52,7 +54,7 @@ use crate::blockmap::image::{twin_ray, FrameRays, MapXform};
 use crate::blockmap::{MapTree, Selection, Source};
 use crate::geom::Aabb3;
 use crate::geom::Camera;
-use glam::{DMat4, DVec3, DVec4};
+use glam::{DMat4, DVec2, DVec3, DVec4};
 use rayon::prelude::*;
 use serde::Serialize;
 
@@ -167,6 +169,8 @@ pub struct BoundGeometry<'a> {
     tree: &'a dyn BoundMaps,
     by_block: Vec<Vec<u32>>,
     declared: Vec<Vec<u32>>,
+    /// The ground when it is a terrain (`Source::terrain`); `None`: the plane z = 0.
+    terrain: Option<TerrainSurface>,
 }
 
 impl<'a> BoundGeometry<'a> {
@@ -189,6 +193,16 @@ impl<'a> BoundGeometry<'a> {
             tree,
             by_block,
             declared,
+            terrain: source.terrain.map(TerrainSurface::new),
+        }
+    }
+
+    /// Whether the ground lies within `e` of `point`: the plane z = 0 (`point.z ≤ e`), or with
+    /// a terrain, some terrain triangle within `e` (exact f64 point–triangle distance).
+    fn ground_within(&self, point: DVec3, e: f64) -> bool {
+        match &self.terrain {
+            None => point.z <= e,
+            Some(t) => t.within(point, e),
         }
     }
 
@@ -732,8 +746,9 @@ impl<'f, 'g, 'a> Look<'f, 'g, 'a> {
     ) -> Option<f64> {
         let eps = self.frame.geometry.tree.eps_m(m);
         let e = grid.surface_distance(point, scratch);
-        // The ground is nearer than (or as near as) every prism: nothing of the mesh frame.
-        let on_ground = point.z <= e;
+        // The ground (z = 0, or the terrain) is nearer than (or as near as) every prism: the
+        // hit is explained by the ground, which both frames draw alike, not by a building.
+        let on_ground = self.frame.geometry.ground_within(point, e);
         if on_ground || e > eps * (1.0 + 1e-9) + 1e-6 {
             return None;
         }
@@ -746,9 +761,192 @@ impl<'f, 'g, 'a> Look<'f, 'g, 'a> {
     }
 }
 
+/// A terrain's triangles (f64, local frame) binned by plan-view box on a uniform grid, for the
+/// distance from a point.
+struct TerrainSurface {
+    tris: Vec<[DVec3; 3]>,
+    min: DVec2,
+    cell: f64,
+    nx: usize,
+    ny: usize,
+    /// Triangles (indices into `tris`) whose plan-view box meets each cell, row-major.
+    cells: Vec<Vec<u32>>,
+}
+
+impl TerrainSurface {
+    fn new(mesh: &crate::city::Mesh) -> Self {
+        let tris: Vec<[DVec3; 3]> = mesh
+            .indices
+            .chunks_exact(3)
+            .filter_map(|t| {
+                let p = |i: usize| mesh.positions.get(t[i] as usize).map(|v| v.as_dvec3());
+                Some([p(0)?, p(1)?, p(2)?])
+            })
+            .collect();
+        let (mut min, mut max) = (DVec2::splat(f64::INFINITY), DVec2::splat(f64::NEG_INFINITY));
+        for p in tris.iter().flatten() {
+            min = min.min(p.truncate());
+            max = max.max(p.truncate());
+        }
+        if tris.is_empty() {
+            (min, max) = (DVec2::ZERO, DVec2::ONE);
+        }
+        let size = (max - min).max(DVec2::splat(1e-9));
+        // About two triangles per cell.
+        let cell = (size.x * size.y / (tris.len().max(1) as f64 / 2.0))
+            .sqrt()
+            .max(1e-6);
+        let nx = ((size.x / cell).ceil() as usize).clamp(1, 4096);
+        let ny = ((size.y / cell).ceil() as usize).clamp(1, 4096);
+        let mut s = Self {
+            tris: Vec::new(),
+            min,
+            cell,
+            nx,
+            ny,
+            cells: vec![Vec::new(); nx * ny],
+        };
+        for (i, t) in tris.iter().enumerate() {
+            let lo = t[0].truncate().min(t[1].truncate()).min(t[2].truncate());
+            let hi = t[0].truncate().max(t[1].truncate()).max(t[2].truncate());
+            let ((x0, y0), (x1, y1)) = (s.cell_of(lo), s.cell_of(hi));
+            for y in y0..=y1 {
+                for x in x0..=x1 {
+                    s.cells[y * nx + x].push(i as u32);
+                }
+            }
+        }
+        s.tris = tris;
+        s
+    }
+
+    fn cell_of(&self, p: DVec2) -> (usize, usize) {
+        let q = (p - self.min) / self.cell;
+        let c = |v: f64, n: usize| (v.floor().max(0.0) as usize).min(n - 1);
+        (c(q.x, self.nx), c(q.y, self.ny))
+    }
+
+    /// Whether a triangle lies within `e` of `p`.
+    fn within(&self, p: DVec3, e: f64) -> bool {
+        let r = DVec2::splat(e.max(0.0));
+        let (lo, hi) = (p.truncate() - r, p.truncate() + r);
+        if hi.x < self.min.x || hi.y < self.min.y {
+            return false;
+        }
+        let ((x0, y0), (x1, y1)) = (self.cell_of(lo), self.cell_of(hi));
+        (y0..=y1).any(|y| {
+            (x0..=x1).any(|x| {
+                self.cells[y * self.nx + x]
+                    .iter()
+                    .any(|&i| closest_on_triangle(p, &self.tris[i as usize]).distance(p) <= e)
+            })
+        })
+    }
+}
+
+/// The point of triangle `t` closest to `p` (Ericson, *Real-Time Collision Detection*, §5.1.5).
+fn closest_on_triangle(p: DVec3, t: &[DVec3; 3]) -> DVec3 {
+    let [a, b, c] = *t;
+    let (ab, ac, ap) = (b - a, c - a, p - a);
+    let (d1, d2) = (ab.dot(ap), ac.dot(ap));
+    if d1 <= 0.0 && d2 <= 0.0 {
+        return a;
+    }
+    let bp = p - b;
+    let (d3, d4) = (ab.dot(bp), ac.dot(bp));
+    if d3 >= 0.0 && d4 <= d3 {
+        return b;
+    }
+    let vc = d1 * d4 - d3 * d2;
+    if vc <= 0.0 && d1 >= 0.0 && d3 <= 0.0 {
+        return a + ab * (d1 / (d1 - d3));
+    }
+    let cp = p - c;
+    let (d5, d6) = (ab.dot(cp), ac.dot(cp));
+    if d6 >= 0.0 && d5 <= d6 {
+        return c;
+    }
+    let vb = d5 * d2 - d1 * d6;
+    if vb <= 0.0 && d2 >= 0.0 && d6 <= 0.0 {
+        return a + ac * (d2 / (d2 - d6));
+    }
+    let va = d3 * d6 - d5 * d4;
+    if va <= 0.0 && (d4 - d3) >= 0.0 && (d5 - d6) >= 0.0 {
+        return b + (c - b) * ((d4 - d3) / ((d4 - d3) + (d5 - d6)));
+    }
+    let denom = 1.0 / (va + vb + vc);
+    a + ab * (vb * denom) + ac * (vc * denom)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The terrain's distance test against brute force over every triangle (the closest point
+    /// checked against dense samples of each triangle), and z = 0 without terrain.
+    #[test]
+    fn the_ground_is_the_terrain_when_there_is_one() {
+        use crate::visibility::terrain::{height_mesh, HeightGrid};
+        let grid = HeightGrid {
+            origin: [-20.0, -10.0],
+            step_m: 4.0,
+            cells: (10, 6),
+        };
+        let mesh = height_mesh(&grid, |x, y| 5.0 + 0.3 * x + 2.0 * (0.2 * y).sin());
+        let surf = TerrainSurface::new(&mesh);
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(9);
+        for _ in 0..300 {
+            let p = DVec3::new(
+                rng.random_range(-30.0..30.0),
+                rng.random_range(-20.0..20.0),
+                rng.random_range(-10.0..20.0),
+            );
+            let exact = surf
+                .tris
+                .iter()
+                .map(|t| closest_on_triangle(p, t).distance(p))
+                .fold(f64::INFINITY, f64::min);
+            // The closest point is no farther than any sampled point of any triangle.
+            for t in &surf.tris {
+                for (u, v) in [(0.2, 0.3), (0.5, 0.5), (0.0, 1.0), (0.1, 0.1)] {
+                    let q = t[0] + (t[1] - t[0]) * u + (t[2] - t[0]) * v * (1.0 - u);
+                    assert!(exact <= q.distance(p) + 1e-9);
+                }
+            }
+            for e in [exact * 0.999, exact * 1.001 + 1e-9] {
+                assert_eq!(surf.within(p, e), exact <= e, "{p:?} {e} {exact}");
+            }
+        }
+    }
+
+    /// The bound's geometry takes its ground from the source: z = 0 without terrain, the
+    /// terrain's surface with one.
+    #[test]
+    fn the_bound_geometry_takes_its_ground_from_the_source() {
+        use crate::visibility::terrain::{height_mesh, HeightGrid};
+        let sc = SyntheticCity::generate(1, 1, 5, DVec2::new(5.0e5, 6.0e6));
+        let meshes = crate::city::extrude::extrude_city(&sc.city);
+        let tree = MapTree::default();
+        let grid = HeightGrid {
+            origin: [-500.0, -500.0],
+            step_m: 100.0,
+            cells: (10, 10),
+        };
+        let plateau = height_mesh(&grid, |_, _| 50.0);
+        let flat = Source::new(&sc.city, &sc.layout, &meshes).unwrap();
+        let raised = Source::new(&sc.city, &sc.layout, &meshes)
+            .unwrap()
+            .with_terrain(&plateau);
+        let (g0, g1) = (
+            BoundGeometry::new(&flat, &tree),
+            BoundGeometry::new(&raised, &tree),
+        );
+        let above = DVec3::new(3.0, 4.0, 50.5);
+        assert!(!g0.ground_within(above, 1.0) && g1.ground_within(above, 1.0));
+        let low = DVec3::new(3.0, 4.0, 0.5);
+        assert!(g0.ground_within(low, 1.0) && !g1.ground_within(low, 1.0));
+    }
+
     use crate::blocks::BlockId;
     use crate::visibility::synthetic::SyntheticCity;
     use glam::DVec2;

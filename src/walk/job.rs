@@ -6,7 +6,7 @@
 
 use super::far::{BlockMapsOptions, BuildFar, FarField, FarMode, FarSetup};
 use super::{run_walk_with_far, Drawing, OcclusionMode, WalkError, WalkParams, WalkRecord};
-use crate::blockmap::{MapTree, SelectOptions, Source};
+use crate::blockmap::{MapTree, SelectOptions};
 use crate::index::SceneGraphParams;
 use crate::relief::{ReliefField, ReliefOptions};
 use crate::route::{CameraRoute, RouteChoice, RouteContext, RouteError};
@@ -329,15 +329,13 @@ pub fn run_job(
     let field_ref: Option<&dyn FarField> = field.as_deref().map(|f| f as &dyn FarField);
     // The exact prisms the silhouette bound is checked with (only with the reference).
     let source = match (&far_job, field_ref) {
-        (Some(f), Some(_)) if f.reference => Some(
-            Source::new(&scene.city, &scene.layout, &scene.building_meshes).map_err(|e| {
-                JobError::Far {
-                    what: "exact prisms",
-                    city: scene.name.clone(),
-                    source: Box::new(e),
-                }
-            })?,
-        ),
+        (Some(f), Some(_)) if f.reference => {
+            Some(scene.exact_prisms().map_err(|e| JobError::Far {
+                what: "exact prisms",
+                city: scene.name.clone(),
+                source: Box::new(e),
+            })?)
+        }
         _ => None,
     };
     let far = match (&far_job, field_ref) {

@@ -326,12 +326,10 @@ pub fn run_sweep(
         .collect::<Result<_, JobError>>()?;
     // The exact prisms: the walk checks the silhouette bound with them, and the diagnosis
     // classifies pixels with them.
-    let source = Source::new(&scene.city, &scene.layout, &scene.building_meshes).map_err(|e| {
-        JobError::Far {
-            what: "exact prisms",
-            city: scene.name.clone(),
-            source: Box::new(e),
-        }
+    let source = scene.exact_prisms().map_err(|e| JobError::Far {
+        what: "exact prisms",
+        city: scene.name.clone(),
+        source: Box::new(e),
     })?;
     let show_k = if opts.ks.contains(&64) {
         64
