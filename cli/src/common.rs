@@ -89,6 +89,21 @@ pub struct CityArgs {
     /// Take a DEM without CRS information as metres in the city's frame (otherwise refused).
     #[arg(long = "dem-in-city-frame")]
     pub dem_in_city_frame: bool,
+    /// With --dem: the largest projected error of a drawn terrain tile, pixels.
+    #[arg(long = "terrain-tau", default_value_t = blockwalk::scene::terrain::DEFAULT_TERRAIN_TAU_PX)]
+    pub terrain_tau: f64,
+    /// With --dem: whether the terrain's min-filtered cells take part in occlusion culling
+    /// (`on`, `off`).
+    #[arg(long = "terrain-occluder", default_value = "on", value_parser = parse_on_off)]
+    pub terrain_occluder: bool,
+}
+
+fn parse_on_off(s: &str) -> Result<bool, String> {
+    match s {
+        "on" => Ok(true),
+        "off" => Ok(false),
+        _ => Err(format!("{s:?}: expected on or off")),
+    }
 }
 
 /// The library's progress as a spinner (stages) and a bar (counts) on stderr, hidden with
@@ -216,6 +231,17 @@ pub fn load_city_with(args: &CityArgs, opts: &BuildOptions) -> anyhow::Result<Ci
 /// Loads the city named by `args` and builds its scene, with a spinner.
 pub fn load_scene(args: &CityArgs, seed: u64, opts: &SceneOptions) -> anyhow::Result<Scene> {
     let source = args.source(seed)?;
+    if !(args.terrain_tau.is_finite() && args.terrain_tau > 0.0) {
+        anyhow::bail!(
+            "--terrain-tau {}: need a finite value > 0",
+            args.terrain_tau
+        );
+    }
+    let opts = &SceneOptions {
+        terrain_tau_px: args.terrain_tau,
+        terrain_occludes: args.terrain_occluder,
+        ..opts.clone()
+    };
     let pb = spinner("loading the city");
     let scene = Scene::load(&source, opts, &mut |m| pb.set_message(m.to_string()));
     pb.finish_and_clear();
