@@ -49,8 +49,14 @@ fn glb_nodes(bytes: &[u8]) -> Nodes {
 type Blocks = BTreeMap<u32, (bool, Vec<String>)>;
 
 /// The one-job run on the whole city: its blocks and its `.glb`'s nodes.
-fn whole_city(footprints: &Path, streets: &Path) -> (Blocks, Nodes, glam::DVec3) {
-    let source = CitySource::parse(footprints, Some(streets.into()), None, &[], 0).unwrap();
+fn whole_city(
+    footprints: &Path,
+    streets: &Path,
+    ground: Option<blockwalk::city::build::GroundOptions>,
+) -> (Blocks, Nodes, glam::DVec3) {
+    let source = CitySource::parse(footprints, Some(streets.into()), None, &[], 0)
+        .unwrap()
+        .with_ground(ground);
     let city = source.load(&Default::default(), &mut |_| {}).unwrap().city;
     let layout = detect(&city, &BlockOptions::default()).unwrap();
     let (meshes, failed) = try_extrude_city(&city);
@@ -84,18 +90,33 @@ fn tiles_equal_one_job(
     dir: &Path,
     max: usize,
 ) -> (usize, usize) {
+    tiles_on_ground_equal_one_job(footprints, streets, dir, max, None)
+}
+
+/// [`tiles_equal_one_job`] with the buildings put on `ground` in both runs.
+fn tiles_on_ground_equal_one_job(
+    footprints: &Path,
+    streets: &Path,
+    dir: &Path,
+    max: usize,
+    ground: Option<blockwalk::city::build::GroundOptions>,
+) -> (usize, usize) {
     let p = plan(
         footprints,
         streets,
         &PlanOptions {
             max_buildings: max,
-            ..Default::default()
+            build: blockwalk::city::build::BuildOptions {
+                ground: ground.clone(),
+                ..Default::default()
+            },
         },
         &mut |_| {},
     )
     .unwrap();
+    assert_eq!(p.ground.is_some(), ground.is_some());
     let plan_path = write_plan(&p, dir).unwrap();
-    let (want_blocks, want_nodes, origin) = whole_city(footprints, streets);
+    let (want_blocks, want_nodes, origin) = whole_city(footprints, streets, ground);
     assert_eq!(
         p.frame().origin,
         origin,
@@ -176,6 +197,42 @@ fn generated_city_in_tiles_equals_one_run() {
         500,
     );
     assert!(n >= 6, "{n} tiles");
+}
+
+#[test]
+fn a_city_on_terrain_in_tiles_equals_one_run() {
+    let dem = support::data::shared_data("dem/nepal-langtang-mapbox-terrain/nepal_30m_32645.tif");
+    let Some(dem) = support::skip::or_skip(
+        support::skip::Need::Dem,
+        "a_city_on_terrain_in_tiles_equals_one_run",
+        if dem.is_file() {
+            Ok(dem)
+        } else {
+            Err("../shared/data/dem absent".into())
+        },
+    ) else {
+        return;
+    };
+    let tmp = tempfile::tempdir().unwrap();
+    let c = generate_city(&GenerateParams {
+        buildings: 1500,
+        seed: 4,
+        parcels: false,
+        epsg: 32645,
+        centre: Some((333_000.0, 3_110_000.0)),
+        ..Default::default()
+    })
+    .unwrap();
+    let city = tmp.path().join("city");
+    write_city(&c, &city).unwrap();
+    let (n, _) = tiles_on_ground_equal_one_job(
+        &city.join("buildings.shp"),
+        &city.join("streets.shp"),
+        &tmp.path().join("jobs"),
+        400,
+        Some(blockwalk::city::build::GroundOptions::new(dem)),
+    );
+    assert!(n >= 4, "{n} tiles");
 }
 
 #[test]

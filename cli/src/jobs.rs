@@ -34,6 +34,12 @@ enum Step {
         /// At most this many buildings per tile (one block with more is a tile of its own).
         #[arg(long, default_value_t = 50_000)]
         max_buildings: usize,
+        /// Elevation model (GeoTIFF) every tile puts its buildings on (see `import --dem`).
+        #[arg(long)]
+        dem: Option<PathBuf>,
+        /// With --dem: `min` (default) or `pNN`, how a building's base is taken.
+        #[arg(long, default_value = "min", value_parser = blockwalk::city::build::ground::parse_rule)]
+        base: blockwalk::terrain::BaseRule,
         /// Print one JSON object instead of the summary and the commands.
         #[arg(long)]
         json: bool,
@@ -70,8 +76,14 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             streets,
             output,
             max_buildings,
+            dem,
+            base,
             json,
         } => {
+            let ground = dem.map(|d| blockwalk::city::build::GroundOptions {
+                rule: base,
+                ..blockwalk::city::build::GroundOptions::new(d)
+            });
             let (fp, st) = city_files(&city, streets.as_deref())?;
             let t0 = Instant::now();
             let pb = spinner("planning");
@@ -80,7 +92,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 &st,
                 &PlanOptions {
                     max_buildings,
-                    ..Default::default()
+                    build: blockwalk::city::build::BuildOptions {
+                        ground,
+                        ..Default::default()
+                    },
                 },
                 &mut |m| pb.set_message(m.to_string()),
             );

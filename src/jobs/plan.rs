@@ -110,6 +110,47 @@ pub struct Plan {
     pub blocks: Vec<PlanBlock>,
     /// The tiles.
     pub tiles: Vec<PlanTile>,
+    /// The elevation model every tile puts its buildings on, and how (`None`: flat).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub ground: Option<PlanGround>,
+}
+
+/// A plan's ground: the DEM (stamped, checked by every tile as the other inputs are) and the
+/// base rule, so that every tile gives a building the base the whole city's run gives it.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct PlanGround {
+    /// The DEM.
+    pub dem: FileStamp,
+    /// The base rule: `min` or `pNN`.
+    pub rule: String,
+    /// The steep-ground threshold, metres.
+    pub steep_m: f64,
+    /// Terrain kept around a tile's footprints, metres.
+    pub margin_m: f64,
+    /// A DEM without CRS is taken in the city's frame.
+    pub assume_city_frame: bool,
+}
+
+impl PlanGround {
+    /// The build options' ground of this plan.
+    ///
+    /// # Errors
+    /// [`JobsError::Format`] for a rule that does not parse.
+    pub fn options(&self, plan: &Path) -> Result<crate::city::build::GroundOptions, JobsError> {
+        let rule = crate::city::build::ground::parse_rule(&self.rule).map_err(|why| {
+            JobsError::Format {
+                file: plan.to_path_buf(),
+                why,
+            }
+        })?;
+        Ok(crate::city::build::GroundOptions {
+            dem: self.dem.path.clone(),
+            rule,
+            steep_m: self.steep_m,
+            margin_m: self.margin_m,
+            assume_city_frame: self.assume_city_frame,
+        })
+    }
 }
 
 impl Plan {
@@ -259,6 +300,28 @@ pub fn plan(
             inputs.push(FileStamp::of(&f)?);
         }
     }
+    let ground = match &opts.build.ground {
+        Some(g) => {
+            let dem = FileStamp::of(&g.dem)?;
+            inputs.push(dem.clone());
+            Some(PlanGround {
+                dem,
+                rule: crate::city::build::ground::rule_name(g.rule),
+                steep_m: g.steep_m,
+                margin_m: g.margin_m,
+                assume_city_frame: g.assume_city_frame,
+            })
+        }
+        None => None,
+    };
+    // The plan itself assigns footprints in plan view: no ground needed.
+    let opts = &PlanOptions {
+        build: BuildOptions {
+            ground: None,
+            ..opts.build.clone()
+        },
+        ..opts.clone()
+    };
     let crs = shp::read_crs(footprints).map_err(read_err(footprints))?;
 
     // Pass 1: the metric transform's centre, the median of the footprint polygons' box centres
@@ -454,6 +517,7 @@ pub fn plan(
         outskirts_buildings,
         blocks,
         tiles,
+        ground,
     };
     plan.plan_id = plan.content_id();
     Ok(plan)

@@ -13,7 +13,7 @@ use crate::blockmap::{build_city_maps, CityMapsOptions};
 use crate::blocks::assign::assign;
 use crate::blocks::{Block, BlockId, BlockKind, BlockLayout, BlockSource};
 use crate::city::build::{build_city_in_frame, BuildOptions};
-use crate::city::export::gltf::write_glb;
+use crate::city::export::gltf::write_glb_with_terrain;
 use crate::city::extrude::try_extrude_city;
 use crate::city::{City, Mesh};
 
@@ -254,18 +254,21 @@ pub fn run_tile(
         .map_err(read_err(fp))?;
     }
     let features_read = layer.features.len();
-    let city = build_city_in_frame(
-        &layer,
-        None,
-        None,
-        &BuildOptions::default(),
-        transform,
-        frame,
-    )
-    .map_err(|source| JobsError::Build {
-        file: fp.to_path_buf(),
-        source,
-    })?;
+    let build = BuildOptions {
+        ground: plan
+            .ground
+            .as_ref()
+            .map(|g| g.options(plan_path))
+            .transpose()?,
+        ..BuildOptions::default()
+    };
+    let city =
+        build_city_in_frame(&layer, None, None, &build, transform, frame).map_err(|source| {
+            JobsError::Build {
+                file: fp.to_path_buf(),
+                source,
+            }
+        })?;
     drop(layer);
 
     // Assign with the one-job rule against every face whose box meets the buildings read: any
@@ -367,7 +370,9 @@ pub fn run_tile(
     if !city.buildings.is_empty() {
         let name = format!("tile_{tile:05}.glb");
         let gpath = dir.join(&name);
-        write_glb(&city, &meshes, &gpath).map_err(|source| JobsError::Export { tile, source })?;
+        // Buildings only: the terrain is the DEM's, not a tile's.
+        write_glb_with_terrain(&city, &meshes, None, &gpath)
+            .map_err(|source| JobsError::Export { tile, source })?;
         let st = FileStamp::of(&gpath)?;
         files.push(TileFile {
             path: format!("tiles/{name}"),
