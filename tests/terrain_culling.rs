@@ -827,3 +827,154 @@ fn a_near_plane_inside_the_cliff_sees_buried_walls_and_culls_nothing() {
         "the ground hides it: {kept:?}"
     );
 }
+
+/// A building standing across a row of saddle cells (10 m cells, nodes alternately 0 and 8 m
+/// on two rows): the lowest point of the bilinear surface under it is 3.6 m, but the drawn
+/// terrain splits each cell along its south-west–north-east diagonal, and along the diagonals of
+/// these saddles it lies at 0: a V valley passes under the building. With the base on the
+/// bilinear surface alone, an eye 1 m up looking along the valley sees a low block behind the
+/// building through the 3.6 m gap, which the wall's shadow (a facade solid down to the ground)
+/// hides: a false cull. The base is the lowest point of both surfaces
+/// ([`BaseRule::Min`]), so the building reaches the drawn ground, the gap is closed, and the
+/// culler is right again.
+#[test]
+fn a_wall_over_a_dip_of_the_drawn_ground_reaches_down_to_it() {
+    let (nx, ny, sp) = (20usize, 20usize, 10.0);
+    let mut heights = vec![0.0; nx * ny];
+    for i in 0..nx {
+        heights[8 * nx + i] = if i % 2 == 1 { 8.0 } else { 0.0 };
+        heights[9 * nx + i] = if i % 2 == 0 { 8.0 } else { 0.0 };
+    }
+    let terrain =
+        Terrain::from_heights("saddles", nx, ny, DVec2::ZERO, DVec2::splat(sp), heights).unwrap();
+    let wall = rect(40.0, 84.5, 100.0, 85.5);
+    let target = rect(93.0, 113.0, 97.0, 117.0);
+    // The bilinear surface under the wall's footprint never goes below 3.6 m; the drawn one
+    // goes down to 0 on the diagonals; the base takes the lower.
+    let mut bilinear_min = f64::INFINITY;
+    for k in 0..=600 {
+        for y in [84.5, 85.0, 85.5] {
+            bilinear_min = bilinear_min.min(
+                terrain
+                    .sample(DVec2::new(40.0 + 0.1 * k as f64, y))
+                    .unwrap(),
+            );
+        }
+    }
+    assert!((bilinear_min - 3.6).abs() < 1e-9, "{bilinear_min}");
+    assert!(terrain.sample_drawn(DVec2::new(64.5, 84.5)).unwrap().abs() < 1e-9);
+    let base = terrain.ground_under(&wall, BaseRule::Min).unwrap().base_m;
+    assert!(base.abs() < 1e-9, "{base}");
+    let mut cam = Camera::new(
+        DVec3::new(40.0, 60.0, 1.0),
+        std::f64::consts::FRAC_PI_4,
+        0.0,
+    );
+    cam.near = 0.1;
+    let (w, h, ss) = ORACLE;
+    let check = |scene: &Scene| {
+        let checker = Checker::new(scene);
+        let seen =
+            visible_blocks_with_terrain(&checker.blocks, Some(checker.terrain), &cam, w, h, ss);
+        let index = scene.indexes[0].as_ref();
+        let mut missed = 0;
+        for c in [scene.occlusion.as_ref().unwrap(), &checker.plain] {
+            let mut kept = Vec::new();
+            let st = c.cull(index, &cam, &mut kept);
+            assert_eq!(st.skipped, None);
+            missed += seen.iter().filter(|b| !kept.contains(b)).count();
+        }
+        (seen, missed)
+    };
+    // The base on the bilinear surface: the gap shows the block behind, and the shadow hid it.
+    let floating = scene_on(
+        terrain.clone(),
+        vec![(wall.clone(), 10.0), (target.clone(), 2.0)],
+        Some(3.6),
+    );
+    let (seen, missed) = check(&floating);
+    assert!(seen.contains(&BlockId(1)), "{seen:?}");
+    assert_eq!(
+        missed, 2,
+        "both cullers hide the block seen through the gap"
+    );
+    // The base on both surfaces: nothing is seen under the wall, nothing seen is culled.
+    let scene = scene_on(terrain, vec![(wall, 10.0), (target, 2.0)], None);
+    assert_eq!(scene.city.buildings[0].base_m, base);
+    let (seen, missed) = check(&scene);
+    assert!(!seen.contains(&BlockId(1)), "{seen:?}");
+    assert_eq!(missed, 0);
+}
+
+/// A scene of `buildings` (footprint, height) on `terrain` (local frame at the origin), each
+/// on the ground by [`BaseRule::Min`] (or the first at `first_base`), one block each.
+fn scene_on(
+    terrain: Terrain,
+    footprints: Vec<(Polygon<f64>, f64)>,
+    first_base: Option<f64>,
+) -> Scene {
+    let buildings: Vec<Building> = footprints
+        .into_iter()
+        .enumerate()
+        .map(|(i, (footprint, h))| Building {
+            id: BuildingId(i as u32),
+            source_id: format!("t:{i}"),
+            base_m: match (i, first_base) {
+                (0, Some(b)) => b,
+                _ => {
+                    terrain
+                        .ground_under(&footprint, BaseRule::Min)
+                        .unwrap()
+                        .base_m
+                }
+            },
+            footprint,
+            height_m: h,
+            min_height_m: 0.0,
+            height_source: HeightSource::Height,
+            attributes: Default::default(),
+        })
+        .collect();
+    let layout = BlockLayout {
+        blocks: buildings
+            .iter()
+            .map(|b| Block {
+                id: BlockId(b.id.0),
+                kind: BlockKind::Block,
+                polygon: b.footprint.clone(),
+                buildings: vec![b.id],
+            })
+            .collect(),
+        source: BlockSource::Streets,
+        street_edges: Vec::new(),
+        dangles: 0,
+    };
+    let city = City {
+        name: "terrain test".into(),
+        transform: blockwalk::importers::Crs::Unknown.metric_transform([0.0, 0.0]),
+        frame: LocalFrame {
+            origin: DVec3::ZERO,
+        },
+        buildings,
+        streets: Vec::new(),
+        parcels: Vec::new(),
+        report: CityReport::default(),
+        terrain: Some(Arc::new(terrain)),
+    };
+    let opts = SceneOptions {
+        structures: vec![Structure::Bqr],
+        occlusion: Some(CullerOptions::default()),
+        terrain_occludes: true,
+        ..SceneOptions::default()
+    };
+    Scene::from_loaded(
+        LoadedCity {
+            city,
+            layout: Some(layout),
+            meshes: None,
+        },
+        &opts,
+        &mut |_| {},
+    )
+    .unwrap()
+}
