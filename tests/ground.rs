@@ -85,14 +85,22 @@ fn dense_points(p: &Polygon<f64>, step: f64) -> Vec<DVec2> {
     out
 }
 
-/// Every building's base is the lowest point of the terrain under it: no dense sample is lower,
+/// Every building's base is the lowest point of the terrain under it (of the bilinear surface
+/// and the drawn triangles): no dense sample of either is lower,
 /// and one comes within the sampling's reach of it; no footprint vertex is buried by more than
 /// the relief under the footprint.
 fn check_min_bases(city: &City, terrain: &Terrain, step: f64, slack_per_m: f64) -> usize {
     let mut checked = 0;
     for b in &city.buildings {
         let pts = dense_points(&b.footprint, step);
-        let hs: Vec<f64> = pts.iter().filter_map(|&p| terrain.sample(p)).collect();
+        // Both surfaces: the bilinear one and the drawn triangles (bases take the lower).
+        let hs: Vec<f64> = pts
+            .iter()
+            .filter_map(|&p| {
+                let h = terrain.sample(p)?;
+                Some(terrain.sample_drawn(p).map_or(h, |d| h.min(d)))
+            })
+            .collect();
         assert_eq!(
             hs.len(),
             pts.len(),
@@ -100,7 +108,10 @@ fn check_min_bases(city: &City, terrain: &Terrain, step: f64, slack_per_m: f64) 
             b.source_id
         );
         let lo = hs.iter().copied().fold(f64::INFINITY, f64::min);
-        let hi = hs.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+        let hi = pts
+            .iter()
+            .filter_map(|&p| terrain.sample(p))
+            .fold(f64::NEG_INFINITY, f64::max);
         assert!(
             lo >= b.base_m - 1e-9,
             "{}: a dense sample at {lo} m is below the base {} m",
@@ -292,10 +303,13 @@ fn a_lidar_grid_and_the_same_grid_at_90_m_give_bases_within_its_relief() {
             b.base_m
         );
         // On the 90 m grid a footprint lies within one or two cells: the base is still the
-        // bilinear surface's minimum there (brute force).
+        // lowest of the bilinear surface and the drawn triangles there (brute force).
         let lo = dense_points(&b.footprint, 0.5)
             .into_iter()
-            .filter_map(|p| t90.sample(p))
+            .filter_map(|p| {
+                let h = t90.sample(p)?;
+                Some(t90.sample_drawn(p).map_or(h, |d| h.min(d)))
+            })
             .fold(f64::INFINITY, f64::min);
         assert!(
             lo >= b.base_m - 1e-9 && lo - b.base_m < 0.05,

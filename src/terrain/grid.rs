@@ -3,7 +3,7 @@
 
 use blockwalk_importers::dem::DemGrid;
 use blockwalk_importers::{Crs, MetricTransform};
-use glam::DVec2;
+use glam::{DVec2, DVec3};
 use rayon::prelude::*;
 use serde::Serialize;
 
@@ -492,6 +492,101 @@ impl Terrain {
             None
         };
         DVec2::new(d(w, e, self.spacing.x), d(s, n, self.spacing.y))
+    }
+}
+
+impl Terrain {
+    /// The drawn full-resolution surface at world point `p`: two triangles per cell, split
+    /// along the south-west–north-east diagonal, as [`Terrain::full_mesh`] draws them (the
+    /// bilinear surface, [`Terrain::sample`], is between the same nodes but curved: inside a
+    /// cell the two differ by up to a quarter of the cell's twist `h00 + h11 − h10 − h01`).
+    /// `None` outside the grid and over a hole (a cell with a nodata corner is not drawn).
+    pub fn sample_drawn(&self, p: DVec2) -> Option<f64> {
+        let (i, j, fu, fv) = self.cell_of(self.grid_uv(p))?;
+        self.drawn_in_cell(i, j, fu, fv)
+    }
+
+    /// [`Terrain::sample_drawn`] in cell `(i, j)` at fractions `(fu, fv)`.
+    #[inline]
+    pub fn drawn_in_cell(&self, i: usize, j: usize, fu: f64, fv: f64) -> Option<f64> {
+        let [h00, h10, h01, h11] = [
+            self.raw(i, j),
+            self.raw(i + 1, j),
+            self.raw(i, j + 1),
+            self.raw(i + 1, j + 1),
+        ];
+        let h = if fu >= fv {
+            // South-east triangle (0,0) (1,0) (1,1).
+            h00 + fu * (h10 - h00) + fv * (h11 - h10)
+        } else {
+            // North-west triangle (0,0) (1,1) (0,1).
+            h00 + fu * (h11 - h01) + fv * (h01 - h00)
+        };
+        (!(h00.is_nan() || h10.is_nan() || h01.is_nan() || h11.is_nan())).then_some(h)
+    }
+
+    /// The lowest clearance of the segment `a → b` (world metres) above the drawn surface
+    /// ([`Terrain::sample_drawn`]) over the parts of it above the grid: the minimum of
+    /// `z − surface`, the surface raised by what moving it `plan_tol` metres sideways can add
+    /// (twice the cell's rise over its smaller spacing, times `plan_tol`: the mesh's vertices
+    /// are rounded). Exact: both are linear between the crossings of the segment's plan view
+    /// with grid lines and diagonals, which are all evaluated. `+∞` when no part is above the
+    /// grid; `None` when a part is above a hole.
+    pub fn drawn_clearance(&self, a: DVec3, b: DVec3, plan_tol: f64) -> Option<f64> {
+        let (ua, ub) = (self.grid_uv(a.truncate()), self.grid_uv(b.truncate()));
+        let d = ub - ua;
+        let mut ts = vec![0.0, 1.0];
+        let mut crossings = |p: f64, dd: f64| {
+            if dd != 0.0 && dd.is_finite() {
+                let (lo, hi) = (p.min(p + dd), p.max(p + dd));
+                let mut k = lo.floor() + 1.0;
+                while k < hi {
+                    ts.push((k - p) / dd);
+                    k += 1.0;
+                }
+            }
+        };
+        crossings(ua.x, d.x);
+        crossings(ua.y, d.y);
+        crossings(ua.x - ua.y, d.x - d.y);
+        ts.sort_by(f64::total_cmp);
+        let (mx, my) = ((self.nx - 1) as f64, (self.ny - 1) as f64);
+        let spacing = self.spacing.min_element();
+        let mut best = f64::INFINITY;
+        for t in ts {
+            let uv = ua + d * t;
+            if !(uv.x >= 0.0 && uv.x <= mx && uv.y >= 0.0 && uv.y <= my) {
+                continue;
+            }
+            // A point on a cell boundary counts for every cell that holds it.
+            let cells = |v: f64, n: usize| {
+                let f = v.floor();
+                let hi = (f as usize).min(n - 2);
+                let lo = if v == f && f >= 1.0 {
+                    hi.min(f as usize - 1)
+                } else {
+                    hi
+                };
+                lo..=hi
+            };
+            let z = a.z + (b.z - a.z) * t;
+            for j in cells(uv.y, self.ny) {
+                for i in cells(uv.x, self.nx) {
+                    let (fu, fv) = (uv.x - i as f64, uv.y - j as f64);
+                    let h = self.drawn_in_cell(i, j, fu.clamp(0.0, 1.0), fv.clamp(0.0, 1.0))?;
+                    let c = [
+                        self.raw(i, j),
+                        self.raw(i + 1, j),
+                        self.raw(i, j + 1),
+                        self.raw(i + 1, j + 1),
+                    ];
+                    let rise = c.iter().copied().fold(f64::NEG_INFINITY, f64::max)
+                        - c.iter().copied().fold(f64::INFINITY, f64::min);
+                    best = best.min(z - h - 2.0 * rise / spacing * plan_tol.max(0.0));
+                }
+            }
+        }
+        Some(best)
     }
 }
 

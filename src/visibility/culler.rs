@@ -10,7 +10,9 @@
 //!   facade runs ([`super::occluders::merge_runs`]);
 //! - every box under test is grown by the f32 rounding of its own coordinates
 //!   ([`CullMap::box_hidden`]);
-//! - buildings whose extrusion fails give no occluders.
+//! - buildings whose extrusion fails give no occluders;
+//! - on terrain, no frame is culled whose near plane dips into the ground
+//!   ([`SkipReason::NearPlaneInGround`], see [`OcclusionCuller::near_plane_above_ground`]).
 //!
 //! `tests/adversarial_cameras.rs` checks this on the bundled cities from adversarial eyes.
 
@@ -19,13 +21,14 @@ use super::occluders::{extract, extract_drawn, BlockOccluders, OccluderOptions};
 use super::shadow::{Occluder, OccluderShadow, Slack};
 use super::VisibilityError;
 use crate::blocks::{BlockId, BlockLayout};
-use crate::city::City;
+use crate::city::{City, LocalFrame};
 use crate::geom::segment::point_rect_distance;
 use crate::geom::{Aabb3, Camera};
 use crate::index::{CityIndex, CullQuery, CullStats};
+use crate::terrain::Terrain;
 use glam::{DVec2, DVec3};
 use serde::Serialize;
-use std::sync::Mutex;
+use std::sync::{Arc, Mutex};
 use std::time::Instant;
 
 /// Parameters of the occlusion culler.
@@ -73,6 +76,11 @@ pub enum SkipReason {
     TooHigh,
     /// The eye is below the ground.
     BelowGround,
+    /// On terrain: part of the near plane lies in the ground, so rays run under the terrain
+    /// from the near plane on and see what the ground would hide (buried walls, the terrain's
+    /// underside): no shadow that leans on the ground holds (see
+    /// [`OcclusionCuller::near_plane_above_ground`]).
+    NearPlaneInGround,
 }
 
 /// What one frame of occlusion culling did.
@@ -113,6 +121,15 @@ pub struct OcclusionCuller {
     min: DVec2,
     max: DVec2,
     map: Mutex<CullMap>,
+    /// The city's terrain, when it stands on one: where the near plane must clear the ground.
+    ground: Option<NearGround>,
+}
+
+/// The terrain under a culler's cameras ([`OcclusionCuller::near_plane_above_ground`]).
+#[derive(Clone, Debug)]
+struct NearGround {
+    terrain: Arc<Terrain>,
+    frame: LocalFrame,
 }
 
 impl OcclusionCuller {
@@ -179,12 +196,17 @@ impl OcclusionCuller {
         if bounds.is_empty() {
             bounds = Aabb3::new(DVec3::ZERO, DVec3::ZERO);
         }
-        Self::from_blocks(
+        let mut c = Self::from_blocks(
             blocks,
             bounds.min.truncate() - 1.0,
             bounds.max.truncate() + 1.0,
             opts,
-        )
+        )?;
+        c.ground = city.terrain.clone().map(|terrain| NearGround {
+            terrain,
+            frame: city.frame,
+        });
+        Ok(c)
     }
 
     /// A culler over given per-block occluders and cull map bounds (local frame).
@@ -214,6 +236,7 @@ impl OcclusionCuller {
             min,
             max,
             map: Mutex::new(map),
+            ground: None,
         })
     }
 
@@ -238,7 +261,7 @@ impl OcclusionCuller {
 
     /// A copy of this culler at another resolution (occluders are reused).
     pub fn with_resolution(&self, resolution: Resolution) -> Result<Self, VisibilityError> {
-        Self::from_blocks(
+        let mut c = Self::from_blocks(
             self.blocks.clone(),
             self.min,
             self.max,
@@ -246,7 +269,115 @@ impl OcclusionCuller {
                 resolution,
                 ..self.opts
             },
-        )
+        )?;
+        c.ground = self.ground.clone();
+        Ok(c)
+    }
+
+    /// Whether the whole near plane of `camera` lies above the ground: always for a city
+    /// without terrain (its ground is z = 0, under every eye the culler accepts).
+    ///
+    /// On terrain the shadows lean on the ground. A terrain occluder stands for the solid
+    /// ground under the drawn surface ([`super::occluders::terrain_occluders`]); a facade edge
+    /// for a wall from its building's base up, and below the base for the ground, which the
+    /// base never rises above. A ray from the eye that crosses such a wall below the drawn
+    /// surface is under the ground there, so it crossed the drawn surface before, and that
+    /// crossing hides what lies behind — provided the crossing is drawn, that is, lies beyond
+    /// the near plane. It does when the ray's point on the near plane is above the ground.
+    /// When part of the near plane is in the ground (an eye a few centimetres above a slope
+    /// with a near plane of metres, looking into it), the frame clips the surface there and
+    /// the rays run under the terrain from the near plane on: they see the buried walls of
+    /// buildings up the slope and the terrain's underside, through everything the shadows
+    /// would hide. Such frames are not occlusion culled
+    /// ([`SkipReason::NearPlaneInGround`]).
+    ///
+    /// The test is exact up to rounding, against the drawn full-resolution surface
+    /// ([`Terrain::sample_drawn`], the oracle's): the near plane is the rectangle of centre
+    /// `eye + near·forward` and half-extents `near·tan(fov_y/2)` and that times the aspect.
+    /// Its height over the plan view and the surface's are both linear between the crossings
+    /// of its plan view with the grid's lines and diagonals, so the lowest clearance is at its
+    /// edges (checked by [`Terrain::drawn_clearance`]) or over a grid node inside it (checked
+    /// there). Every clearance must exceed the f32 rounding of the drawn mesh (vertical, and
+    /// the horizontal rounding times the slope). A node with no height under the rectangle (a
+    /// hole in the drawn terrain) fails the test, and so does a non-finite camera. (Holes
+    /// farther along the rays are not looked at: a ray that enters the ground through one is
+    /// not stopped by a surface.)
+    pub fn near_plane_above_ground(&self, camera: &Camera) -> bool {
+        let Some(g) = &self.ground else {
+            return true;
+        };
+        let f = camera.forward();
+        let u = camera.up();
+        let s = f.cross(u);
+        let hh = camera.near * (0.5 * camera.fov_y).tan().abs();
+        let hw = hh * camera.aspect.abs();
+        let c = camera.position + f * camera.near;
+        // In order around the rectangle.
+        let corners = [
+            c + s * hw + u * hh,
+            c + s * hw - u * hh,
+            c - s * hw - u * hh,
+            c - s * hw + u * hh,
+        ];
+        if !corners.iter().all(|p| p.is_finite()) {
+            return false;
+        }
+        let t = &g.terrain;
+        let (mut lo, mut hi) = (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY));
+        for p in &corners {
+            lo = lo.min(*p);
+            hi = hi.max(*p);
+        }
+        // The drawn mesh's rounding: f32 local coordinates (plan, and height).
+        let m = lo.truncate().abs().max(hi.truncate().abs()).max_element();
+        let plan_tol = f32::EPSILON as f64 * m + 1e-6;
+        let z_tol = |z: f64| f32::EPSILON as f64 * z.abs() + 1e-6;
+        let world: Vec<DVec3> = corners.iter().map(|p| g.frame.to_world(*p)).collect();
+        for k in 0..4 {
+            let (a, b) = (world[k], world[(k + 1) % 4]);
+            match t.drawn_clearance(a, b, plan_tol) {
+                Some(cl) if cl > z_tol(a.z - g.frame.origin.z) + z_tol(b.z - g.frame.origin.z) => {}
+                _ => return false,
+            }
+        }
+        // Grid nodes under the rectangle (its plan view has an inside when it is not
+        // vertical).
+        if f.z == 0.0 {
+            return true;
+        }
+        let (wlo, whi) = (g.frame.to_world(lo), g.frame.to_world(hi));
+        let (ulo, uhi) = (t.grid_uv(wlo.truncate()), t.grid_uv(whi.truncate()));
+        let (mx, my) = ((t.nx() - 1) as f64, (t.ny() - 1) as f64);
+        if uhi.x < 0.0 || uhi.y < 0.0 || ulo.x > mx || ulo.y > my {
+            return true;
+        }
+        let plan: Vec<DVec2> = corners.iter().map(|p| p.truncate()).collect();
+        let inside = |q: DVec2| {
+            let sides: Vec<f64> = (0..4)
+                .map(|k| (plan[(k + 1) % 4] - plan[k]).perp_dot(q - plan[k]))
+                .collect();
+            sides.iter().all(|&v| v >= 0.0) || sides.iter().all(|&v| v <= 0.0)
+        };
+        for j in ulo.y.ceil().max(0.0) as usize..=uhi.y.floor().min(my) as usize {
+            for i in ulo.x.ceil().max(0.0) as usize..=uhi.x.floor().min(mx) as usize {
+                let q = g.frame.to_local_f64(t.node_xy(i, j).extend(0.0)).truncate();
+                if !inside(q) {
+                    continue;
+                }
+                let Some(h) = t.height(i, j) else {
+                    return false;
+                };
+                let h = h - g.frame.origin.z;
+                // The near plane, f · (p − c) = 0, over q.
+                let z = c.z - (f.x * (q.x - c.x) + f.y * (q.y - c.y)) / f.z;
+                // NaN (a broken camera) is not clear either.
+                let clear = z - h > 2.0 * z_tol(h);
+                if !clear {
+                    return false;
+                }
+            }
+        }
+        true
     }
 
     /// The occluders chosen for `camera` (Willmott et al., §3.2.5): facade edges facing the viewer, of
@@ -264,6 +395,9 @@ impl OcclusionCuller {
         let v = camera.position;
         if v.z < 0.0 {
             return (0, Some(SkipReason::BelowGround));
+        }
+        if !self.near_plane_above_ground(camera) {
+            return (0, Some(SkipReason::NearPlaneInGround));
         }
         let v2 = v.truncate();
         let frustum = camera.frustum();
