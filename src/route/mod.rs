@@ -255,11 +255,13 @@ impl RouteGround {
         self.mode
     }
 
-    /// The terrain height under a local point (`None` off the grid or over nodata).
+    /// The height of the ground as drawn (the full-resolution triangles) under a local point
+    /// (`None` off the grid or over nodata): the eye is placed over what is seen, not over the
+    /// smooth surface between the samples, which the triangles can lie above.
     pub fn ground_at(&self, local: DVec3) -> Option<f64> {
         let w = self.frame.to_world(local);
         self.terrain
-            .sample(glam::DVec2::new(w.x, w.y))
+            .sample_drawn(glam::DVec2::new(w.x, w.y))
             .map(|g| g - self.frame.origin.z)
     }
 

@@ -123,6 +123,9 @@ pub struct OcclusionCuller {
     map: Mutex<CullMap>,
     /// The city's terrain, when it stands on one: where the near plane must clear the ground.
     ground: Option<NearGround>,
+    /// The height occluders are scored from ([`Self::select`]): 0 for a flat city, the lowest
+    /// ground under the city's blocks on terrain.
+    floor: f64,
 }
 
 /// The terrain under a culler's cameras ([`OcclusionCuller::near_plane_above_ground`]).
@@ -206,6 +209,9 @@ impl OcclusionCuller {
             terrain,
             frame: city.frame,
         });
+        if c.ground.is_some() && bounds.min.z.is_finite() {
+            c.floor = bounds.min.z;
+        }
         Ok(c)
     }
 
@@ -237,6 +243,7 @@ impl OcclusionCuller {
             max,
             map: Mutex::new(map),
             ground: None,
+            floor: 0.0,
         })
     }
 
@@ -271,6 +278,7 @@ impl OcclusionCuller {
             },
         )?;
         c.ground = self.ground.clone();
+        c.floor = self.floor;
         Ok(c)
     }
 
@@ -424,7 +432,10 @@ impl OcclusionCuller {
                 let keep = reach + self.slack(o).plan;
                 for piece in outside_disk(o, v2, keep).into_iter().flatten() {
                     let dist = piece.distance_to(v2);
-                    let score = piece.length() * piece.height / (dist * dist).max(1.0);
+                    // Walls are scored by their height above the city's lowest ground (on
+                    // terrain, world heights would make every wall look alike).
+                    let score = piece.length() * (piece.height - self.floor).max(0.0)
+                        / (dist * dist).max(1.0);
                     scored.push((score, piece));
                 }
             }
@@ -433,7 +444,9 @@ impl OcclusionCuller {
         if scored.is_empty() {
             return (0, Some(SkipReason::NoOccluders));
         }
-        if v.z > self.opts.skip_height_factor * tallest {
+        // Heights above the floor (0 for a flat city), so that the rule means the same on
+        // terrain.
+        if v.z - self.floor > self.opts.skip_height_factor * (tallest - self.floor) {
             return (candidates, Some(SkipReason::TooHigh));
         }
         let n = self.opts.max_occluders.min(scored.len());
