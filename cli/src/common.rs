@@ -94,7 +94,7 @@ pub struct CityArgs {
     pub terrain_tau: f64,
     /// With --dem: whether the terrain's min-filtered cells take part in occlusion culling
     /// (`on`, `off`).
-    #[arg(long = "terrain-occluder", default_value = "on", value_parser = parse_on_off)]
+    #[arg(long = "terrain-occluder", default_value = "on", value_parser = parse_on_off, action = clap::ArgAction::Set)]
     pub terrain_occluder: bool,
 }
 

@@ -39,7 +39,9 @@ pub struct CullerOptions {
     /// Only blocks within this plan-view distance of the viewer give occluders (the seed's
     /// "local model"), metres.
     pub local_radius: f64,
-    /// At most this many occluders per frame, the largest by `length × height / distance²`.
+    /// At most this many building occluders per frame, the largest by
+    /// `length × height / distance²` (height above the city's lowest ground), and as many
+    /// terrain occluders, chosen apart.
     pub max_occluders: usize,
     /// Skip occlusion culling when the eye is higher than this many times the tallest candidate
     /// occluder (the shadows would be small and drawing them cannot pay).
@@ -412,8 +414,16 @@ impl OcclusionCuller {
         let r = self.opts.local_radius;
         let reach = near_plane_reach(camera);
         let mut scored: Vec<(f64, Occluder)> = Vec::new();
+        // The terrain's cells compete among themselves, with a budget of their own, so that
+        // long terrain walls never crowd the buildings' walls out.
+        let mut terrain_scored: Vec<(f64, Occluder)> = Vec::new();
         let mut tallest: f64 = 0.0;
         for b in &self.blocks {
+            let into = if b.block == super::occluders::TERRAIN_OCCLUDER_BLOCK {
+                &mut terrain_scored
+            } else {
+                &mut scored
+            };
             let d = point_rect_distance(v2, b.aabb.min.truncate(), b.aabb.max.truncate());
             if b.aabb.is_empty() || d > r || !frustum.intersects_aabb(&b.aabb) {
                 continue;
@@ -436,12 +446,12 @@ impl OcclusionCuller {
                     // terrain, world heights would make every wall look alike).
                     let score = piece.length() * (piece.height - self.floor).max(0.0)
                         / (dist * dist).max(1.0);
-                    scored.push((score, piece));
+                    into.push((score, piece));
                 }
             }
         }
-        let candidates = scored.len() as u64;
-        if scored.is_empty() {
+        let candidates = (scored.len() + terrain_scored.len()) as u64;
+        if scored.is_empty() && terrain_scored.is_empty() {
             return (0, Some(SkipReason::NoOccluders));
         }
         // Heights above the floor (0 for a flat city), so that the rule means the same on
@@ -449,11 +459,14 @@ impl OcclusionCuller {
         if v.z - self.floor > self.opts.skip_height_factor * (tallest - self.floor) {
             return (candidates, Some(SkipReason::TooHigh));
         }
-        let n = self.opts.max_occluders.min(scored.len());
-        if n < scored.len() {
-            scored.select_nth_unstable_by(n, |a, b| b.0.total_cmp(&a.0));
-            scored.truncate(n);
+        for list in [&mut scored, &mut terrain_scored] {
+            let n = self.opts.max_occluders.min(list.len());
+            if n < list.len() {
+                list.select_nth_unstable_by(n, |a, b| b.0.total_cmp(&a.0));
+                list.truncate(n);
+            }
         }
+        scored.extend(terrain_scored);
         // Nearest first, so that [`Self::build`] can skip walls that nearer ones hide; ties by
         // score, for a deterministic order.
         let mut keyed: Vec<(f64, f64, Occluder)> = scored
