@@ -533,6 +533,46 @@ pub fn map_surface_distance(map: &BlockMap, p: DVec3) -> f64 {
 
 /// Measures the error of `map` against `buildings` (indices into `source.buildings`).
 pub fn measure(map: &BlockMap, source: &Source, buildings: &[u32]) -> ErrorReport {
+    if map.meta.zmin != 0.0 {
+        return measure_on_ground(map, source, buildings);
+    }
+    measure_flat(map, source, buildings)
+}
+
+/// [`measure`] of a map whose ground is not z = 0 (a city on terrain, where a node's heights
+/// start at the lowest ground under its buildings and the terrain is drawn beside the maps).
+/// The terrain hides whatever lies under it, and the ground under a footprint is at least the
+/// building's base (its lowest ground), so a map column reaching below a building's base shows
+/// nothing more than the building standing on its ground: both surfaces are measured in heights
+/// above the node's lowest ground, each building (but a raised part) taken down to it, as over a
+/// flat city. What the terrain itself hides between buildings is not credited: a gap the map
+/// fills is measured from the lowest ground, as a larger error than the visible one.
+fn measure_on_ground(map: &BlockMap, source: &Source, buildings: &[u32]) -> ErrorReport {
+    let zmin = map.meta.zmin;
+    let mut flat_map = map.clone();
+    flat_map.meta.zmin = 0.0;
+    flat_map.meta.zmax = map.meta.zmax - zmin;
+    let mut flat = Source {
+        buildings: vec![None; source.buildings.len()],
+        meshes: source.meshes,
+        city: source.city,
+        terrain: None,
+    };
+    for &i in buildings {
+        if let Some(Some(b)) = source.buildings.get(i as usize) {
+            let raised = b.z0 > b.ground + 1e-9;
+            flat.buildings[i as usize] = Some(SourceBuilding {
+                ground: 0.0,
+                z0: if raised { b.z0 - zmin } else { 0.0 },
+                z1: b.z1 - zmin,
+                ..b.clone()
+            });
+        }
+    }
+    measure_flat(&flat_map, &flat, buildings)
+}
+
+fn measure_flat(map: &BlockMap, source: &Source, buildings: &[u32]) -> ErrorReport {
     let grid = BuildingGrid::new(map, source, buildings);
     let s = map.texel_m();
     let half = map.half_voxel_diagonal();
