@@ -158,19 +158,20 @@ impl Terrain {
         }
 
         // Candidate points in grid coordinates (u, v).
+        let mut ts: Vec<f64> = Vec::with_capacity(16);
         let mut pts: Vec<DVec2> = Vec::new();
         for ring in &rings {
             for w in ring.windows(2) {
                 let a = self.grid_uv(DVec2::new(w[0].x, w[0].y));
                 let b = self.grid_uv(DVec2::new(w[1].x, w[1].y));
-                self.edge_candidates(a, b, &mut pts);
+                self.edge_candidates(a, b, &mut pts, &mut ts);
             }
             // An unclosed ring's closing edge.
             if let (Some(f), Some(l)) = (ring.first(), ring.last()) {
                 if f != l {
                     let a = self.grid_uv(DVec2::new(l.x, l.y));
                     let b = self.grid_uv(DVec2::new(f.x, f.y));
-                    self.edge_candidates(a, b, &mut pts);
+                    self.edge_candidates(a, b, &mut pts, &mut ts);
                 }
             }
         }
@@ -247,10 +248,12 @@ impl Terrain {
     /// The candidate points of one footprint edge `a → b` (grid coordinates): its start, its
     /// crossings with grid lines, and the interior extremum of the surface along each piece
     /// between crossings.
-    fn edge_candidates(&self, a: DVec2, b: DVec2, out: &mut Vec<DVec2>) {
+    fn edge_candidates(&self, a: DVec2, b: DVec2, out: &mut Vec<DVec2>, ts: &mut Vec<f64>) {
         out.push(a);
         let d = b - a;
-        let mut ts: Vec<f64> = vec![0.0, 1.0];
+        // `ts` is the caller's scratch buffer (one allocation per footprint, not per edge).
+        ts.clear();
+        ts.extend([0.0, 1.0]);
         // Grid lines (u, v integer) and the drawn cells' diagonals (u − v integer).
         let diag = (a.x - a.y, b.x - b.y, d.x - d.y);
         for (p, q, dd) in [(a.x, b.x, d.x), (a.y, b.y, d.y), diag] {
