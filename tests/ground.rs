@@ -473,7 +473,8 @@ fn street_walks_keep_their_eye_height_above_the_ground_and_others_clear_it() {
     let frame = scene.city.frame;
     let ground = |p: glam::DVec3| {
         let w = frame.to_world(p);
-        t.sample(DVec2::new(w.x, w.y)).map(|g| g - frame.origin.z)
+        t.sample_drawn(DVec2::new(w.x, w.y))
+            .map(|g| g - frame.origin.z)
     };
     for (choice, frames) in [
         (RouteChoice::Street, 200usize),
