@@ -7,7 +7,7 @@ mod support;
 
 use blockwalk::geom::predicates::{point_in_polygon, Location};
 use blockwalk::geom::{Camera, LocalFrame};
-use blockwalk::importers::dem::{read_dem, DemError, DemGrid, PixelIs};
+use blockwalk::importers::dem::{read_dem, DemGrid, PixelIs};
 use blockwalk::importers::Crs;
 use blockwalk::terrain::{
     BaseRule, GridSpec, GroundError, NodeId, Synthetic, Terrain, TerrainTree, TreeOptions,
@@ -17,7 +17,7 @@ use glam::{DVec2, DVec3};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use std::path::PathBuf;
-use support::skip::{or_skip, skip_always, Need};
+use support::skip::{or_skip, Need};
 
 // ---------------------------------------------------------------------------------------------
 // Helpers
@@ -1055,10 +1055,10 @@ fn a_lon_lat_dem_is_resampled_at_its_ground_spacing() {
 }
 
 // ---------------------------------------------------------------------------------------------
-// The Nepal DEM (once the GeoTIFF reader is in)
+// The Nepal DEM
 
-/// The Nepal DEM, or `None` after a loud skip: when the file is absent (a failure where
-/// `BLOCKWALK_REQUIRE` names `dem`), or when this build's `read_dem` does not read GeoTIFF yet.
+/// The Nepal DEM, or `None` after a loud skip when the file is absent (a failure where
+/// `BLOCKWALK_REQUIRE` names `dem`).
 fn nepal_or_skip(test: &str) -> Option<DemGrid> {
     let path = support::data::shared_data("dem/nepal-langtang-mapbox-terrain/nepal_30m_32645.tif");
     let found = if path.is_file() {
@@ -1067,15 +1067,7 @@ fn nepal_or_skip(test: &str) -> Option<DemGrid> {
         Err(format!("{} absent", path.display()))
     };
     let path = or_skip(Need::Dem, test, found)?;
-    match read_dem(&path) {
-        Ok(d) => Some(d),
-        Err(DemError::Format { problem, .. }) if problem.contains("not implemented") => {
-            eprintln!("SKIP {test}: read_dem cannot read GeoTIFF in this build ({problem})");
-            skip_always(Need::Dem, test, &format!("read_dem: {problem}"));
-            None
-        }
-        Err(e) => panic!("{test}: {e}"),
-    }
+    Some(read_dem(&path).unwrap_or_else(|e| panic!("{test}: {e}")))
 }
 
 #[test]

@@ -138,12 +138,6 @@ pub fn or_skip<T>(need: Need, test: &str, found: Result<T, String>) -> Option<T>
     }
 }
 
-/// Records a skip that no switch turns into a failure: for a state of the code rather than of the
-/// machine (a reader this branch does not have yet), which `BLOCKWALK_REQUIRE` cannot supply.
-pub fn skip_always(need: Need, test: &str, why: &str) {
-    skip_with(need, test, why, "no switch makes this a failure");
-}
-
 /// Records a skip: one line on the real standard error and one in the skip log.
 fn skip(need: Need, test: &str, why: &str) {
     skip_with(
