@@ -507,9 +507,11 @@ pub fn ground_lines(g: &blockwalk::city::build::GroundReport) -> Vec<String> {
             t.nodata_count
         ),
         format!(
-            "ground: {} buildings on it (base rule {}): base {:.1}–{:.1} m (median {:.1}); slope under footprints median {:.1}°, p90 {:.1}°, max {:.1}°; relief under footprints median {:.2} m, max {:.2} m",
+            "ground: {} buildings on it (base rule {}; terrain {:.0} ms, bases {:.0} ms): base {:.1}–{:.1} m (median {:.1}); slope under footprints median {:.1}°, p90 {:.1}°, max {:.1}°; relief under footprints median {:.2} m, max {:.2} m",
             g.placed,
             g.rule,
+            g.terrain_ms,
+            g.place_ms,
             g.base_m.min,
             g.base_m.max,
             g.base_m.median,

@@ -179,11 +179,18 @@ impl Terrain {
         let lo = self.grid_uv(DVec2::new(bb[0], bb[1]));
         let hi = self.grid_uv(DVec2::new(bb[2], bb[3]));
         let clamp_i = |v: f64, n: usize| (v.max(0.0) as usize).min(n - 1);
+        // Points from here on that lie strictly inside: every cell around them reaches under
+        // the footprint, so their slope needs no further test.
+        let mut strictly_inside = vec![false; pts.len()];
         for j in clamp_i(lo.y.ceil(), self.ny())..=clamp_i(hi.y.floor(), self.ny()) {
             for i in clamp_i(lo.x.ceil(), self.nx())..=clamp_i(hi.x.floor(), self.nx()) {
                 let p = self.node_xy(i, j);
-                if point_in_polygon(Coord { x: p.x, y: p.y }, footprint) != Location::Outside {
-                    pts.push(DVec2::new(i as f64, j as f64));
+                match point_in_polygon(Coord { x: p.x, y: p.y }, footprint) {
+                    Location::Outside => {}
+                    l => {
+                        pts.push(DVec2::new(i as f64, j as f64));
+                        strictly_inside.push(l == Location::Inside);
+                    }
                 }
             }
         }
@@ -192,7 +199,7 @@ impl Terrain {
         let (mut lo_h, mut hi_h, mut lo_at) = (f64::INFINITY, f64::NEG_INFINITY, DVec2::ZERO);
         let mut grad2 = 0.0f64;
         let mut nodata = 0;
-        for &uv in &pts {
+        for (&uv, &inside) in pts.iter().zip(&strictly_inside) {
             let Some((i, j, fu, fv)) = self.cell_of(uv) else {
                 nodata += 1;
                 continue;
@@ -210,7 +217,7 @@ impl Terrain {
                 }
                 hi_h = hi_h.max(h);
             }
-            grad2 = grad2.max(self.steepest_around(uv, footprint));
+            grad2 = grad2.max(self.steepest_around(uv, (!inside).then_some(footprint)));
         }
         let samples = pts.len();
         if heights.is_empty() {
@@ -307,8 +314,9 @@ impl Terrain {
     }
 
     /// The largest squared gradient of the bilinear surface at `uv` over the cells that hold it
-    /// and lie (near it) under the footprint.
-    fn steepest_around(&self, uv: DVec2, footprint: &Polygon<f64>) -> f64 {
+    /// and lie (near it) under the footprint; `None` for a point strictly inside the footprint,
+    /// around which every cell does.
+    fn steepest_around(&self, uv: DVec2, footprint: Option<&Polygon<f64>>) -> f64 {
         let range = |v: f64, n: usize| -> (usize, usize) {
             let f = v.floor();
             let hi = (f as usize).min(n - 2);
@@ -325,7 +333,7 @@ impl Terrain {
         let single = i0 == i1 && j0 == j1;
         for j in j0..=j1 {
             for i in i0..=i1 {
-                if !single {
+                if let (false, Some(footprint)) = (single, footprint) {
                     // The cell counts when the footprint reaches into it beside this point.
                     let c = DVec2::new(i as f64 + 0.5, j as f64 + 0.5);
                     let q = self.origin() + (uv + (c - uv) * 1e-7) * self.spacing();

@@ -297,8 +297,12 @@ fn on_ground(
     let Some(g) = &opts.ground else {
         return Ok(None);
     };
+    let t0 = std::time::Instant::now();
     let terrain = ground::load_terrain(g, transform, buildings)?;
-    report.ground = Some(ground::place_buildings(buildings, &terrain, g, report));
+    let terrain_ms = t0.elapsed().as_secs_f64() * 1e3;
+    let mut placed = ground::place_buildings(buildings, &terrain, g, report);
+    placed.terrain_ms = terrain_ms;
+    report.ground = Some(placed);
     Ok(Some(std::sync::Arc::new(terrain)))
 }
 
