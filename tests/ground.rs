@@ -506,3 +506,53 @@ fn street_walks_keep_their_eye_height_above_the_ground_and_others_clear_it() {
         );
     }
 }
+
+#[test]
+fn the_steepest_slope_under_a_footprint_is_the_largest_gradient_found_by_brute_force() {
+    let Some(path) = dem(
+        NEPAL,
+        "the_steepest_slope_under_a_footprint_is_the_largest_gradient_found_by_brute_force",
+    ) else {
+        return;
+    };
+    let dir = generated(120, 9, 32645, (333_000.0, 3_110_000.0));
+    let city = load_on(&dir, GroundOptions::new(&path));
+    let t = city.terrain.clone().unwrap();
+    let s = t.spacing();
+    let mut closest: f64 = f64::INFINITY;
+    for b in &city.buildings {
+        let g = t.ground_under(&b.footprint, BaseRule::Min).unwrap();
+        // The bilinear gradient at dense points under the footprint, in the cell holding each.
+        let mut brute: f64 = 0.0;
+        for p in dense_points(&b.footprint, 0.1) {
+            let Some((i, j, fu, fv)) = t.cell_of(t.grid_uv(p)) else {
+                continue;
+            };
+            let h = [
+                t.raw(i, j),
+                t.raw(i + 1, j),
+                t.raw(i, j + 1),
+                t.raw(i + 1, j + 1),
+            ];
+            let gx = ((h[1] - h[0]) * (1.0 - fv) + (h[3] - h[2]) * fv) / s.x;
+            let gy = ((h[2] - h[0]) * (1.0 - fu) + (h[3] - h[1]) * fu) / s.y;
+            brute = brute.max((gx * gx + gy * gy).sqrt().atan().to_degrees());
+        }
+        assert!(
+            g.slope_deg >= brute - 1e-9,
+            "{}: slope {}° below a sampled {brute}°",
+            b.source_id,
+            g.slope_deg
+        );
+        // The maximum is at a vertex of a cell's part under the footprint, which the dense
+        // points approach to within 0.1 m.
+        assert!(
+            g.slope_deg - brute < 0.5,
+            "{}: slope {}° far above the sampled {brute}°",
+            b.source_id,
+            g.slope_deg
+        );
+        closest = closest.min(g.slope_deg - brute);
+    }
+    assert!(closest < 1e-6, "some footprint's maximum is hit exactly");
+}

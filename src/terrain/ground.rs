@@ -159,19 +159,20 @@ impl Terrain {
 
         // Candidate points in grid coordinates (u, v).
         let mut ts: Vec<f64> = Vec::with_capacity(16);
+        let mut grad2 = 0.0f64;
         let mut pts: Vec<DVec2> = Vec::new();
         for ring in &rings {
             for w in ring.windows(2) {
                 let a = self.grid_uv(DVec2::new(w[0].x, w[0].y));
                 let b = self.grid_uv(DVec2::new(w[1].x, w[1].y));
-                self.edge_candidates(a, b, &mut pts, &mut ts);
+                self.edge_candidates(a, b, &mut pts, &mut ts, &mut grad2);
             }
             // An unclosed ring's closing edge.
             if let (Some(f), Some(l)) = (ring.first(), ring.last()) {
                 if f != l {
                     let a = self.grid_uv(DVec2::new(l.x, l.y));
                     let b = self.grid_uv(DVec2::new(f.x, f.y));
-                    self.edge_candidates(a, b, &mut pts, &mut ts);
+                    self.edge_candidates(a, b, &mut pts, &mut ts, &mut grad2);
                 }
             }
         }
@@ -197,7 +198,6 @@ impl Terrain {
 
         let mut heights = Vec::with_capacity(pts.len());
         let (mut lo_h, mut hi_h, mut lo_at) = (f64::INFINITY, f64::NEG_INFINITY, DVec2::ZERO);
-        let mut grad2 = 0.0f64;
         let mut nodata = 0;
         for (&uv, &inside) in pts.iter().zip(&strictly_inside) {
             let Some((i, j, fu, fv)) = self.cell_of(uv) else {
@@ -217,7 +217,9 @@ impl Terrain {
                 }
                 hi_h = hi_h.max(h);
             }
-            grad2 = grad2.max(self.steepest_around(uv, (!inside).then_some(footprint)));
+            if inside {
+                grad2 = grad2.max(self.steepest_around(uv));
+            }
         }
         let samples = pts.len();
         if heights.is_empty() {
@@ -254,8 +256,18 @@ impl Terrain {
 
     /// The candidate points of one footprint edge `a → b` (grid coordinates): its start, its
     /// crossings with grid lines, and the interior extremum of the surface along each piece
-    /// between crossings.
-    fn edge_candidates(&self, a: DVec2, b: DVec2, out: &mut Vec<DVec2>, ts: &mut Vec<f64>) {
+    /// between crossings. Raises `grad2` to the squared gradient at both ends of each piece, in
+    /// the one cell that holds the piece: with the grid nodes strictly inside the footprint
+    /// (every cell around them), these are all the vertices of the parts of cells under the
+    /// footprint, where the convex squared gradient of each cell has its maximum.
+    fn edge_candidates(
+        &self,
+        a: DVec2,
+        b: DVec2,
+        out: &mut Vec<DVec2>,
+        ts: &mut Vec<f64>,
+        grad2: &mut f64,
+    ) {
         out.push(a);
         let d = b - a;
         // `ts` is the caller's scratch buffer (one allocation per footprint, not per edge).
@@ -299,6 +311,17 @@ impl Terrain {
                 self.raw(i, j + 1),
                 self.raw(i + 1, j + 1),
             ];
+            if [h00, h10, h01, h11].iter().all(|v| v.is_finite()) {
+                let s = self.spacing();
+                for t in [t0, t1] {
+                    let p = a + d * t;
+                    let fu = (p.x - i as f64).clamp(0.0, 1.0);
+                    let fv = (p.y - j as f64).clamp(0.0, 1.0);
+                    let gx = ((h10 - h00) * (1.0 - fv) + (h11 - h01) * fv) / s.x;
+                    let gy = ((h01 - h00) * (1.0 - fu) + (h11 - h10) * fu) / s.y;
+                    *grad2 = grad2.max(gx * gx + gy * gy);
+                }
+            }
             let (ca, cb, cc) = (h10 - h00, h01 - h00, h00 - h10 - h01 + h11);
             let (fu0, fv0) = (a.x - i as f64, a.y - j as f64);
             // h(t) = h00 + ca·fu + cb·fv + cc·fu·fv with fu = fu0 + t·dx, fv = fv0 + t·dy.
@@ -314,9 +337,8 @@ impl Terrain {
     }
 
     /// The largest squared gradient of the bilinear surface at `uv` over the cells that hold it
-    /// and lie (near it) under the footprint; `None` for a point strictly inside the footprint,
-    /// around which every cell does.
-    fn steepest_around(&self, uv: DVec2, footprint: Option<&Polygon<f64>>) -> f64 {
+    /// (for a point strictly inside the footprint, around which every cell lies under it).
+    fn steepest_around(&self, uv: DVec2) -> f64 {
         let range = |v: f64, n: usize| -> (usize, usize) {
             let f = v.floor();
             let hi = (f as usize).min(n - 2);
@@ -330,17 +352,8 @@ impl Terrain {
         let (i0, i1) = range(uv.x, self.nx());
         let (j0, j1) = range(uv.y, self.ny());
         let mut best = 0.0f64;
-        let single = i0 == i1 && j0 == j1;
         for j in j0..=j1 {
             for i in i0..=i1 {
-                if let (false, Some(footprint)) = (single, footprint) {
-                    // The cell counts when the footprint reaches into it beside this point.
-                    let c = DVec2::new(i as f64 + 0.5, j as f64 + 0.5);
-                    let q = self.origin() + (uv + (c - uv) * 1e-7) * self.spacing();
-                    if point_in_polygon(Coord { x: q.x, y: q.y }, footprint) == Location::Outside {
-                        continue;
-                    }
-                }
                 let h = [
                     self.raw(i, j),
                     self.raw(i + 1, j),
