@@ -556,3 +556,40 @@ fn the_steepest_slope_under_a_footprint_is_the_largest_gradient_found_by_brute_f
     }
     assert!(closest < 1e-6, "some footprint's maximum is hit exactly");
 }
+
+#[test]
+fn a_city_without_crs_is_not_put_on_a_georeferenced_dem_by_guess() {
+    let Some(path) = dem(
+        NEPAL,
+        "a_city_without_crs_is_not_put_on_a_georeferenced_dem_by_guess",
+    ) else {
+        return;
+    };
+    // The city lies right on the grid, but without its .prj nothing says so.
+    let dir = generated(30, 1, 32645, (333_000.0, 3_110_000.0));
+    for f in ["buildings.prj", "streets.prj", "parcels.prj"] {
+        let _ = std::fs::remove_file(dir.path().join("city").join(f));
+    }
+    let load = |g: GroundOptions| {
+        CitySource::parse(&dir.path().join("city"), None, None, &[], 0)
+            .unwrap()
+            .with_ground(Some(g))
+            .load(&Default::default(), &mut |_| {})
+    };
+    let err = load(GroundOptions::new(&path)).unwrap_err();
+    let msg = format!(
+        "{err}: {}",
+        std::error::Error::source(&err)
+            .map(|s| s.to_string())
+            .unwrap_or_default()
+    );
+    assert!(
+        msg.contains("has no CRS") && msg.contains("nepal_30m_32645.tif"),
+        "{msg}"
+    );
+    // Asked for, the DEM's coordinates are taken as the city's: here they are the same.
+    let mut g = GroundOptions::new(&path);
+    g.assume_city_frame = true;
+    let city = load(g).unwrap().city;
+    assert_eq!(city.report.ground.as_ref().unwrap().placed, 30);
+}

@@ -640,48 +640,7 @@ fn cliff_scene() -> Scene {
             }
         })
         .collect();
-    let layout = BlockLayout {
-        blocks: buildings
-            .iter()
-            .map(|b| Block {
-                id: BlockId(b.id.0),
-                kind: BlockKind::Block,
-                polygon: b.footprint.clone(),
-                buildings: vec![b.id],
-            })
-            .collect(),
-        source: BlockSource::Streets,
-        street_edges: Vec::new(),
-        dangles: 0,
-    };
-    let city = City {
-        name: "cliff".into(),
-        transform: blockwalk::importers::Crs::Unknown.metric_transform([0.0, 0.0]),
-        frame: LocalFrame {
-            origin: DVec3::ZERO,
-        },
-        buildings,
-        streets: Vec::new(),
-        parcels: Vec::new(),
-        report: CityReport::default(),
-        terrain: Some(Arc::new(terrain)),
-    };
-    let opts = SceneOptions {
-        structures: vec![Structure::Bqr],
-        occlusion: Some(CullerOptions::default()),
-        terrain_occludes: true,
-        ..SceneOptions::default()
-    };
-    Scene::from_loaded(
-        LoadedCity {
-            city,
-            layout: Some(layout),
-            meshes: None,
-        },
-        &opts,
-        &mut |_| {},
-    )
-    .unwrap()
+    scene_of("cliff", buildings, terrain)
 }
 
 /// Eyes 0.1 m above the ground: at the cliff's top edge looking down over it and along it, at
@@ -935,6 +894,12 @@ fn scene_on(
             attributes: Default::default(),
         })
         .collect();
+    scene_of("terrain test", buildings, terrain)
+}
+
+/// A scene of `buildings` on `terrain`, one block per building, with the BqR-tree and the
+/// occlusion culler using the terrain as an occluder.
+fn scene_of(name: &str, buildings: Vec<Building>, terrain: Terrain) -> Scene {
     let layout = BlockLayout {
         blocks: buildings
             .iter()
@@ -950,7 +915,7 @@ fn scene_on(
         dangles: 0,
     };
     let city = City {
-        name: "terrain test".into(),
+        name: name.into(),
         transform: blockwalk::importers::Crs::Unknown.metric_transform([0.0, 0.0]),
         frame: LocalFrame {
             origin: DVec3::ZERO,

@@ -266,7 +266,7 @@ impl Scene {
             Some(t) => {
                 progress("building the terrain tree");
                 let st = terrain::SceneTerrain::build(
-                    (**t).clone(),
+                    t.clone(),
                     city.frame,
                     &crate::terrain::TreeOptions::default(),
                     opts.terrain_tau_px,

@@ -35,19 +35,19 @@ fn to_mesh(m: TerrainMesh) -> Mesh {
 }
 
 impl SceneTerrain {
-    /// The tree of `terrain` (tiles of `opts.tile_cells` cells), every tile's mesh and the
+    /// The tree of `terrain` (shared with the city, not copied; tiles of `opts.tile_cells` cells), every tile's mesh and the
     /// full-resolution mesh in `frame`, cut at `tau_px` pixels.
     ///
     /// # Errors
     /// [`TreeError`] for unusable options.
     pub fn build(
-        terrain: Terrain,
+        terrain: std::sync::Arc<Terrain>,
         frame: LocalFrame,
         opts: &TreeOptions,
         tau_px: f64,
     ) -> Result<Self, TreeError> {
         use rayon::prelude::*;
-        let tree = TerrainTree::build(terrain, opts)?;
+        let tree = TerrainTree::build_shared(terrain, opts)?;
         let ids: Vec<NodeId> = tree.node_ids().collect();
         let tiles = ids
             .par_iter()

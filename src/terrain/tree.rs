@@ -107,7 +107,7 @@ struct Node {
 /// The terrain's level-of-detail tree; see the [module documentation](super) for the design.
 #[derive(Clone, Debug)]
 pub struct TerrainTree {
-    terrain: Terrain,
+    terrain: std::sync::Arc<Terrain>,
     opts: TreeOptions,
     depth: usize,
     levels: Vec<Level>,
@@ -130,6 +130,17 @@ impl TerrainTree {
     /// # Errors
     /// [`TreeError::TileCells`] when `opts.tile_cells` is not a power of two from 2 to 1024.
     pub fn build(terrain: Terrain, opts: &TreeOptions) -> Result<TerrainTree, TreeError> {
+        Self::build_shared(std::sync::Arc::new(terrain), opts)
+    }
+
+    /// [`Self::build`] over a terrain shared with its owner (a city's), not copied.
+    ///
+    /// # Errors
+    /// As [`Self::build`].
+    pub fn build_shared(
+        terrain: std::sync::Arc<Terrain>,
+        opts: &TreeOptions,
+    ) -> Result<TerrainTree, TreeError> {
         let t = opts.tile_cells;
         if !(2..=1024).contains(&t) || !t.is_power_of_two() {
             return Err(TreeError::TileCells { tile_cells: t });
@@ -359,7 +370,7 @@ impl TerrainTree {
     }
     /// The terrain back.
     pub fn into_terrain(self) -> Terrain {
-        self.terrain
+        std::sync::Arc::unwrap_or_clone(self.terrain)
     }
     /// The options it was built with.
     pub fn options(&self) -> TreeOptions {

@@ -67,11 +67,7 @@ pub struct TerrainSweep {
 pub fn merged(terrain: &SceneTerrain, cut: &[usize]) -> Mesh {
     let mut m = Mesh::default();
     for &k in cut {
-        let t = &terrain.tiles[k];
-        let base = m.positions.len() as u32;
-        m.positions.extend_from_slice(&t.positions);
-        m.normals.extend_from_slice(&t.normals);
-        m.indices.extend(t.indices.iter().map(|i| base + i));
+        m.append(&terrain.tiles[k]);
     }
     m
 }

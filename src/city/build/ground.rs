@@ -188,6 +188,18 @@ pub fn load_terrain(
 ) -> Result<Terrain, GroundSetupError> {
     opts.validate().map_err(GroundSetupError::Options)?;
     let dem = crate::importers::read_dem(&opts.dem)?;
+    // A city without a CRS has no place to put a georeferenced DEM: its coordinates would be
+    // read as the DEM's and the buildings silently misplaced if the two happened to overlap.
+    if transform.crs == crate::importers::Crs::Unknown
+        && dem.crs != crate::importers::Crs::Unknown
+        && !opts.assume_city_frame
+    {
+        return Err(GroundSetupError::Options(format!(
+            "{}: the DEM is in {}, but the city has no CRS; state the city's with --crs, or take              the DEM's coordinates as the city's with --dem-in-city-frame",
+            opts.dem.display(),
+            dem.crs.describe()
+        )));
+    }
     let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
     for b in buildings {
         for c in b.footprint.exterior().coords() {
