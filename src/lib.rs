@@ -43,6 +43,7 @@ pub mod render;
 pub mod report;
 pub mod route;
 pub mod scene;
+pub mod stream;
 pub mod terrain;
 pub mod tiles;
 pub mod visibility;

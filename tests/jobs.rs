@@ -136,7 +136,7 @@ fn tiles_on_ground_equal_one_job(
             let prev = got_blocks.insert(b.id, (b.outskirts, b.buildings.clone()));
             assert!(prev.is_none(), "block {} in two tiles", b.id);
         }
-        for f in &r.manifest.files {
+        for f in r.manifest.files.iter().filter(|f| f.path.ends_with(".glb")) {
             let bytes = std::fs::read(dir.join(&f.path)).unwrap();
             for (name, mesh) in glb_nodes(&bytes) {
                 assert!(
@@ -423,9 +423,9 @@ fn a_tile_with_blockmaps_lists_and_merges_its_maps() {
     let maps = r.manifest.blockmaps.as_ref().expect("map figures");
     let n = maps["maps"].as_u64().unwrap() as usize;
     assert!(n >= 1);
-    // The .glb, then the maps' summary (blockmaps.json) and a PNG and a JSON per map, each
-    // listed with its size and hash.
-    assert_eq!(r.manifest.files.len(), 2 + 2 * n);
+    // The .glb, the block mesh pack, the maps' summary (blockmaps.json), a PNG and a JSON per
+    // map, and the hierarchy, each listed with its size and hash.
+    assert_eq!(r.manifest.files.len(), 4 + 2 * n);
     assert!(r
         .manifest
         .files
@@ -439,5 +439,5 @@ fn a_tile_with_blockmaps_lists_and_merges_its_maps() {
         run_tile(&plan_path, t, None).unwrap();
     }
     let (index, _) = merge(&tmp.path().join("jobs")).unwrap();
-    assert_eq!(index.tiles[0].files.len(), 2 + 2 * n);
+    assert_eq!(index.tiles[0].files.len(), 4 + 2 * n);
 }

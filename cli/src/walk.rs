@@ -78,6 +78,40 @@ pub struct Args {
     /// draw faster).
     #[arg(long)]
     pub keep_far: bool,
+    #[command(flatten)]
+    pub stream: StreamArgs,
+}
+
+/// How a tiled city (`jobs merge`'s folder, its `index.json`, or a URL of either) is streamed.
+#[derive(clap::Args, Debug)]
+#[command(next_help_heading = "Streaming a tiled city")]
+pub struct StreamArgs {
+    /// Memory for resident tiles' content (decoded meshes and maps), e.g. 768MiB, 1GiB.
+    #[arg(long, default_value = "768MiB", value_parser = blockwalk::stream::parse_bytes)]
+    pub budget: u64,
+    /// Limit the link to this bandwidth, e.g. 100Mbps, 4Mbps (default: unlimited).
+    #[arg(long, value_parser = blockwalk::stream::LinkSpec::parse_bandwidth)]
+    pub bandwidth: Option<f64>,
+    /// Latency of every request on the link, milliseconds.
+    #[arg(long, default_value_t = 0.0)]
+    pub latency_ms: f64,
+    /// Loader threads (concurrent requests).
+    #[arg(long, default_value_t = 4)]
+    pub workers: usize,
+    /// Frames complete their loads before they are drawn (images then depend on the input
+    /// alone); otherwise the render thread never waits and draws stand-ins.
+    #[arg(long)]
+    pub deterministic: bool,
+    /// Frames of the route ahead whose content is prefetched.
+    #[arg(long, default_value_t = 30)]
+    pub prefetch: usize,
+    /// Pace the walk at this many frames per second (default: as fast as frames are drawn).
+    #[arg(long)]
+    pub fps: Option<f64>,
+    /// Compare every frame with the same frame drawn from fully resident content (pixels
+    /// differing, PSNR); loads that content outside the budget.
+    #[arg(long)]
+    pub check: bool,
 }
 
 /// The walk's GPU renderers: wgpu's with the `render` feature, none without.
@@ -93,6 +127,12 @@ pub fn gpu() -> &'static dyn GpuRenderers {
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
+    if let [one] = args.city.inputs.as_slice() {
+        let loc = one.to_string_lossy();
+        if blockwalk::stream::is_tiled_city(&loc) {
+            return run_streamed(&args, &loc);
+        }
+    }
     let opts = SceneOptions {
         structures: args.structures.clone(),
         occlusion: (args.occlusion != OcclusionMode::Off).then(CullerOptions::default),
@@ -194,5 +234,131 @@ fn print_summary(record: &WalkRecord, out: &std::path::Path) -> anyhow::Result<(
         out.join("report.html").display(),
         record.total_s * 1e3
     );
+    Ok(())
+}
+
+/// A walk over a tiled city, streamed.
+fn run_streamed(args: &Args, location: &str) -> anyhow::Result<()> {
+    use blockwalk::stream::{job, LinkSpec, Mode, StreamOptions};
+    let far = match args.far.mode {
+        FarMode::None => false,
+        FarMode::Blockmaps => true,
+        FarMode::Relief => anyhow::bail!(
+            "--far relief: a tiled city carries BlockMaps (jobs run --blockmaps K), not relief impostors"
+        ),
+    };
+    let mut options = StreamOptions::new(
+        args.stream.budget,
+        args.stream.workers,
+        LinkSpec::new(args.stream.bandwidth, args.stream.latency_ms / 1e3)
+            .map_err(anyhow::Error::msg)?,
+        if args.stream.deterministic {
+            Mode::Deterministic
+        } else {
+            Mode::Realtime
+        },
+        args.far.tau,
+        args.size.pair(),
+        args.stream.prefetch,
+        args.stream.fps,
+    )?;
+    options.far = far;
+    options.check = args.stream.check;
+    options.keep_every = args.render.then_some(args.image_every);
+    let job = job::StreamJob {
+        location: location.to_string(),
+        route: args.route.clone(),
+        frames: args.frames.map(|f| f as usize),
+        streets: args.city.streets.clone(),
+        options,
+    };
+    let bar = super::common::spinner("streaming");
+    if args.json {
+        bar.set_draw_target(indicatif::ProgressDrawTarget::hidden());
+    }
+    let record = job::run_job(&job, &mut |d, n| bar.set_message(format!("frame {d}/{n}")))?;
+    bar.finish_and_clear();
+    let files = report::stream::write(&record, &args.out)
+        .with_context(|| format!("writing the report to {}", args.out.display()))?;
+    let s = &record.run.summary;
+    if args.json {
+        let mut j = report::stream::json(&record);
+        j["out"] = serde_json::json!(args.out);
+        j["files"] = serde_json::json!(files);
+        outln!("{}", serde_json::to_string(&j)?);
+        return Ok(());
+    }
+    let st = &record.city.startup;
+    let mib = |b: u64| b as f64 / 1048576.0;
+    outln!(
+        "{}: {} tiles, {} blocks, {} buildings, {} maps ({:.1} MiB of content) from {}",
+        record.city.index.city,
+        st.tiles,
+        st.blocks,
+        st.buildings,
+        st.maps,
+        mib(st.content_bytes),
+        st.source
+    );
+    for r in &st.refused {
+        outln!(
+            "refused: tile {} ({} buildings not drawn): {}",
+            r.tile,
+            r.buildings,
+            r.why
+        );
+    }
+    outln!(
+        "opened in {:.0} ms ({:.2} MiB read, hierarchy {:.2} MiB in memory); first frame at {:.0} ms",
+        st.seconds * 1e3,
+        mib(st.bytes_read),
+        mib(st.hierarchy_bytes),
+        s.first_frame_s * 1e3
+    );
+    outln!(
+        "route {} with {} frames, {:?} mode, budget {:.0} MiB{}: {} frames with stand-ins, {} episodes (longest {} frames){}",
+        record.route,
+        s.frames,
+        s.options.mode,
+        mib(s.options.budget_bytes),
+        match s.options.link.bits_per_s {
+            Some(b) => format!(", link {:.1} Mb/s + {:.0} ms", b / 1e6, s.options.link.latency_s * 1e3),
+            None => String::new(),
+        },
+        s.frames_with_standins,
+        s.episodes,
+        s.episode_max_frames,
+        match s.first_converged {
+            Some((f, t)) => format!(", first converged frame {f} at {t:.2} s"),
+            None => ", never converged".into(),
+        }
+    );
+    outln!(
+        "loaded {} items ({:.1} MiB), hit rate {:.1} %, {} evicted, resident max {:.0} MiB; render-thread wait {:.3} s in all (max {:.3} s per frame); draw {:.0} ms per frame; peak RSS {}",
+        s.loads,
+        mib(s.bytes_loaded),
+        s.hit_rate * 100.0,
+        s.evictions,
+        mib(s.resident_max_bytes),
+        s.wait_total_s,
+        s.wait_max_s,
+        s.draw_mean_s * 1e3,
+        s.peak_rss_bytes.map(|b| format!("{:.0} MiB", mib(b))).unwrap_or("unknown".into())
+    );
+    if let Some(d) = s.differing_max {
+        outln!(
+            "against fully resident frames: at most {:.2} % of pixels differ, PSNR min {}; converged frames that differ: {}",
+            d * 100.0,
+            s.psnr_min_db.map_or("∞ (identical)".into(), |p| format!("{p:.1} dB")),
+            s.converged_but_different.unwrap_or(0)
+        );
+    }
+    for r in s.refusals.iter().take(10) {
+        outln!("frame {}: {}", r.frame, r.error);
+    }
+    if s.refusals.len() > 10 {
+        outln!("… {} more refusals in stream.json", s.refusals.len() - 10);
+    }
+    outln!("report: {}", args.out.join("stream.json").display());
     Ok(())
 }

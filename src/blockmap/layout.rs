@@ -474,16 +474,32 @@ impl BlockMap {
                 path: json.clone(),
                 what: e.to_string(),
             })?;
-        let img = image::open(png)
-            .map_err(|e| BlockMapError::Io {
-                path: png.to_path_buf(),
-                what: e.to_string(),
-            })?
-            .into_rgba8();
+        let bytes = std::fs::read(png).map_err(|e| BlockMapError::Io {
+            path: png.to_path_buf(),
+            what: e.to_string(),
+        })?;
+        Self::decode_png(meta, &bytes, png)
+    }
+
+    /// A map from its [`BlockMapMeta`] and the bytes of its PNG (as [`BlockMap::write`] writes
+    /// it); `path` names the file in errors.
+    ///
+    /// # Errors
+    /// [`BlockMapError::BadFile`] when the bytes are not a PNG, the image size does not match K
+    /// or the slice count is not valid.
+    pub fn decode_png(
+        meta: BlockMapMeta,
+        bytes: &[u8],
+        path: &Path,
+    ) -> Result<Self, BlockMapError> {
+        let png = path;
         let bad = |what: String| BlockMapError::BadFile {
             path: png.to_path_buf(),
             what,
         };
+        let img = image::load_from_memory_with_format(bytes, image::ImageFormat::Png)
+            .map_err(|e| bad(e.to_string()))?
+            .into_rgba8();
         if !ALLOWED_K.contains(&meta.k) {
             return Err(bad(format!("K = {} is not 32, 64 or 128", meta.k)));
         }

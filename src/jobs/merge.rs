@@ -40,6 +40,10 @@ pub struct TileIndex {
     pub city: String,
     /// The local frame's origin (world metres): meshes in the `.glb` files are relative to it.
     pub frame_origin: [f64; 2],
+    /// The centre of the whole city's metric transform (input CRS units), for layers read
+    /// later into the same frame (e.g. a street layer for a walk).
+    #[serde(default)]
+    pub transform_centre: Option<[f64; 2]>,
     /// Tiles.
     pub tiles: Vec<IndexTile>,
     /// Blocks in all tiles.
@@ -159,6 +163,7 @@ pub fn merge(dir: &Path) -> Result<(TileIndex, PathBuf), JobsError> {
         plan_id: plan.plan_id.clone(),
         city: plan.city.clone(),
         frame_origin: [plan.frame_origin[0].0, plan.frame_origin[1].0],
+        transform_centre: Some([plan.transform_centre[0].0, plan.transform_centre[1].0]),
         blocks: tiles.iter().map(|t| t.blocks.len()).sum(),
         buildings: tiles.iter().map(|t| t.buildings).sum(),
         triangles: tiles.iter().map(|t| t.triangles).sum(),

@@ -36,6 +36,7 @@
 mod cut;
 mod input;
 mod merge;
+pub mod pack;
 mod plan;
 mod tile;
 

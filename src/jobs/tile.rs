@@ -18,6 +18,9 @@ use crate::city::extrude::try_extrude_city;
 use crate::city::{City, Mesh};
 
 use super::input::{empty_like, metric_transform, read_err};
+use super::pack::{
+    hierarchy_path, write_pack, HierBlock, HierMap, TileHierarchy, HIERARCHY_FORMAT,
+};
 use super::*;
 use crate::geom::Rect;
 
@@ -380,6 +383,58 @@ pub fn run_tile(
             crc32: st.crc32,
         });
     }
+    // The blocks' meshes, packed for streaming: one record per block, in the tile's order.
+    let block_meshes: Vec<Mesh> = layout
+        .blocks
+        .iter()
+        .map(|b| {
+            let mut m = Mesh::default();
+            for id in &b.buildings {
+                m.append(&meshes[id.0 as usize]);
+            }
+            m
+        })
+        .collect();
+    let pack_name = format!("tile_{tile:05}.pack");
+    let ranges = if city.buildings.is_empty() {
+        vec![None; layout.blocks.len()]
+    } else {
+        let ppath = dir.join(&pack_name);
+        let r = write_pack(&ppath, &block_meshes)?;
+        let st = FileStamp::of(&ppath)?;
+        files.push(TileFile {
+            path: format!("tiles/{pack_name}"),
+            bytes: st.bytes,
+            crc32: st.crc32,
+        });
+        r
+    };
+    let bounds = crate::index::block_bounds(&city, &layout);
+    let mut hierarchy = TileHierarchy {
+        format: HIERARCHY_FORMAT.into(),
+        plan_id: plan.plan_id.clone(),
+        tile,
+        pack: (!city.buildings.is_empty()).then(|| format!("tiles/{pack_name}")),
+        blocks: layout
+            .blocks
+            .iter()
+            .zip(&bounds)
+            .zip(ranges)
+            .zip(&block_meshes)
+            .map(|(((b, bb), mesh), m)| HierBlock {
+                id: b.id.0,
+                outskirts: b.kind == BlockKind::Outskirts,
+                buildings: b.buildings.len(),
+                triangles: m.triangle_count() as u64,
+                aabb: bb.aabb,
+                sphere: bb.sphere,
+                center: bb.center.to_array(),
+                mesh,
+            })
+            .collect(),
+        maps: Vec::new(),
+    };
+    drop(block_meshes);
     let mut blockmaps = None;
     if let (Some(mo), false) = (maps, city.buildings.is_empty()) {
         // The map builder indexes blocks by id: give it the tile's blocks numbered 0..n.
@@ -425,6 +480,30 @@ pub fn run_tile(
                 crc32: st.crc32,
             });
         }
+        for m in &cm.maps.maps {
+            let name = format!("node_{:x}.png", m.key);
+            let png = files
+                .iter()
+                .find(|f| f.path == format!("tiles/tile_{tile:05}_maps/{name}"))
+                .cloned()
+                .ok_or_else(|| JobsError::TileMismatch {
+                    tile,
+                    file: mdir.join(&name),
+                    why: "a map the tree holds was not written".into(),
+                })?;
+            hierarchy.maps.push(HierMap {
+                key: m.key,
+                parent: m.parent,
+                level: m.level,
+                blocks: m
+                    .blocks
+                    .iter()
+                    .map(|d| layout.blocks[d.0 as usize].id.0)
+                    .collect(),
+                meta: m.map.meta.clone(),
+                png,
+            });
+        }
         let s = cm.summary();
         blockmaps = Some(serde_json::json!({
             "maps": s["maps"],
@@ -435,6 +514,26 @@ pub fn run_tile(
             "thin_features": s["thin_features"],
             "build_s": s["build_s"],
         }));
+    }
+    if !city.buildings.is_empty() {
+        let hpath = hierarchy_path(plan_path, tile);
+        let text = serde_json::to_vec(&hierarchy).map_err(|source| JobsError::Json {
+            file: hpath.clone(),
+            source,
+        })?;
+        crate::output::write_bytes(&hpath, text)
+            .map(drop)
+            .map_err(crate::output::OutputError::into_io)
+            .map_err(|source| JobsError::Io {
+                file: hpath.clone(),
+                source,
+            })?;
+        let st = FileStamp::of(&hpath)?;
+        files.push(TileFile {
+            path: format!("tiles/tile_{tile:05}.hier.json"),
+            bytes: st.bytes,
+            crc32: st.crc32,
+        });
     }
     let tri = |b: &crate::city::BuildingId| meshes[b.0 as usize].indices.len() as u64 / 3;
     let blocks: Vec<TileBlock> = layout

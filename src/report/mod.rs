@@ -7,5 +7,6 @@
 //!   error against frame time, the walk reports of one configuration per route, the diagnoses.
 
 pub mod plot;
+pub mod stream;
 pub mod sweep;
 pub mod walk;
