@@ -5,6 +5,9 @@
 //! time, over a throttled HTTP link with range requests; damaged and missing files are refused
 //! by name and the walk goes on with stand-ins.
 
+mod support;
+use support::skip;
+
 use std::collections::{BTreeSet, HashMap};
 use std::path::{Path, PathBuf};
 use std::sync::OnceLock;
@@ -462,4 +465,61 @@ fn damaged_and_missing_files_are_refused_by_name_and_the_walk_goes_on() {
         let visible = oracle::visible_blocks_supersampled(&list, cam, SIZE.0, SIZE.1, 4);
         assert!(visible.is_subset(&drawn), "frame {}", fr.frame);
     }
+}
+
+/// Astana (32,056 buildings) in tiles draws, once converged, the same frames as Astana whole.
+#[test]
+fn astana_in_tiles_draws_the_same_frames_as_astana_whole() {
+    let Some(dir) = skip::or_skip(
+        skip::Need::Astana,
+        "astana_in_tiles_draws_the_same_frames_as_astana_whole",
+        support::data::astana_dir(),
+    ) else {
+        return;
+    };
+    let tmp = tempfile::tempdir().unwrap();
+    let jobs = tmp.path().join("jobs");
+    let (fp, st) = (
+        dir.join("buildings.shp"),
+        dir.join("streets_blockclass.shp"),
+    );
+    let p = plan(
+        &fp,
+        &st,
+        &PlanOptions {
+            max_buildings: 4000,
+            build: Default::default(),
+        },
+        &mut |_| {},
+    )
+    .unwrap();
+    let plan_path = write_plan(&p, &jobs).unwrap();
+    for t in 0..p.tiles.len() {
+        run_tile(&plan_path, t, None).unwrap();
+    }
+    merge(&jobs).unwrap();
+    let city = StreamCity::open(&jobs.to_string_lossy()).unwrap();
+    assert_eq!(city.startup.buildings, 32_056);
+
+    let source = CitySource::parse(&fp, Some(st), None, &[], 0).unwrap();
+    let whole = source.load(&Default::default(), &mut |_| {}).unwrap().city;
+    let layout = detect(&whole, &BlockOptions::default()).unwrap();
+    let meshes = blockwalk::scene::block_meshes(&whole, &layout);
+    let list: Vec<(BlockId, &Mesh)> = meshes.iter().map(|(b, m)| (*b, m)).collect();
+    let cams: Vec<Camera> = cameras(&city).into_iter().take(24).collect();
+    let mut o = options(Mode::Deterministic, false);
+    o.keep_every = Some(1);
+    let run = play(&city, &cams, &o, &mut |_, _| {}).unwrap();
+    let mut with_buildings = 0;
+    for ((i, img), cam) in run.kept.iter().zip(&cams) {
+        assert!(run.frames[*i].converged());
+        let (want, _) =
+            oracle::shade_with_ground_depth(&list, &Mesh::default(), cam, SIZE.0, SIZE.1);
+        assert!(img == &want, "frame {i} differs from Astana whole");
+        with_buildings += usize::from(run.frames[*i].meshes > 0);
+    }
+    assert!(
+        with_buildings >= 12,
+        "{with_buildings} frames with buildings"
+    );
 }

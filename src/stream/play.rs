@@ -4,9 +4,10 @@
 //!
 //! # Requests (Di Benedetto, §4.4)
 //! Every frame replaces the queue with three classes, in this order:
+//! - **C**, coarser but good enough meanwhile: the ancestors of every missing item the frame
+//!   needs (its stand-ins to be, coarsest first), so that one map covering many blocks
+//!   replaces their boxes after one small transfer;
 //! - **A**, what the frame needs: the maps and block meshes the selection chose (nearest first);
-//! - **C**, coarser but good enough meanwhile: the ancestors of every missing A item (its
-//!   stand-ins to be, coarsest first), so a hole is filled by one map covering many blocks;
 //! - **B**, the neighbourhood ahead: what the selection would need for the cameras of the next
 //!   `prefetch` frames of the route (which is known), nearest in time first.
 //!
@@ -158,7 +159,7 @@ pub struct StreamFrame {
     pub standin_boxes: usize,
     /// Selected items not drawn as themselves (replaced by a stand-in, or covered by one).
     pub replaced: usize,
-    /// Requests queued after the frame, by class A, C, B.
+    /// Requests queued after the frame, by class A (needed), C (coarser stand-ins), B (ahead).
     pub queued: [usize; 3],
     /// Loads received during the frame.
     pub loaded: usize,
@@ -616,7 +617,7 @@ pub fn play(
         let mut reqs: Vec<(Priority, ContentId)> = Vec::new();
         let a = missing(&w);
         for (k, &c) in a.iter().enumerate() {
-            reqs.push(((0, k as u32), c));
+            reqs.push(((1, k as u32), c));
         }
         let mut c_items: Vec<(u32, ContentId)> = Vec::new();
         let ancestors_of = |start: Option<usize>, out: &mut Vec<(u32, ContentId)>| {
@@ -646,7 +647,7 @@ pub fn play(
         c_items.sort();
         c_items.dedup_by_key(|x| x.1);
         for (k, &(_, c)) in c_items.iter().enumerate() {
-            reqs.push(((1, k as u32), c));
+            reqs.push(((0, k as u32), c));
         }
         let mut b_count = 0u32;
         for ahead in cameras.iter().skip(i + 1).take(opts.prefetch_frames) {
@@ -668,9 +669,15 @@ pub fn play(
         f.handoff_s += th.elapsed().as_secs_f64();
         let td = Instant::now();
         let keep = opts.keep_every.is_some_and(|n| n > 0 && i % n == 0);
-        let img = (keep || opts.check).then(|| draw(&drawn, camera, opts.size, false));
+        // Every frame is drawn (the CPU hybrid frame); kept ones again with stand-ins marked.
+        let img = draw(&drawn, camera, opts.size, false);
         if keep {
-            kept.push((i, draw(&drawn, camera, opts.size, true)));
+            let marked = if f.standin_maps > 0 {
+                draw(&drawn, camera, opts.size, true)
+            } else {
+                img.clone()
+            };
+            kept.push((i, marked));
         }
         f.draw_s = td.elapsed().as_secs_f64();
         if first_frame_s.is_none() {
@@ -679,7 +686,7 @@ pub fn play(
         f.resident_bytes = w.cache.used();
         f.at_s = t_walk.elapsed().as_secs_f64();
         // The fully resident twin, drawn from content loaded here, outside the budget.
-        if let (Some(img), Some(reference)) = (img, w.reference.as_mut()) {
+        if let Some(reference) = w.reference.as_mut() {
             let mut full = Drawn::default();
             let get = |c: ContentId, reference: &mut Cache| -> Option<Arc<Resident>> {
                 if let Some(r) = reference.get(c, fi) {
