@@ -17,6 +17,7 @@ pub mod loader;
 pub mod play;
 pub mod serve;
 pub mod source;
+pub mod sweep;
 
 pub use city::{Content, ContentId, ContentKind, StreamCity};
 pub use play::{play, Mode, StreamFrame, StreamOptions, StreamRun, StreamSummary};

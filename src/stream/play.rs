@@ -82,6 +82,9 @@ pub struct StreamOptions {
     pub far: bool,
     /// List every frame's drawn blocks in [`StreamFrame::blocks`] (for checks).
     pub record_blocks: bool,
+    /// Draw every frame again with every block it covers as a mesh (no far field), from content
+    /// loaded outside the budget, and compare: the far field's error against its time.
+    pub mesh_reference: bool,
 }
 
 impl StreamOptions {
@@ -134,6 +137,7 @@ impl StreamOptions {
             keep_every: None,
             far: true,
             record_blocks: false,
+            mesh_reference: false,
         })
     }
 }
@@ -179,6 +183,12 @@ pub struct StreamFrame {
     pub differing_pixels: Option<u64>,
     /// PSNR against the fully resident frame, dB (infinite when equal; with `check`).
     pub psnr_db: Option<f64>,
+    /// With `mesh_reference`: pixels differing from the frame drawn with meshes only.
+    pub mesh_differing_pixels: Option<u64>,
+    /// With `mesh_reference`: PSNR against the mesh-only frame, dB.
+    pub mesh_psnr_db: Option<f64>,
+    /// With `mesh_reference`: seconds drawing the mesh-only frame (content resident).
+    pub mesh_draw_s: Option<f64>,
     /// With `record_blocks`: every block drawn (as a mesh, inside a drawn map, or as a box),
     /// once per time it is drawn.
     #[serde(skip)]
@@ -448,7 +458,7 @@ pub fn play(
         cache: Cache::new(opts.budget_bytes),
         failed: HashMap::new(),
         refusals: Vec::new(),
-        reference: opts.check.then(|| Cache::new(opts.budget_bytes)),
+        reference: (opts.check || opts.mesh_reference).then(|| Cache::new(opts.budget_bytes)),
         parent: city.nodes.iter().map(|n| n.parent).collect(),
     };
     let height = opts.size.1;
@@ -700,8 +710,34 @@ pub fn play(
                     Err(_) => None,
                 }
             };
-            let mut complete = true;
-            for &n in &maps {
+            if opts.mesh_reference {
+                let mut all = Drawn::default();
+                let mut complete = true;
+                let slots = maps
+                    .iter()
+                    .flat_map(|&n| city.nodes[n].blocks.iter().filter_map(|b| city.slot.get(b)))
+                    .copied()
+                    .chain(meshes.iter().copied());
+                for s in slots {
+                    let Some(c) = city.block_content[s] else {
+                        continue;
+                    };
+                    match get(c, reference) {
+                        Some(r) => all.meshes.push((city.bounds[s].id, r)),
+                        None => complete = false,
+                    }
+                }
+                if complete {
+                    let t = Instant::now();
+                    let truth = draw(&all, camera, opts.size, false);
+                    f.mesh_draw_s = Some(t.elapsed().as_secs_f64());
+                    let (d, p) = psnr_and_diff(&img, &truth);
+                    f.mesh_differing_pixels = Some(d);
+                    f.mesh_psnr_db = Some(p);
+                }
+            }
+            let mut complete = opts.check;
+            for &n in maps.iter().filter(|_| opts.check) {
                 match get(content_of_map(n), reference) {
                     Some(r) => {
                         full.maps.push(r);
@@ -710,7 +746,7 @@ pub fn play(
                     None => complete = false,
                 }
             }
-            for &s in &meshes {
+            for &s in meshes.iter().filter(|_| opts.check) {
                 match get(content_of_block(s), reference) {
                     Some(r) => full.meshes.push((city.bounds[s].id, r)),
                     None => complete = false,
