@@ -422,50 +422,104 @@ impl Walker<'_> {
     }
 }
 
-/// Plays `cameras` over `city` (see the module doc).
-///
-/// # Errors
-/// [`StreamError::Bad`] for a far-field hierarchy the selector refuses.
-pub fn play(
-    city: &StreamCity,
-    cameras: &[Camera],
-    opts: &StreamOptions,
-    progress: &mut dyn FnMut(usize, usize),
-) -> Result<StreamRun, StreamError> {
-    let t_walk = Instant::now();
-    let nodes = if opts.far {
-        city.nodes.clone()
-    } else {
-        Vec::new()
-    };
-    let selector = Selector::from_nodes(
-        &nodes,
-        &city.bounds,
-        SelectOptions::new(opts.tau_px, SelectOptions::default().hysteresis)
-            .map_err(|e| StreamError::Bad(e.to_string()))?,
-    )
-    .map_err(|e| StreamError::Bad(format!("the far-field hierarchy: {e}")))?;
-    let link = Arc::new(Link::new(opts.link));
-    let loader = Loader::start(
-        city.contents.clone(),
-        city.source.clone(),
-        link,
-        opts.workers,
-    );
-    let mut w = Walker {
-        city,
-        selector,
-        cache: Cache::new(opts.budget_bytes),
-        failed: HashMap::new(),
-        refusals: Vec::new(),
-        reference: (opts.check || opts.mesh_reference).then(|| Cache::new(opts.budget_bytes)),
-        parent: city.nodes.iter().map(|n| n.parent).collect(),
-    };
-    let height = opts.size.1;
-    let mut frames: Vec<StreamFrame> = Vec::with_capacity(cameras.len());
-    let mut kept = Vec::new();
-    let mut first_frame_s = None;
-    for (i, camera) in cameras.iter().enumerate() {
+/// A streamed walk frame by frame: what [`play`] runs over a route and the viewer runs
+/// live.
+pub struct Streamer<'a> {
+    city: &'a StreamCity,
+    opts: StreamOptions,
+    w: Walker<'a>,
+    loader: Loader,
+    t_walk: Instant,
+    frames: Vec<StreamFrame>,
+    first_frame_s: Option<f64>,
+}
+
+impl std::fmt::Debug for Streamer<'_> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Streamer")
+            .field("frames", &self.frames.len())
+            .field("resident_bytes", &self.w.cache.used())
+            .finish()
+    }
+}
+
+impl<'a> Streamer<'a> {
+    /// Starts the loader over `city` with `opts`.
+    ///
+    /// # Errors
+    /// [`StreamError::Bad`] for a far-field hierarchy the selector refuses.
+    pub fn new(city: &'a StreamCity, opts: &StreamOptions) -> Result<Self, StreamError> {
+        let nodes = if opts.far {
+            city.nodes.clone()
+        } else {
+            Vec::new()
+        };
+        let selector = Selector::from_nodes(
+            &nodes,
+            &city.bounds,
+            SelectOptions::new(opts.tau_px, SelectOptions::default().hysteresis)
+                .map_err(|e| StreamError::Bad(e.to_string()))?,
+        )
+        .map_err(|e| StreamError::Bad(format!("the far-field hierarchy: {e}")))?;
+        let link = Arc::new(Link::new(opts.link));
+        let loader = Loader::start(
+            city.contents.clone(),
+            city.source.clone(),
+            link,
+            opts.workers,
+        );
+        let w = Walker {
+            city,
+            selector,
+            cache: Cache::new(opts.budget_bytes),
+            failed: HashMap::new(),
+            refusals: Vec::new(),
+            reference: (opts.check || opts.mesh_reference).then(|| Cache::new(opts.budget_bytes)),
+            parent: city.nodes.iter().map(|n| n.parent).collect(),
+        };
+        Ok(Self {
+            city,
+            opts: opts.clone(),
+            w,
+            loader,
+            t_walk: Instant::now(),
+            frames: Vec::new(),
+            first_frame_s: None,
+        })
+    }
+
+    /// Seconds since the streamer started.
+    pub fn elapsed_s(&self) -> f64 {
+        self.t_walk.elapsed().as_secs_f64()
+    }
+
+    /// The frames drawn so far.
+    pub fn frames(&self) -> &[StreamFrame] {
+        &self.frames
+    }
+
+    /// Draws the next frame from `camera`, prefetching for the cameras `ahead` (the route's
+    /// next ones; empty when unknown). Returns the image and, with `keep`, the image with
+    /// stand-in maps marked.
+    pub fn frame(
+        &mut self,
+        camera: &Camera,
+        ahead: &[Camera],
+        keep: bool,
+    ) -> (RgbaImage, Option<RgbaImage>) {
+        let Self {
+            city,
+            opts,
+            w,
+            loader,
+            t_walk,
+            frames,
+            first_frame_s,
+        } = self;
+        let city: &StreamCity = city;
+        let opts: &StreamOptions = opts;
+        let i = frames.len();
+        let height = opts.size.1;
         let fi = i as u64;
         let mut f = StreamFrame {
             frame: i,
@@ -660,7 +714,7 @@ pub fn play(
             reqs.push(((0, k as u32), c));
         }
         let mut b_count = 0u32;
-        for ahead in cameras.iter().skip(i + 1).take(opts.prefetch_frames) {
+        for ahead in ahead.iter().take(opts.prefetch_frames) {
             let s = w.selector.select_frozen(ahead, height, None);
             let (pm, pb) = w.wanted(&s);
             for c in pm
@@ -678,20 +732,18 @@ pub fn play(
         loader.request(&reqs);
         f.handoff_s += th.elapsed().as_secs_f64();
         let td = Instant::now();
-        let keep = opts.keep_every.is_some_and(|n| n > 0 && i % n == 0);
         // Every frame is drawn (the CPU hybrid frame); kept ones again with stand-ins marked.
         let img = draw(&drawn, camera, opts.size, false);
-        if keep {
-            let marked = if f.standin_maps > 0 {
+        let marked = keep.then(|| {
+            if f.standin_maps > 0 {
                 draw(&drawn, camera, opts.size, true)
             } else {
                 img.clone()
-            };
-            kept.push((i, marked));
-        }
+            }
+        });
         f.draw_s = td.elapsed().as_secs_f64();
         if first_frame_s.is_none() {
-            first_frame_s = Some(city.startup.seconds + t_walk.elapsed().as_secs_f64());
+            *first_frame_s = Some(city.startup.seconds + t_walk.elapsed().as_secs_f64());
         }
         f.resident_bytes = w.cache.used();
         f.at_s = t_walk.elapsed().as_secs_f64();
@@ -760,22 +812,54 @@ pub fn play(
             }
         }
         frames.push(f);
+        (img, marked)
+    }
+
+    /// The figures of the frames drawn.
+    pub fn summary(&self) -> StreamSummary {
+        summarise(
+            &self.frames,
+            &self.opts,
+            self.first_frame_s.unwrap_or(self.city.startup.seconds),
+            &self.w,
+        )
+    }
+
+    /// The frames and the figures.
+    pub fn finish(self) -> (Vec<StreamFrame>, StreamSummary) {
+        let s = self.summary();
+        (self.frames, s)
+    }
+}
+
+/// Plays `cameras` over `city` (see the module doc).
+///
+/// # Errors
+/// [`StreamError::Bad`] for a far-field hierarchy the selector refuses.
+pub fn play(
+    city: &StreamCity,
+    cameras: &[Camera],
+    opts: &StreamOptions,
+    progress: &mut dyn FnMut(usize, usize),
+) -> Result<StreamRun, StreamError> {
+    let mut s = Streamer::new(city, opts)?;
+    let mut kept = Vec::new();
+    for (i, camera) in cameras.iter().enumerate() {
+        let keep = opts.keep_every.is_some_and(|n| n > 0 && i % n == 0);
+        let (_, marked) = s.frame(camera, &cameras[i + 1..], keep);
+        if let Some(m) = marked {
+            kept.push((i, m));
+        }
         progress(i + 1, cameras.len());
         if let (Some(fps), Mode::Realtime) = (opts.fps, opts.mode) {
             let due = Duration::from_secs_f64((i + 1) as f64 / fps);
-            let now = t_walk.elapsed();
+            let now = Duration::from_secs_f64(s.elapsed_s());
             if due > now {
                 std::thread::sleep(due - now);
             }
         }
     }
-    let summary = summarise(
-        &frames,
-        opts,
-        first_frame_s.unwrap_or(city.startup.seconds),
-        &w,
-    );
-    drop(loader);
+    let (frames, summary) = s.finish();
     Ok(StreamRun {
         frames,
         summary,
