@@ -558,3 +558,71 @@ pub fn ground_lines(g: &blockwalk::city::build::GroundReport) -> Vec<String> {
     }
     out
 }
+
+/// How a tiled city (`jobs merge`'s folder, its `index.json`, or a URL of either) is streamed.
+#[derive(clap::Args, Debug)]
+#[command(next_help_heading = "Streaming a tiled city")]
+pub struct StreamArgs {
+    /// Memory for resident tiles' content (decoded meshes and maps), e.g. 768MiB, 1GiB.
+    #[arg(long, default_value = "768MiB", value_parser = blockwalk::stream::parse_bytes)]
+    pub budget: u64,
+    /// Limit the link to this bandwidth, e.g. 100Mbps, 4Mbps (default: unlimited).
+    #[arg(long, value_parser = blockwalk::stream::LinkSpec::parse_bandwidth)]
+    pub bandwidth: Option<f64>,
+    /// Latency of every request on the link, milliseconds.
+    #[arg(long, default_value_t = 0.0)]
+    pub latency_ms: f64,
+    /// Loader threads (concurrent requests).
+    #[arg(long, default_value_t = 4)]
+    pub workers: usize,
+    /// Frames complete their loads before they are drawn (images then depend on the input
+    /// alone); otherwise the render thread never waits and draws stand-ins.
+    #[arg(long)]
+    pub deterministic: bool,
+    /// Frames of the route ahead whose content is prefetched.
+    #[arg(long, default_value_t = 30)]
+    pub prefetch: usize,
+    /// Pace the walk at this many frames per second (default: as fast as frames are drawn).
+    #[arg(long)]
+    pub fps: Option<f64>,
+    /// Compare every frame with the same frame drawn from fully resident content (pixels
+    /// differing, PSNR); loads that content outside the budget.
+    #[arg(long)]
+    pub check: bool,
+}
+
+impl StreamArgs {
+    /// The streamed walk's options these arguments and `far` (τ, BlockMaps or none) ask for,
+    /// at `size` pixels.
+    pub fn options(
+        &self,
+        far: &FarArgs,
+        size: (u32, u32),
+    ) -> anyhow::Result<blockwalk::stream::StreamOptions> {
+        use blockwalk::stream::{LinkSpec, Mode, StreamOptions};
+        use blockwalk::walk::FarMode;
+        let use_far = match far.mode {
+            FarMode::None => false,
+            FarMode::Blockmaps => true,
+            FarMode::Relief => anyhow::bail!(
+                "--far relief: a tiled city carries BlockMaps (jobs run --blockmaps K), not relief impostors"
+            ),
+        };
+        let mut o = StreamOptions::new(
+            self.budget,
+            self.workers,
+            LinkSpec::new(self.bandwidth, self.latency_ms / 1e3).map_err(anyhow::Error::msg)?,
+            if self.deterministic {
+                Mode::Deterministic
+            } else {
+                Mode::Realtime
+            },
+            far.tau,
+            size,
+            self.prefetch,
+            self.fps,
+        )?;
+        o.far = use_far;
+        Ok(o)
+    }
+}

@@ -54,6 +54,8 @@ pub struct Args {
     pub seed: u64,
     #[command(flatten)]
     pub far: super::common::FarArgs,
+    #[command(flatten)]
+    pub stream: super::common::StreamArgs,
     /// Print one JSON object at the end instead of the human summary.
     #[arg(long)]
     pub json: bool,
@@ -90,6 +92,12 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     use blockwalk::scene::SceneOptions;
     use blockwalk::visibility::CullerOptions;
 
+    if let [one] = args.city.inputs.as_slice() {
+        let loc = one.to_string_lossy();
+        if blockwalk::stream::is_tiled_city(&loc) {
+            return run_streamed(&args, &loc);
+        }
+    }
     let occlusion = args.occlusion == Switch::On;
     anyhow::ensure!(
         args.structure.culls_blocks(),
@@ -186,6 +194,61 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 summary.far_nodes_mean
             );
         }
+        if let Some(p) = &summary.screenshot {
+            outln!("screenshot: {}", p.display());
+        }
+    }
+    Ok(())
+}
+
+/// The viewer over a tiled city, streamed.
+#[cfg(feature = "window")]
+fn run_streamed(args: &Args, location: &str) -> anyhow::Result<()> {
+    use anyhow::Context;
+    use blockwalk::render::window::ViewerOptions;
+    use blockwalk::render::window_stream::run_stream_viewer;
+    anyhow::ensure!(
+        args.speed.is_finite() && args.speed > 0.0,
+        "--speed {}: expected a positive number",
+        args.speed
+    );
+    let opts = args.stream.options(&args.far, args.size.pair())?;
+    let city = blockwalk::stream::StreamCity::open(location)?;
+    let (route, _) = blockwalk::stream::job::route_for(
+        &city,
+        &args.route,
+        args.city.streets.as_deref(),
+        args.size.aspect(),
+    )?;
+    eprintln!("{KEYS}");
+    let summary = run_stream_viewer(
+        &city,
+        &opts,
+        route,
+        ViewerOptions {
+            width: args.size.width,
+            height: args.size.height,
+            screenshot: args.screenshot.clone(),
+            frames: args.frames as usize,
+            speed: args.speed,
+        },
+    )
+    .with_context(|| format!("viewing {location}"))?;
+    let name = &city.index.city;
+    if args.json {
+        let mut j = serde_json::to_value(&summary)?;
+        j["city"] = serde_json::json!(name);
+        j["streamed"] = serde_json::json!(city.startup);
+        outln!("{}", serde_json::to_string(&j)?);
+    } else {
+        outln!(
+            "{name} (streamed from {}): {} frames at {:.1} fps on {} (frames drawn by the CPU hybrid renderer), {:.1} maps per frame",
+            city.startup.source,
+            summary.frames,
+            summary.fps,
+            summary.adapter,
+            summary.far_nodes_mean
+        );
         if let Some(p) = &summary.screenshot {
             outln!("screenshot: {}", p.display());
         }

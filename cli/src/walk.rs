@@ -79,39 +79,7 @@ pub struct Args {
     #[arg(long)]
     pub keep_far: bool,
     #[command(flatten)]
-    pub stream: StreamArgs,
-}
-
-/// How a tiled city (`jobs merge`'s folder, its `index.json`, or a URL of either) is streamed.
-#[derive(clap::Args, Debug)]
-#[command(next_help_heading = "Streaming a tiled city")]
-pub struct StreamArgs {
-    /// Memory for resident tiles' content (decoded meshes and maps), e.g. 768MiB, 1GiB.
-    #[arg(long, default_value = "768MiB", value_parser = blockwalk::stream::parse_bytes)]
-    pub budget: u64,
-    /// Limit the link to this bandwidth, e.g. 100Mbps, 4Mbps (default: unlimited).
-    #[arg(long, value_parser = blockwalk::stream::LinkSpec::parse_bandwidth)]
-    pub bandwidth: Option<f64>,
-    /// Latency of every request on the link, milliseconds.
-    #[arg(long, default_value_t = 0.0)]
-    pub latency_ms: f64,
-    /// Loader threads (concurrent requests).
-    #[arg(long, default_value_t = 4)]
-    pub workers: usize,
-    /// Frames complete their loads before they are drawn (images then depend on the input
-    /// alone); otherwise the render thread never waits and draws stand-ins.
-    #[arg(long)]
-    pub deterministic: bool,
-    /// Frames of the route ahead whose content is prefetched.
-    #[arg(long, default_value_t = 30)]
-    pub prefetch: usize,
-    /// Pace the walk at this many frames per second (default: as fast as frames are drawn).
-    #[arg(long)]
-    pub fps: Option<f64>,
-    /// Compare every frame with the same frame drawn from fully resident content (pixels
-    /// differing, PSNR); loads that content outside the budget.
-    #[arg(long)]
-    pub check: bool,
+    pub stream: super::common::StreamArgs,
 }
 
 /// The walk's GPU renderers: wgpu's with the `render` feature, none without.
@@ -239,30 +207,8 @@ fn print_summary(record: &WalkRecord, out: &std::path::Path) -> anyhow::Result<(
 
 /// A walk over a tiled city, streamed.
 fn run_streamed(args: &Args, location: &str) -> anyhow::Result<()> {
-    use blockwalk::stream::{job, LinkSpec, Mode, StreamOptions};
-    let far = match args.far.mode {
-        FarMode::None => false,
-        FarMode::Blockmaps => true,
-        FarMode::Relief => anyhow::bail!(
-            "--far relief: a tiled city carries BlockMaps (jobs run --blockmaps K), not relief impostors"
-        ),
-    };
-    let mut options = StreamOptions::new(
-        args.stream.budget,
-        args.stream.workers,
-        LinkSpec::new(args.stream.bandwidth, args.stream.latency_ms / 1e3)
-            .map_err(anyhow::Error::msg)?,
-        if args.stream.deterministic {
-            Mode::Deterministic
-        } else {
-            Mode::Realtime
-        },
-        args.far.tau,
-        args.size.pair(),
-        args.stream.prefetch,
-        args.stream.fps,
-    )?;
-    options.far = far;
+    use blockwalk::stream::job;
+    let mut options = args.stream.options(&args.far, args.size.pair())?;
     options.check = args.stream.check;
     options.keep_every = args.render.then_some(args.image_every);
     let job = job::StreamJob {

@@ -33,17 +33,21 @@ fn out_dir() -> PathBuf {
 /// orbit frames to `shot`; returns its JSON summary, or `None` (skip) without a display server or
 /// a GPU.
 fn view(test: &str, extra: &[&str], shot: &Path) -> Option<serde_json::Value> {
+    view_city(test, &support::data::data("helsinki"), extra, shot)
+}
+
+/// [`view`] of `city` (a city folder, or a tiled city's folder).
+fn view_city(test: &str, city: &Path, extra: &[&str], shot: &Path) -> Option<serde_json::Value> {
     let xvfb = or_skip(
         Need::Display,
         test,
         xvfb_run().ok_or_else(|| "xvfb-run is not installed (apt-get install xvfb xauth)".into()),
     )?;
-    let city = support::data::data("helsinki");
     let out = Command::new(xvfb)
         .args(["-a", "-s", "-screen 0 1280x720x24"])
         .arg(env!("CARGO_BIN_EXE_blockwalk"))
         .arg("view")
-        .arg(&city)
+        .arg(city)
         .args(["--route", "orbit", "--frames", "3", "--size", "320x180"])
         .arg("--screenshot")
         .arg(shot)
@@ -161,4 +165,86 @@ fn without_a_display_the_viewer_says_so_in_one_line() {
         "{err}"
     );
     assert!(!err.contains(".cargo") && !err.contains("winit"), "{err}");
+}
+
+fn run_ok(args: &[&str]) -> String {
+    let o = Command::new(env!("CARGO_BIN_EXE_blockwalk"))
+        .args(args)
+        .output()
+        .expect("run blockwalk");
+    assert!(
+        o.status.success(),
+        "{args:?}: {}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    String::from_utf8_lossy(&o.stdout).into_owned()
+}
+
+#[test]
+fn the_window_streams_a_tiled_city_and_shows_the_walks_frame() {
+    let test = "the_window_streams_a_tiled_city_and_shows_the_walks_frame";
+    let dir = out_dir().join("tiled");
+    let _ = std::fs::remove_dir_all(&dir);
+    let jobs = dir.join("jobs");
+    let h = support::data::data("helsinki");
+    let (fp, st) = (h.join("buildings.shp"), h.join("streets_blockclass.shp"));
+    let j = jobs.to_str().unwrap();
+    let cmds = run_ok(&[
+        "jobs",
+        "plan",
+        fp.to_str().unwrap(),
+        "--streets",
+        st.to_str().unwrap(),
+        "-o",
+        j,
+        "--max-buildings",
+        "150",
+    ]);
+    let plan = jobs.join("plan.json");
+    let n = cmds.lines().filter(|l| l.contains("jobs run")).count();
+    for t in 0..n {
+        run_ok(&[
+            "jobs",
+            "run",
+            plan.to_str().unwrap(),
+            "--tile",
+            &t.to_string(),
+            "--blockmaps",
+            "32",
+        ]);
+    }
+    run_ok(&["jobs", "merge", j]);
+    let shot = dir.join("window.png");
+    let args = ["--far", "blockmaps", "--tau", "2", "--deterministic"];
+    let Some(v) = view_city(test, &jobs, &args, &shot) else {
+        return;
+    };
+    assert_eq!(v["frames"], 3);
+    assert_eq!(v["streamed"]["buildings"], 496, "{v}");
+    // The walk's deterministic frames of the same three cameras.
+    let walk = dir.join("walk");
+    run_ok(&[
+        "walk",
+        j,
+        "--route",
+        "orbit",
+        "--frames",
+        "3",
+        "--size",
+        "320x180",
+        "--render",
+        "--image-every",
+        "1",
+        "--out",
+        walk.to_str().unwrap(),
+        "--far",
+        "blockmaps",
+        "--tau",
+        "2",
+        "--deterministic",
+    ]);
+    let strip = load(&walk.join("strip.png"));
+    let last = image::imageops::crop_imm(&strip, 2 * (320 + 4), 0, 320, 180).to_image();
+    let window = load(&shot);
+    assert!(window == last, "the window shows the walk's frame");
 }

@@ -31,6 +31,8 @@ mod pack;
 mod relief;
 #[cfg(feature = "window")]
 pub mod window;
+#[cfg(feature = "window")]
+pub mod window_stream;
 
 pub use blockmap::{BlockMapRenderer, FarPass, FarReadback, NO_MAP};
 pub use frames::{FarRenderer, GpuFrameRenderer, HybridFrame, WgpuRenderers};

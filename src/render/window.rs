@@ -240,7 +240,7 @@ pub struct ViewerSummary {
 
 /// False where a window needs `DISPLAY` or `WAYLAND_DISPLAY` and neither is set (a free
 /// desktop Unix); true elsewhere (Windows and macOS always have their window server).
-fn display_available() -> bool {
+pub(crate) fn display_available() -> bool {
     if cfg!(any(
         target_os = "windows",
         target_os = "macos",
@@ -283,16 +283,13 @@ pub fn run_viewer(
     let mut camera = scene.route.camera_at(scene.route.start());
     camera.aspect = options.width as f64 / options.height as f64;
     let mut app = App {
-        playing: options.screenshot.is_some(),
+        controls: Controls::new(options.screenshot.is_some()),
         scene,
         options,
         state: None,
         error: None,
         camera,
         route_t: 0.0,
-        keys: HashSet::new(),
-        dragging: false,
-        last_cursor: None,
         last_tick: Instant::now(),
         started: Instant::now(),
         title_at: Instant::now(),
@@ -323,17 +320,264 @@ pub fn run_viewer(
     Ok(app.summary)
 }
 
+/// A window with a wgpu surface that frames are copied into: the instance with the window's
+/// display, an adapter able to present to it, its device, an 8-bit RGBA or BGRA format.
+pub(crate) struct WindowSurface {
+    pub(crate) window: Arc<Window>,
+    surface: wgpu::Surface<'static>,
+    pub(crate) config: wgpu::SurfaceConfiguration,
+    pub(crate) gpu: Gpu,
+    /// Swap red and blue when writing into the surface.
+    bgra: bool,
+}
+
+impl WindowSurface {
+    /// Opens a window titled `title` of `width × height` pixels and its surface.
+    pub(crate) fn open(
+        event_loop: &ActiveEventLoop,
+        title: String,
+        width: u32,
+        height: u32,
+    ) -> Result<Self, WindowError> {
+        let attrs = Window::default_attributes()
+            .with_title(title)
+            .with_inner_size(PhysicalSize::new(width, height));
+        let window = Arc::new(
+            event_loop
+                .create_window(attrs)
+                .map_err(|source| WindowError::CreateWindow { source })?,
+        );
+        let instance = wgpu::Instance::new(
+            wgpu::InstanceDescriptor::new_with_display_handle_from_env(Box::new(window.clone())),
+        );
+        let surface = instance
+            .create_surface(window.clone())
+            .map_err(|source| WindowError::CreateSurface { source })?;
+        let adapter = pollster::block_on(instance.request_adapter(&wgpu::RequestAdapterOptions {
+            power_preference: wgpu::PowerPreference::HighPerformance,
+            force_fallback_adapter: false,
+            compatible_surface: Some(&surface),
+            apply_limit_buckets: false,
+        }))
+        .map_err(|source| RenderError::NoAdapter { source })?;
+        let gpu = Gpu::from_adapter(adapter)?;
+        let caps = surface.get_capabilities(&gpu.adapter);
+        if !caps.usages.contains(wgpu::TextureUsages::COPY_DST) {
+            return Err(WindowError::SurfaceNotWritable {
+                adapter: gpu.adapter_name(),
+                usages: caps.usages,
+            });
+        }
+        // Frames are plain (non-sRGB) RGBA8: take a surface format with the same bytes.
+        let (format, bgra) = [
+            (wgpu::TextureFormat::Rgba8Unorm, false),
+            (wgpu::TextureFormat::Bgra8Unorm, true),
+            (wgpu::TextureFormat::Rgba8UnormSrgb, false),
+            (wgpu::TextureFormat::Bgra8UnormSrgb, true),
+        ]
+        .into_iter()
+        .find(|(f, _)| caps.formats.contains(f))
+        .ok_or_else(|| WindowError::NoSurfaceFormat {
+            formats: caps.formats.clone(),
+        })?;
+        let size = window.inner_size();
+        let (width, height) = (size.width.max(1), size.height.max(1));
+        let mut config = surface
+            .get_default_config(&gpu.adapter, width, height)
+            .ok_or_else(|| WindowError::SurfaceUnsupported {
+                adapter: gpu.adapter_name(),
+            })?;
+        config.format = format;
+        config.usage = wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::COPY_DST;
+        config.present_mode = wgpu::PresentMode::Fifo;
+        surface.configure(&gpu.device, &config);
+        Ok(Self {
+            window,
+            surface,
+            config,
+            gpu,
+            bgra,
+        })
+    }
+
+    /// The surface at `width × height`.
+    pub(crate) fn reconfigure(&mut self, width: u32, height: u32) {
+        self.config.width = width;
+        self.config.height = height;
+        self.surface.configure(&self.gpu.device, &self.config);
+    }
+
+    /// Copies `rgba` (`width × height`, RGBA8) into the next surface texture and presents it
+    /// (a frame of another size than the surface's is not copied). Returns false when no frame
+    /// could be shown this time (timeout, occluded, the surface outdated and reconfigured).
+    pub(crate) fn show(&self, rgba: &[u8], width: u32, height: u32) -> Result<bool, WindowError> {
+        let texture = match self.surface.get_current_texture() {
+            wgpu::CurrentSurfaceTexture::Success(t)
+            | wgpu::CurrentSurfaceTexture::Suboptimal(t) => t,
+            wgpu::CurrentSurfaceTexture::Timeout | wgpu::CurrentSurfaceTexture::Occluded => {
+                return Ok(false);
+            }
+            wgpu::CurrentSurfaceTexture::Outdated | wgpu::CurrentSurfaceTexture::Lost => {
+                self.surface.configure(&self.gpu.device, &self.config);
+                return Ok(false);
+            }
+            wgpu::CurrentSurfaceTexture::Validation => {
+                return Err(WindowError::AcquireFrame);
+            }
+        };
+        let tex_size = texture.texture.size();
+        if tex_size.width == width && tex_size.height == height {
+            let mut bytes = rgba.to_vec();
+            if self.bgra {
+                for p in bytes.chunks_exact_mut(4) {
+                    p.swap(0, 2);
+                }
+            }
+            self.gpu.queue.write_texture(
+                wgpu::TexelCopyTextureInfo {
+                    texture: &texture.texture,
+                    mip_level: 0,
+                    origin: wgpu::Origin3d::ZERO,
+                    aspect: wgpu::TextureAspect::All,
+                },
+                &bytes,
+                wgpu::TexelCopyBufferLayout {
+                    offset: 0,
+                    bytes_per_row: Some(width * 4),
+                    rows_per_image: Some(height),
+                },
+                tex_size,
+            );
+            self.gpu.queue.submit([]);
+        }
+        self.gpu.queue.present(texture);
+        Ok(true)
+    }
+}
+
+/// The viewer's controls: keys held, the mouse drag, and whether the route plays.
+#[derive(Debug, Default)]
+pub(crate) struct Controls {
+    keys: HashSet<KeyCode>,
+    dragging: bool,
+    last_cursor: Option<(f64, f64)>,
+    /// The camera follows the route.
+    pub(crate) playing: bool,
+}
+
+impl Controls {
+    /// Controls with the route playing or not.
+    pub(crate) fn new(playing: bool) -> Self {
+        Self {
+            playing,
+            ..Self::default()
+        }
+    }
+
+    /// Handles a keyboard or mouse event (keys held, P, dragging to look around with
+    /// `camera`); returns true for Esc.
+    pub(crate) fn input(&mut self, event: &WindowEvent, camera: &mut Camera) -> bool {
+        match event {
+            WindowEvent::KeyboardInput { event, .. } => {
+                let PhysicalKey::Code(code) = event.physical_key else {
+                    return false;
+                };
+                match event.state {
+                    ElementState::Pressed => {
+                        if code == KeyCode::Escape {
+                            return true;
+                        } else if code == KeyCode::KeyP && !event.repeat {
+                            self.playing = !self.playing;
+                            if !self.playing {
+                                // Keep flying from where the route left the camera.
+                                self.last_cursor = None;
+                            }
+                        }
+                        self.keys.insert(code);
+                    }
+                    ElementState::Released => {
+                        self.keys.remove(&code);
+                    }
+                }
+            }
+            WindowEvent::MouseInput {
+                state,
+                button: MouseButton::Left,
+                ..
+            } => {
+                self.dragging = *state == ElementState::Pressed;
+                if !self.dragging {
+                    self.last_cursor = None;
+                }
+            }
+            WindowEvent::CursorMoved { position, .. } => {
+                if self.dragging && !self.playing {
+                    if let Some((x, y)) = self.last_cursor {
+                        let k = 0.004;
+                        camera.yaw -= (position.x - x) * k;
+                        camera.pitch = (camera.pitch - (position.y - y) * k).clamp(-1.55, 1.55);
+                    }
+                }
+                self.last_cursor = Some((position.x, position.y));
+            }
+            _ => {}
+        }
+        false
+    }
+
+    /// Moves `camera` by the keys held for `dt` seconds at `speed` metres per second (Shift:
+    /// five times).
+    pub(crate) fn fly(&self, camera: &mut Camera, speed: f64, dt: f64) {
+        let held = |k: &[KeyCode]| k.iter().any(|k| self.keys.contains(k));
+        let fast = held(&[KeyCode::ShiftLeft, KeyCode::ShiftRight]);
+        let speed = speed * if fast { 5.0 } else { 1.0 };
+        let (s, c) = camera.yaw.sin_cos();
+        let ahead = DVec3::new(c, s, 0.0);
+        let right = DVec3::new(s, -c, 0.0);
+        let mut d = DVec3::ZERO;
+        if held(&[KeyCode::KeyW, KeyCode::ArrowUp]) {
+            d += ahead;
+        }
+        if held(&[KeyCode::KeyS, KeyCode::ArrowDown]) {
+            d -= ahead;
+        }
+        if held(&[KeyCode::KeyD, KeyCode::ArrowRight]) {
+            d += right;
+        }
+        if held(&[KeyCode::KeyA, KeyCode::ArrowLeft]) {
+            d -= right;
+        }
+        if held(&[KeyCode::KeyE, KeyCode::PageUp]) {
+            d.z += 1.0;
+        }
+        if held(&[KeyCode::KeyQ, KeyCode::PageDown]) {
+            d.z -= 1.0;
+        }
+        if d != DVec3::ZERO {
+            camera.position += d.normalize() * speed * dt;
+        }
+    }
+}
+
 /// GPU objects tied to the window.
 struct GpuState {
-    window: Arc<Window>,
-    surface: wgpu::Surface<'static>,
-    config: wgpu::SurfaceConfiguration,
-    gpu: Gpu,
+    surf: WindowSurface,
     renderer: MeshRenderer,
     /// The far field on the GPU, when the scene has one.
     far: Option<FarRenderer>,
-    /// Swap red and blue when writing into the surface.
-    bgra: bool,
+}
+
+impl std::ops::Deref for GpuState {
+    type Target = WindowSurface;
+    fn deref(&self) -> &WindowSurface {
+        &self.surf
+    }
+}
+
+impl std::ops::DerefMut for GpuState {
+    fn deref_mut(&mut self) -> &mut WindowSurface {
+        &mut self.surf
+    }
 }
 
 struct App {
@@ -342,11 +586,8 @@ struct App {
     state: Option<GpuState>,
     error: Option<WindowError>,
     camera: Camera,
-    playing: bool,
+    controls: Controls,
     route_t: f64,
-    keys: HashSet<KeyCode>,
-    dragging: bool,
-    last_cursor: Option<(f64, f64)>,
     last_tick: Instant,
     started: Instant,
     title_at: Instant,
@@ -374,68 +615,19 @@ impl App {
     /// Window, instance with the window's display, surface, adapter able to present to it,
     /// device, renderer.
     fn init(&self, event_loop: &ActiveEventLoop) -> Result<GpuState, WindowError> {
-        let attrs = Window::default_attributes()
-            .with_title(format!("blockwalk — {}", self.scene.scene.name))
-            .with_inner_size(PhysicalSize::new(self.options.width, self.options.height));
-        let window = Arc::new(
-            event_loop
-                .create_window(attrs)
-                .map_err(|source| WindowError::CreateWindow { source })?,
-        );
-        let instance = wgpu::Instance::new(
-            wgpu::InstanceDescriptor::new_with_display_handle_from_env(Box::new(window.clone())),
-        );
-        let surface = instance
-            .create_surface(window.clone())
-            .map_err(|source| WindowError::CreateSurface { source })?;
-        let adapter = pollster::block_on(instance.request_adapter(&wgpu::RequestAdapterOptions {
-            power_preference: wgpu::PowerPreference::HighPerformance,
-            force_fallback_adapter: false,
-            compatible_surface: Some(&surface),
-            apply_limit_buckets: false,
-        }))
-        .map_err(|source| RenderError::NoAdapter { source })?;
-        let gpu = Gpu::from_adapter(adapter)?;
-        let caps = surface.get_capabilities(&gpu.adapter);
-        if !caps.usages.contains(wgpu::TextureUsages::COPY_DST) {
-            return Err(WindowError::SurfaceNotWritable {
-                adapter: gpu.adapter_name(),
-                usages: caps.usages,
-            });
-        }
-        // The renderer writes plain (non-sRGB) RGBA8: take a surface format with the same bytes.
-        let (format, bgra) = [
-            (wgpu::TextureFormat::Rgba8Unorm, false),
-            (wgpu::TextureFormat::Bgra8Unorm, true),
-            (wgpu::TextureFormat::Rgba8UnormSrgb, false),
-            (wgpu::TextureFormat::Bgra8UnormSrgb, true),
-        ]
-        .into_iter()
-        .find(|(f, _)| caps.formats.contains(f))
-        .ok_or_else(|| WindowError::NoSurfaceFormat {
-            formats: caps.formats.clone(),
-        })?;
-        let size = window.inner_size();
-        let (width, height) = (size.width.max(1), size.height.max(1));
-        let mut config = surface
-            .get_default_config(&gpu.adapter, width, height)
-            .ok_or_else(|| WindowError::SurfaceUnsupported {
-                adapter: gpu.adapter_name(),
-            })?;
-        config.format = format;
-        config.usage = wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::COPY_DST;
-        config.present_mode = wgpu::PresentMode::Fifo;
-        surface.configure(&gpu.device, &config);
-        let renderer = self.make_renderer(&gpu, width, height)?;
-        let far = self.make_far(&gpu, width, height)?;
+        let surf = WindowSurface::open(
+            event_loop,
+            format!("blockwalk — {}", self.scene.scene.name),
+            self.options.width,
+            self.options.height,
+        )?;
+        let (width, height) = (surf.config.width, surf.config.height);
+        let renderer = self.make_renderer(&surf.gpu, width, height)?;
+        let far = self.make_far(&surf.gpu, width, height)?;
         Ok(GpuState {
-            window,
-            surface,
-            config,
-            gpu,
+            surf,
             renderer,
             far,
-            bgra,
         })
     }
 
@@ -494,9 +686,7 @@ impl App {
             return Ok(());
         };
         state.far = far;
-        state.config.width = size.width;
-        state.config.height = size.height;
-        state.surface.configure(&state.gpu.device, &state.config);
+        state.reconfigure(size.width, size.height);
         state.renderer = renderer;
         self.camera.aspect = size.width as f64 / size.height as f64;
         Ok(())
@@ -514,46 +704,19 @@ impl App {
                 0.0
             };
             self.route_t = route.start() + route.duration() * f;
-        } else if self.playing {
+        } else if self.controls.playing {
             self.route_t += dt;
             if self.route_t > route.start() + route.duration() {
                 self.route_t = route.start();
             }
         }
-        if self.playing || self.options.screenshot.is_some() {
+        if self.controls.playing || self.options.screenshot.is_some() {
             let aspect = self.camera.aspect;
             self.camera = route.camera_at(self.route_t);
             self.camera.aspect = aspect;
             return;
         }
-        let held = |k: &[KeyCode]| k.iter().any(|k| self.keys.contains(k));
-        let fast = held(&[KeyCode::ShiftLeft, KeyCode::ShiftRight]);
-        let speed = self.options.speed * if fast { 5.0 } else { 1.0 };
-        let (s, c) = self.camera.yaw.sin_cos();
-        let ahead = DVec3::new(c, s, 0.0);
-        let right = DVec3::new(s, -c, 0.0);
-        let mut d = DVec3::ZERO;
-        if held(&[KeyCode::KeyW, KeyCode::ArrowUp]) {
-            d += ahead;
-        }
-        if held(&[KeyCode::KeyS, KeyCode::ArrowDown]) {
-            d -= ahead;
-        }
-        if held(&[KeyCode::KeyD, KeyCode::ArrowRight]) {
-            d += right;
-        }
-        if held(&[KeyCode::KeyA, KeyCode::ArrowLeft]) {
-            d -= right;
-        }
-        if held(&[KeyCode::KeyE, KeyCode::PageUp]) {
-            d.z += 1.0;
-        }
-        if held(&[KeyCode::KeyQ, KeyCode::PageDown]) {
-            d.z -= 1.0;
-        }
-        if d != DVec3::ZERO {
-            self.camera.position += d.normalize() * speed * dt;
-        }
+        self.controls.fly(&mut self.camera, self.options.speed, dt);
     }
 
     /// One frame: cull, draw, present; in screenshot mode save the last frame and quit.
@@ -653,46 +816,9 @@ impl App {
         let Some(state) = self.state.as_ref() else {
             return Ok(());
         };
-        let texture = match state.surface.get_current_texture() {
-            wgpu::CurrentSurfaceTexture::Success(t)
-            | wgpu::CurrentSurfaceTexture::Suboptimal(t) => t,
-            wgpu::CurrentSurfaceTexture::Timeout | wgpu::CurrentSurfaceTexture::Occluded => {
-                return Ok(());
-            }
-            wgpu::CurrentSurfaceTexture::Outdated | wgpu::CurrentSurfaceTexture::Lost => {
-                state.surface.configure(&state.gpu.device, &state.config);
-                return Ok(());
-            }
-            wgpu::CurrentSurfaceTexture::Validation => {
-                return Err(WindowError::AcquireFrame);
-            }
-        };
-        let tex_size = texture.texture.size();
-        if tex_size.width == frame.width && tex_size.height == frame.height {
-            let mut bytes = frame.rgba.clone();
-            if state.bgra {
-                for p in bytes.chunks_exact_mut(4) {
-                    p.swap(0, 2);
-                }
-            }
-            state.gpu.queue.write_texture(
-                wgpu::TexelCopyTextureInfo {
-                    texture: &texture.texture,
-                    mip_level: 0,
-                    origin: wgpu::Origin3d::ZERO,
-                    aspect: wgpu::TextureAspect::All,
-                },
-                &bytes,
-                wgpu::TexelCopyBufferLayout {
-                    offset: 0,
-                    bytes_per_row: Some(frame.width * 4),
-                    rows_per_image: Some(frame.height),
-                },
-                tex_size,
-            );
-            state.gpu.queue.submit([]);
+        if !state.show(&frame.rgba, frame.width, frame.height)? {
+            return Ok(());
         }
-        state.gpu.queue.present(texture);
         self.summary.frames += 1;
         self.summary.blocks = frame.timings.blocks;
         self.summary.triangles = frame.timings.triangles;
@@ -724,7 +850,11 @@ impl App {
                 } else {
                     ""
                 },
-                if self.playing { " — playing" } else { "" },
+                if self.controls.playing {
+                    " — playing"
+                } else {
+                    ""
+                },
             ));
             self.title_at = Instant::now();
             self.title_frames = 0;
@@ -777,50 +907,11 @@ impl ApplicationHandler for App {
                     self.fail(event_loop, e);
                 }
             }
-            WindowEvent::KeyboardInput { event, .. } => {
-                let PhysicalKey::Code(code) = event.physical_key else {
-                    return;
-                };
-                match event.state {
-                    ElementState::Pressed => {
-                        if code == KeyCode::Escape {
-                            event_loop.exit();
-                        } else if code == KeyCode::KeyP && !event.repeat {
-                            self.playing = !self.playing;
-                            if !self.playing {
-                                // Keep flying from where the route left the camera.
-                                self.last_cursor = None;
-                            }
-                        }
-                        self.keys.insert(code);
-                    }
-                    ElementState::Released => {
-                        self.keys.remove(&code);
-                    }
+            other => {
+                if self.controls.input(&other, &mut self.camera) {
+                    event_loop.exit();
                 }
             }
-            WindowEvent::MouseInput {
-                state,
-                button: MouseButton::Left,
-                ..
-            } => {
-                self.dragging = state == ElementState::Pressed;
-                if !self.dragging {
-                    self.last_cursor = None;
-                }
-            }
-            WindowEvent::CursorMoved { position, .. } => {
-                if self.dragging && !self.playing {
-                    if let Some((x, y)) = self.last_cursor {
-                        let k = 0.004;
-                        self.camera.yaw -= (position.x - x) * k;
-                        self.camera.pitch =
-                            (self.camera.pitch - (position.y - y) * k).clamp(-1.55, 1.55);
-                    }
-                }
-                self.last_cursor = Some((position.x, position.y));
-            }
-            _ => {}
         }
     }
 

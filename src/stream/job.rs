@@ -76,6 +76,35 @@ fn street_lines(city: &StreamCity, path: &PathBuf) -> Result<Vec<LineString<f64>
     Ok(out)
 }
 
+/// The route `choice` over `city`'s blocks (the street walk over the street layer `streets`,
+/// read into the city's frame), for images of `aspect`; with its default frame count.
+///
+/// # Errors
+/// A street layer that cannot be read; a route that cannot be made.
+pub fn route_for(
+    city: &StreamCity,
+    choice: &RouteChoice,
+    streets: Option<&std::path::Path>,
+    aspect: f64,
+) -> Result<(crate::route::CameraRoute, Option<usize>), StreamError> {
+    let lines = match streets {
+        Some(p) => street_lines(city, &p.to_path_buf())?,
+        None => Vec::new(),
+    };
+    let ctx = RouteContext {
+        city: &city.index.city,
+        bounds: city.city_box(),
+        street_edges: &lines,
+        buildings: &[],
+        frame: &city.frame,
+        aspect,
+        terrain: None,
+    };
+    choice
+        .resolve(&ctx)
+        .map_err(|e| StreamError::Bad(e.to_string()))
+}
+
 /// Opens the city, makes the route over the blocks' box (the street walk over `streets`),
 /// samples its cameras and plays them.
 ///
@@ -87,23 +116,12 @@ pub fn run_job(
 ) -> Result<StreamRecord, StreamError> {
     let city = StreamCity::open(&job.location)?;
     let rss_after_open = super::play::rss_bytes();
-    let lines = match &job.streets {
-        Some(p) => street_lines(&city, p)?,
-        None => Vec::new(),
-    };
-    let ctx = RouteContext {
-        city: &city.index.city,
-        bounds: city.city_box(),
-        street_edges: &lines,
-        buildings: &[],
-        frame: &city.frame,
-        aspect: job.options.size.0 as f64 / job.options.size.1 as f64,
-        terrain: None,
-    };
-    let (route, default_frames) = job
-        .route
-        .resolve(&ctx)
-        .map_err(|e| StreamError::Bad(e.to_string()))?;
+    let (route, default_frames) = route_for(
+        &city,
+        &job.route,
+        job.streets.as_deref(),
+        job.options.size.0 as f64 / job.options.size.1 as f64,
+    )?;
     let n = job.frames.or(default_frames).unwrap_or(300);
     let cameras = route.sample(n);
     let run = play(&city, &cameras, &job.options, progress)?;

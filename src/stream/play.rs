@@ -488,6 +488,13 @@ impl<'a> Streamer<'a> {
         })
     }
 
+    /// Draws the next frames at `width × height` pixels.
+    pub fn set_size(&mut self, width: u32, height: u32) {
+        if width > 0 && height > 0 {
+            self.opts.size = (width, height);
+        }
+    }
+
     /// Seconds since the streamer started.
     pub fn elapsed_s(&self) -> f64 {
         self.t_walk.elapsed().as_secs_f64()
