@@ -210,9 +210,8 @@ fn converged_streamed_frames_equal_the_whole_city_frames() {
         drawn_something >= cams.len() / 2,
         "{drawn_something} frames show buildings"
     );
-    assert_eq!(
+    assert!(
         run.summary.wait_max_s > 0.0,
-        true,
         "deterministic frames wait for loads"
     );
 }

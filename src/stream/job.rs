@@ -41,7 +41,7 @@ pub struct StreamRecord {
     pub run: StreamRun,
 }
 
-fn street_lines(city: &StreamCity, path: &PathBuf) -> Result<Vec<LineString<f64>>, StreamError> {
+fn street_lines(city: &StreamCity, path: &std::path::Path) -> Result<Vec<LineString<f64>>, StreamError> {
     let layer = blockwalk_importers::read_layer(path, &blockwalk_importers::Theme::Streets)
         .map_err(|e| StreamError::Format {
             file: path.display().to_string(),
@@ -88,7 +88,7 @@ pub fn route_for(
     aspect: f64,
 ) -> Result<(crate::route::CameraRoute, Option<usize>), StreamError> {
     let lines = match streets {
-        Some(p) => street_lines(city, &p.to_path_buf())?,
+        Some(p) => street_lines(city, p)?,
         None => Vec::new(),
     };
     let ctx = RouteContext {

@@ -563,7 +563,7 @@ impl<'a> Streamer<'a> {
                 .collect()
         };
         // Class A first: the frame's own missing items, nearest first (the selection's order).
-        let a: Vec<ContentId> = missing(&w);
+        let a: Vec<ContentId> = missing(w);
         if opts.mode == Mode::Deterministic && !a.is_empty() {
             let tw = Instant::now();
             let reqs: Vec<(Priority, ContentId)> = a
@@ -686,7 +686,7 @@ impl<'a> Streamer<'a> {
         // Requests: A (missing now), C (their ancestors), B (the route ahead).
         let th = Instant::now();
         let mut reqs: Vec<(Priority, ContentId)> = Vec::new();
-        let a = missing(&w);
+        let a = missing(w);
         for (k, &c) in a.iter().enumerate() {
             reqs.push(((1, k as u32), c));
         }
