@@ -46,6 +46,7 @@ mod jobs;
 mod occlusion_bench;
 mod relief;
 mod relief_tree;
+mod serve;
 mod terrain;
 mod tileset;
 mod view;
@@ -92,6 +93,8 @@ enum Command {
     FarfieldSweep(farfield_sweep::Args),
     /// The main job on the bundled real data.
     Demo(demo::Args),
+    /// Serve a tiled city's folder over HTTP (range requests) for streamed walks.
+    Serve(serve::Args),
     /// Fly through the city in a window (feature `window`).
     #[command(after_help = view::KEYS)]
     View(view::Args),
@@ -199,6 +202,7 @@ fn dispatch(command: Command) -> anyhow::Result<()> {
         Command::Walk(a) => walk::run(a),
         Command::FarfieldSweep(a) => farfield_sweep::run(a),
         Command::Demo(a) => demo::run(a),
+        Command::Serve(a) => serve::run(a),
         Command::View(a) => view::run(a),
     }
 }

@@ -90,9 +90,24 @@ fn a_tiled_city_is_walked_by_streaming_from_a_folder_and_over_http() {
     let csv = std::fs::read_to_string(out.join("frames.csv")).unwrap();
     assert_eq!(csv.lines().count(), 13, "a header and 12 frames");
 
-    // The same walk as JSON, from the index file, through a folder the library serves.
-    let server = blockwalk::stream::serve::Server::start(&jobs, "127.0.0.1:0", 2).unwrap();
-    let url = format!("{}index.json", server.url());
+    // The same walk as JSON over HTTP, from `blockwalk serve` on a free port.
+    let mut server = std::process::Command::new(env!("CARGO_BIN_EXE_blockwalk"))
+        .args(["serve", j, "--addr", "127.0.0.1:0"])
+        .stdout(std::process::Stdio::piped())
+        .spawn()
+        .expect("run blockwalk serve");
+    let mut line = String::new();
+    std::io::BufRead::read_line(
+        &mut std::io::BufReader::new(server.stdout.take().unwrap()),
+        &mut line,
+    )
+    .unwrap();
+    let url = line
+        .split_whitespace()
+        .find(|w| w.starts_with("http://"))
+        .unwrap_or_else(|| panic!("no URL in {line:?}"))
+        .to_string();
+    assert!(url.ends_with("index.json"), "{line}");
     let o = blockwalk(&[
         "walk",
         &url,
@@ -117,6 +132,8 @@ fn a_tiled_city_is_walked_by_streaming_from_a_folder_and_over_http() {
     assert_eq!(j["summary"]["frames"], 12);
     assert_eq!(j["summary"]["wait_total_s"], 0.0, "real time never waits");
     assert_eq!(j["startup"]["buildings"], 600);
+    server.kill().unwrap();
+    server.wait().unwrap();
 
     // Refusals, each naming the problem.
     let bad = blockwalk(&["walk", j_str(&jobs), "--far", "relief", "--frames", "2"]);

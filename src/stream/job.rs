@@ -41,7 +41,10 @@ pub struct StreamRecord {
     pub run: StreamRun,
 }
 
-fn street_lines(city: &StreamCity, path: &std::path::Path) -> Result<Vec<LineString<f64>>, StreamError> {
+fn street_lines(
+    city: &StreamCity,
+    path: &std::path::Path,
+) -> Result<Vec<LineString<f64>>, StreamError> {
     let layer = blockwalk_importers::read_layer(path, &blockwalk_importers::Theme::Streets)
         .map_err(|e| StreamError::Format {
             file: path.display().to_string(),
