@@ -17,7 +17,7 @@ use blockwalk::blocks::{detect, BlockId, BlockOptions};
 use blockwalk::city::generate::{generate_city, write_city, GenerateParams};
 use blockwalk::city::Mesh;
 use blockwalk::geom::Camera;
-use blockwalk::jobs::pack::{decode_mesh, TileHierarchy};
+use blockwalk::jobs::pack::{decode_record, TileHierarchy};
 use blockwalk::jobs::{merge, plan, run_tile, write_plan, PlanOptions};
 use blockwalk::scene::CitySource;
 use blockwalk::stream::play::StreamOptions;
@@ -164,7 +164,12 @@ fn packed_block_meshes_equal_the_whole_city_blocks_bit_for_bit() {
                 assert!(want.indices.is_empty(), "block {} lost its mesh", b.id);
                 continue;
             };
-            let got = decode_mesh(&pack[r.offset as usize..(r.offset + r.bytes) as usize]).unwrap();
+            let got = decode_record(
+                &pack[r.offset as usize..(r.offset + r.bytes) as usize],
+                h.compression.as_deref(),
+                r.inflated,
+            )
+            .unwrap();
             let bits = |m: &Mesh| -> Vec<u32> {
                 m.positions
                     .iter()

@@ -240,6 +240,40 @@ const NO_HIT: Px = Px {
     map: u32::MAX,
 };
 
+/// The pixel rectangle `[x0, y0, x1, y1]` (pixel units, row 0 at the top, one pixel of margin
+/// for rounding) holding the projection of `b` seen from `camera`; the whole image when a corner
+/// lies nearer than the near plane (its projection is unbounded).
+fn screen_rect(b: &crate::geom::Aabb3, camera: &Camera, width: u32, height: u32) -> [f64; 4] {
+    let all = [
+        f64::NEG_INFINITY,
+        f64::NEG_INFINITY,
+        f64::INFINITY,
+        f64::INFINITY,
+    ];
+    let m = camera.clip_from_world();
+    let (w, h) = (width as f64, height as f64);
+    let mut r = [
+        f64::INFINITY,
+        f64::INFINITY,
+        f64::NEG_INFINITY,
+        f64::NEG_INFINITY,
+    ];
+    for i in 0..8 {
+        let p = DVec3::new(
+            if i & 1 == 0 { b.min.x } else { b.max.x },
+            if i & 2 == 0 { b.min.y } else { b.max.y },
+            if i & 4 == 0 { b.min.z } else { b.max.z },
+        );
+        let c = m * p.extend(1.0);
+        if !(c.w >= camera.near * 0.5) || !c.is_finite() {
+            return all;
+        }
+        let (x, y) = ((c.x / c.w + 1.0) * 0.5 * w, (1.0 - c.y / c.w) * 0.5 * h);
+        r = [r[0].min(x), r[1].min(y), r[2].max(x), r[3].max(y)];
+    }
+    [r[0] - 1.0, r[1] - 1.0, r[2] + 1.0, r[3] + 1.0]
+}
+
 /// Casts, per pixel of a `width × height` image from `camera`, the f32 reference caster
 /// ([`cast_f32`], the GPU's walk) through the maps `maps[far[..]]` and keeps the nearest hit
 /// (see the module doc for the rays, the depth and the colour). Parallel over rows,
@@ -255,10 +289,41 @@ pub fn cast_image(
     width: u32,
     height: u32,
 ) -> MapImage {
+    cast_image_in(maps, far, camera, width, height, true)
+}
+
+/// [`cast_image`], skipping maps by their pixel rectangles when `rects` (else every map is
+/// cast at every pixel).
+fn cast_image_in(
+    maps: &[&BlockMap],
+    far: &[usize],
+    camera: &Camera,
+    width: u32,
+    height: u32,
+    rects: bool,
+) -> MapImage {
     let fr = FrameRays::new(camera, width, height);
     let xf: Vec<(usize, MapXform)> = far
         .iter()
         .map(|&m| (m, MapXform::new(maps[m], camera)))
+        .collect();
+    // Each map's pixel rectangle: a hit lies in the map's box, so its pixel lies in the box's
+    // projection; maps whose rectangle misses a pixel are not cast there (the image is the same).
+    let all = [
+        f64::NEG_INFINITY,
+        f64::NEG_INFINITY,
+        f64::INFINITY,
+        f64::INFINITY,
+    ];
+    let rects: Vec<[f64; 4]> = far
+        .iter()
+        .map(|&m| {
+            if rects {
+                screen_rect(&maps[m].aabb(), camera, width, height)
+            } else {
+                all
+            }
+        })
         .collect();
     let opts = CastOptions::default();
     let rows: Vec<Vec<Px>> = (0..height)
@@ -268,7 +333,11 @@ pub fn cast_image(
                 .map(|x| {
                     let v = fr.view_dir(x, y);
                     let mut best: Option<(f32, usize, TexRay<f32>, Hit)> = None;
-                    for &(m, ref x) in &xf {
+                    let (px, py) = (x as f64 + 0.5, y as f64 + 0.5);
+                    for (&(m, ref x), r) in xf.iter().zip(&rects) {
+                        if px < r[0] || px > r[2] || py < r[1] || py > r[3] {
+                            continue;
+                        }
                         let ray = x.ray(v, fr.near);
                         let c = cast_f32(maps[m], &ray, &opts);
                         if let Some(t) = c.hit.t() {
@@ -457,6 +526,26 @@ mod tests {
             }
         }
         m
+    }
+
+    #[test]
+    fn pixel_rectangles_leave_the_image_unchanged() {
+        let maps: Vec<BlockMap> = (0..6)
+            .map(|k| random_map(40 + k, (k % 3) as f64 * 170.0, (k / 3) as f64 * 170.0))
+            .collect();
+        let refs: Vec<&BlockMap> = maps.iter().collect();
+        let far: Vec<usize> = (0..refs.len()).collect();
+        let mut skipped = 0;
+        for cam in cameras() {
+            let a = cast_image_in(&refs, &far, &cam, 96, 54, true);
+            let b = cast_image_in(&refs, &far, &cam, 96, 54, false);
+            assert!(a == b, "{cam:?}");
+            skipped += far
+                .iter()
+                .filter(|&&m| screen_rect(&refs[m].aabb(), &cam, 96, 54)[2] < 96.0)
+                .count();
+        }
+        assert!(skipped > 0, "some rectangle was smaller than the image");
     }
 
     fn cameras() -> Vec<Camera> {

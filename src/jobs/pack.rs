@@ -7,7 +7,9 @@
 //! of urban environments and terrains*, §4.4).
 //!
 //! # The block mesh record (`tile_NNNNN.pack`)
-//! Little-endian. `"BWMB"`, version `u32 = 1`, then four `u32` counts: positions `P`, indices
+//! Each record is stored as a zlib stream ([`TileHierarchy::compression`] `"zlib"`, RFC 1950;
+//! about a sixth of the raw bytes: normals, styles and appearance repeat) of the raw record,
+//! which is little-endian: `"BWMB"`, version `u32 = 1`, then four `u32` counts: positions `P`, indices
 //! `I`, appearance entries `A` (0 or `P`), styles `S`; then `P × 3` `f32` positions (local
 //! frame), `P × 3` `f32` normals, `I` `u32` indices, `A × (f32 u, u32 style)`, and `S` styles of
 //! 17 four-byte fields each (kind, facade RGB, window RGB, roof RGB, storey height, its inverse,
@@ -44,6 +46,9 @@ pub struct ByteRange {
     pub bytes: u64,
     /// CRC-32 of the range, 8 hex digits.
     pub crc32: String,
+    /// Length of the record once inflated (equal to `bytes` for a raw record).
+    #[serde(default)]
+    pub inflated: u64,
 }
 
 /// A block of a tile's hierarchy.
@@ -96,6 +101,9 @@ pub struct TileHierarchy {
     /// The block mesh pack (path relative to the plan's folder), `None` for a tile without
     /// buildings.
     pub pack: Option<String>,
+    /// How the pack's records are stored: `"zlib"`, or raw when absent.
+    #[serde(default)]
+    pub compression: Option<String>,
     /// Blocks, in the tile's order.
     pub blocks: Vec<HierBlock>,
     /// BlockMap nodes, parents first (empty without `--blockmaps`).
@@ -266,13 +274,50 @@ pub fn decode_mesh(bytes: &[u8]) -> Result<Mesh, String> {
     })
 }
 
+/// Decodes a record as the pack stores it: inflated first when `compression` is `"zlib"`, to
+/// at most `inflated` bytes (a stream that inflates to more, or to fewer, is refused).
+///
+/// # Errors
+/// What is wrong with the bytes, in words.
+pub fn decode_record(
+    bytes: &[u8],
+    compression: Option<&str>,
+    inflated: u64,
+) -> Result<Mesh, String> {
+    match compression {
+        None => decode_mesh(bytes),
+        Some("zlib") => {
+            use std::io::Read;
+            let mut raw = Vec::with_capacity(inflated.min(1 << 30) as usize);
+            flate2::read::ZlibDecoder::new(bytes)
+                .take(inflated + 1)
+                .read_to_end(&mut raw)
+                .map_err(|e| format!("not a zlib stream: {e}"))?;
+            if raw.len() as u64 != inflated {
+                return Err(format!(
+                    "inflates to {}{} bytes, the hierarchy says {inflated}",
+                    if raw.len() as u64 > inflated {
+                        "more than "
+                    } else {
+                        ""
+                    },
+                    raw.len().min(inflated as usize)
+                ));
+            }
+            decode_mesh(&raw)
+        }
+        Some(other) => Err(format!("unknown compression {other:?}")),
+    }
+}
+
 /// CRC-32 of `bytes` as 8 hex digits.
 pub fn crc32_hex(bytes: &[u8]) -> String {
     format!("{:08x}", crc32fast::hash(bytes))
 }
 
-/// Writes the block meshes `meshes` (in order) as one pack at `path` (crash-safe) and returns
-/// each block's range; `None` for an empty mesh (nothing is written for it).
+/// Writes the block meshes `meshes` (in order) as one pack of zlib records at `path`
+/// (crash-safe) and returns each block's range; `None` for an empty mesh (nothing is written
+/// for it).
 ///
 /// # Errors
 /// [`JobsError::Io`] naming the file.
@@ -288,11 +333,20 @@ pub fn write_pack<'a>(
             continue;
         }
         let start = bytes.len();
-        encode_mesh(m, &mut bytes);
+        let mut raw = Vec::new();
+        encode_mesh(m, &mut raw);
+        let mut z = flate2::write::ZlibEncoder::new(&mut bytes, flate2::Compression::new(6));
+        std::io::Write::write_all(&mut z, &raw)
+            .and_then(|_| z.finish().map(drop))
+            .map_err(|source| JobsError::Io {
+                file: path.to_path_buf(),
+                source,
+            })?;
         ranges.push(Some(ByteRange {
             offset: start as u64,
             bytes: (bytes.len() - start) as u64,
             crc32: crc32_hex(&bytes[start..]),
+            inflated: raw.len() as u64,
         }));
     }
     crate::output::write_bytes(path, bytes)
@@ -325,6 +379,12 @@ impl TileHierarchy {
             return Err(JobsError::Format {
                 file: file.to_path_buf(),
                 why: format!("format {:?}, expected {HIERARCHY_FORMAT:?}", h.format),
+            });
+        }
+        if let Some(c) = h.compression.as_deref().filter(|c| *c != "zlib") {
+            return Err(JobsError::Format {
+                file: file.to_path_buf(),
+                why: format!("records compressed as {c:?}: this blockwalk reads raw and zlib"),
             });
         }
         if let Some((i, p)) = h
@@ -386,6 +446,29 @@ mod tests {
         assert_eq!(back.indices, m.indices);
         assert_eq!(back.appearance, m.appearance);
         assert_eq!(back.styles, m.styles);
+    }
+
+    #[test]
+    fn a_pack_of_zlib_records_decodes_and_refuses_a_wrong_size() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("t.pack");
+        let m = mesh();
+        let ranges = write_pack(&path, [&m, &Mesh::default(), &m]).unwrap();
+        assert!(ranges[1].is_none(), "an empty mesh has no record");
+        let bytes = std::fs::read(&path).unwrap();
+        let r = ranges[2].as_ref().unwrap();
+        let rec = &bytes[r.offset as usize..(r.offset + r.bytes) as usize];
+        assert_eq!(crc32_hex(rec), r.crc32);
+        let back = decode_record(rec, Some("zlib"), r.inflated).unwrap();
+        assert_eq!(back.indices, m.indices);
+        assert!(decode_record(rec, Some("zlib"), r.inflated - 1).is_err());
+        assert!(decode_record(rec, Some("zlib"), r.inflated + 1).is_err());
+        assert!(
+            decode_record(rec, None, r.inflated).is_err(),
+            "a zlib stream is no raw record"
+        );
+        assert!(decode_record(&rec[..rec.len() / 2], Some("zlib"), r.inflated).is_err());
+        assert!(decode_record(rec, Some("zstd"), r.inflated).is_err());
     }
 
     #[test]

@@ -415,6 +415,7 @@ pub fn run_tile(
         plan_id: plan.plan_id.clone(),
         tile,
         pack: (!city.buildings.is_empty()).then(|| format!("tiles/{pack_name}")),
+        compression: Some("zlib".into()),
         blocks: layout
             .blocks
             .iter()

@@ -37,8 +37,15 @@ pub struct Content {
 /// What a [`Content`] is.
 #[derive(Clone, Debug, PartialEq)]
 pub enum ContentKind {
-    /// The mesh of block slot `usize` ([`StreamCity::bounds`]).
-    Mesh(usize),
+    /// The mesh of a block.
+    Mesh {
+        /// Its slot in [`StreamCity::bounds`].
+        slot: usize,
+        /// The record is a zlib stream (else raw).
+        zlib: bool,
+        /// Bytes of the raw record.
+        inflated: u64,
+    },
     /// The map of node `usize` ([`StreamCity::nodes`]), with its box and error.
     Map(usize, Box<BlockMapMeta>),
 }
@@ -271,7 +278,11 @@ impl StreamCity {
             self.block_content.push(match (&b.mesh, &h.pack) {
                 (Some(r), Some(pack)) => {
                     contents.push(Content {
-                        kind: ContentKind::Mesh(slot),
+                        kind: ContentKind::Mesh {
+                            slot,
+                            zlib: h.compression.as_deref() == Some("zlib"),
+                            inflated: if r.inflated > 0 { r.inflated } else { r.bytes },
+                        },
                         file: pack.clone(),
                         range: Some((r.offset, r.bytes)),
                         bytes: r.bytes,

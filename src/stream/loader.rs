@@ -93,9 +93,11 @@ pub fn load(
         );
     }
     let r = match &c.kind {
-        ContentKind::Mesh(_) => crate::jobs::pack::decode_mesh(&bytes)
-            .map(Resident::Mesh)
-            .map_err(|e| LoadError::Refused(format!("{}: {e}", name()))),
+        ContentKind::Mesh { zlib, inflated, .. } => {
+            crate::jobs::pack::decode_record(&bytes, zlib.then_some("zlib"), *inflated)
+                .map(Resident::Mesh)
+                .map_err(|e| LoadError::Refused(format!("{}: {e}", name())))
+        }
         ContentKind::Map(_, meta) => {
             BlockMap::decode_png((**meta).clone(), &bytes, std::path::Path::new(&name()))
                 .map(Resident::Map)
