@@ -589,6 +589,10 @@ pub struct StreamArgs {
     /// differing, PSNR); loads that content outside the budget.
     #[arg(long)]
     pub check: bool,
+    /// Request what a frame needs before the coarser maps that stand in for it meanwhile (the
+    /// order of Di Benedetto's thesis, §4.4); by default the stand-ins come first.
+    #[arg(long)]
+    pub needed_first: bool,
 }
 
 impl StreamArgs {
@@ -623,6 +627,7 @@ impl StreamArgs {
             self.fps,
         )?;
         o.far = use_far;
+        o.needed_first = self.needed_first;
         Ok(o)
     }
 }

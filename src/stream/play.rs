@@ -85,6 +85,9 @@ pub struct StreamOptions {
     /// Draw every frame again with every block it covers as a mesh (no far field), from content
     /// loaded outside the budget, and compare: the far field's error against its time.
     pub mesh_reference: bool,
+    /// Request the needed items before their coarser stand-ins (the thesis' order, class A
+    /// first); by default the stand-ins come first.
+    pub needed_first: bool,
 }
 
 impl StreamOptions {
@@ -138,6 +141,7 @@ impl StreamOptions {
             far: true,
             record_blocks: false,
             mesh_reference: false,
+            needed_first: false,
         })
     }
 }
@@ -687,8 +691,9 @@ impl<'a> Streamer<'a> {
         let th = Instant::now();
         let mut reqs: Vec<(Priority, ContentId)> = Vec::new();
         let a = missing(w);
+        let (needed_class, standin_class) = if opts.needed_first { (0, 1) } else { (1, 0) };
         for (k, &c) in a.iter().enumerate() {
-            reqs.push(((1, k as u32), c));
+            reqs.push(((needed_class, k as u32), c));
         }
         let mut c_items: Vec<(u32, ContentId)> = Vec::new();
         let ancestors_of = |start: Option<usize>, out: &mut Vec<(u32, ContentId)>| {
@@ -718,7 +723,7 @@ impl<'a> Streamer<'a> {
         c_items.sort();
         c_items.dedup_by_key(|x| x.1);
         for (k, &(_, c)) in c_items.iter().enumerate() {
-            reqs.push(((0, k as u32), c));
+            reqs.push(((standin_class, k as u32), c));
         }
         let mut b_count = 0u32;
         for ahead in ahead.iter().take(opts.prefetch_frames) {
