@@ -70,6 +70,25 @@ pub enum Switch {
     Off,
 }
 
+#[cfg(feature = "window")]
+impl Args {
+    /// The window's size, screenshot mode and speed, checked.
+    fn viewer_options(&self) -> anyhow::Result<blockwalk::render::window::ViewerOptions> {
+        anyhow::ensure!(
+            self.speed.is_finite() && self.speed > 0.0,
+            "--speed {}: expected a positive number",
+            self.speed
+        );
+        Ok(blockwalk::render::window::ViewerOptions {
+            width: self.size.width,
+            height: self.size.height,
+            screenshot: self.screenshot.clone(),
+            frames: self.frames as usize,
+            speed: self.speed,
+        })
+    }
+}
+
 #[cfg(not(feature = "window"))]
 pub fn run(args: Args) -> anyhow::Result<()> {
     anyhow::bail!(
@@ -88,7 +107,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
 pub fn run(args: Args) -> anyhow::Result<()> {
     use super::common::load_scene;
     use anyhow::Context;
-    use blockwalk::render::window::{run_viewer, ViewerFar, ViewerOptions, ViewerScene};
+    use blockwalk::render::window::{run_viewer, ViewerFar, ViewerScene};
     use blockwalk::scene::SceneOptions;
     use blockwalk::visibility::CullerOptions;
 
@@ -105,11 +124,6 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         args.structure,
         args.structure,
         args.structure
-    );
-    anyhow::ensure!(
-        args.speed.is_finite() && args.speed > 0.0,
-        "--speed {}: expected a positive number",
-        args.speed
     );
     let select = args.far.select()?;
     let opts = SceneOptions {
@@ -148,17 +162,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         route,
         far,
     };
-    let summary = run_viewer(
-        viewer_scene,
-        ViewerOptions {
-            width: args.size.width,
-            height: args.size.height,
-            screenshot: args.screenshot.clone(),
-            frames: args.frames as usize,
-            speed: args.speed,
-        },
-    )
-    .with_context(|| format!("viewing {name}"))?;
+    let summary = run_viewer(viewer_scene, args.viewer_options()?)
+        .with_context(|| format!("viewing {name}"))?;
     if args.json {
         let mut j = serde_json::to_value(&summary)?;
         j["city"] = serde_json::json!(name);
@@ -205,13 +210,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
 #[cfg(feature = "window")]
 fn run_streamed(args: &Args, location: &str) -> anyhow::Result<()> {
     use anyhow::Context;
-    use blockwalk::render::window::ViewerOptions;
     use blockwalk::render::window_stream::run_stream_viewer;
-    anyhow::ensure!(
-        args.speed.is_finite() && args.speed > 0.0,
-        "--speed {}: expected a positive number",
-        args.speed
-    );
     let opts = args.stream.options(&args.far, args.size.pair())?;
     let city = blockwalk::stream::StreamCity::open(location)?;
     let (route, _) = blockwalk::stream::job::route_for(
@@ -221,19 +220,8 @@ fn run_streamed(args: &Args, location: &str) -> anyhow::Result<()> {
         args.size.aspect(),
     )?;
     eprintln!("{KEYS}");
-    let summary = run_stream_viewer(
-        &city,
-        &opts,
-        route,
-        ViewerOptions {
-            width: args.size.width,
-            height: args.size.height,
-            screenshot: args.screenshot.clone(),
-            frames: args.frames as usize,
-            speed: args.speed,
-        },
-    )
-    .with_context(|| format!("viewing {location}"))?;
+    let summary = run_stream_viewer(&city, &opts, route, args.viewer_options()?)
+        .with_context(|| format!("viewing {location}"))?;
     let name = &city.index.city;
     if args.json {
         let mut j = serde_json::to_value(&summary)?;

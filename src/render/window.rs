@@ -455,6 +455,38 @@ impl WindowSurface {
     }
 }
 
+/// Advances the route's clock `t` by `dt` while the route plays (looping), or in screenshot mode
+/// puts it at frame `shown` of the options' frames spread evenly over the route; returns true
+/// when the camera follows the route.
+pub(crate) fn route_time(
+    route: &CameraRoute,
+    options: &ViewerOptions,
+    controls: &Controls,
+    shown: usize,
+    dt: f64,
+    t: &mut f64,
+) -> bool {
+    if options.screenshot.is_some() {
+        let n = options.frames.max(1);
+        let i = shown.min(n - 1);
+        let f = if n > 1 {
+            i as f64 / (n - 1) as f64
+        } else {
+            0.0
+        };
+        *t = route.start() + route.duration() * f;
+        true
+    } else if controls.playing {
+        *t += dt;
+        if *t > route.start() + route.duration() {
+            *t = route.start();
+        }
+        true
+    } else {
+        false
+    }
+}
+
 /// The viewer's controls: keys held, the mouse drag, and whether the route plays.
 #[derive(Debug, Default)]
 pub(crate) struct Controls {
@@ -695,22 +727,15 @@ impl App {
     /// Moves the camera by the keys held (or along the route when playing).
     fn update_camera(&mut self, dt: f64) {
         let route = &self.scene.route;
-        if let Some(_path) = &self.options.screenshot {
-            let n = self.options.frames.max(1);
-            let i = self.summary.frames.min(n - 1);
-            let f = if n > 1 {
-                i as f64 / (n - 1) as f64
-            } else {
-                0.0
-            };
-            self.route_t = route.start() + route.duration() * f;
-        } else if self.controls.playing {
-            self.route_t += dt;
-            if self.route_t > route.start() + route.duration() {
-                self.route_t = route.start();
-            }
-        }
-        if self.controls.playing || self.options.screenshot.is_some() {
+        let on_route = route_time(
+            route,
+            &self.options,
+            &self.controls,
+            self.summary.frames,
+            dt,
+            &mut self.route_t,
+        );
+        if on_route {
             let aspect = self.camera.aspect;
             self.camera = route.camera_at(self.route_t);
             self.camera.aspect = aspect;

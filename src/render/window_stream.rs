@@ -12,7 +12,9 @@ use winit::event::WindowEvent;
 use winit::event_loop::{ActiveEventLoop, ControlFlow, EventLoop};
 use winit::window::WindowId;
 
-use super::window::{Controls, ViewerOptions, ViewerSummary, WindowError, WindowSurface};
+use super::window::{
+    route_time, Controls, ViewerOptions, ViewerSummary, WindowError, WindowSurface,
+};
 use crate::geom::Camera;
 use crate::route::CameraRoute;
 use crate::stream::play::{StreamOptions, Streamer};
@@ -49,25 +51,18 @@ impl StreamApp<'_> {
         self.last_tick = now;
         let route = &self.route;
         let screenshot = self.options.screenshot.is_some();
-        if screenshot {
-            let n = self.options.frames.max(1);
-            let i = self.summary.frames.min(n - 1);
-            let f = if n > 1 {
-                i as f64 / (n - 1) as f64
-            } else {
-                0.0
-            };
-            self.route_t = route.start() + route.duration() * f;
-        } else if self.controls.playing {
-            self.route_t += dt;
-            if self.route_t > route.start() + route.duration() {
-                self.route_t = route.start();
-            }
-        }
+        let on_route = route_time(
+            route,
+            &self.options,
+            &self.controls,
+            self.summary.frames,
+            dt,
+            &mut self.route_t,
+        );
         let aspect = self.camera.aspect;
         // The route ahead, prefetched while it plays (one camera per 1/30 s).
         let mut ahead = Vec::new();
-        if self.controls.playing || screenshot {
+        if on_route {
             self.camera = route.camera_at(self.route_t);
             self.camera.aspect = aspect;
             let step = if screenshot {
