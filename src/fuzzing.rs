@@ -509,3 +509,68 @@ pub fn check_plan(dir: &Path, data: &[u8]) -> Outcome {
         }
     }
 }
+
+/// A tile's streaming content ([`crate::jobs::pack`]): with an even first byte, a block mesh
+/// record (the next four bytes its inflated length, little-endian, then the record) decoded as
+/// zlib and as raw; a record that decodes is a valid mesh (every index below the positions,
+/// every style reference in range) and encodes back to the same raw bytes. With an odd first
+/// byte, a tile hierarchy (`tile.hier.json`): parsed with its parents before its children, or
+/// refused naming the file.
+pub fn check_tile(dir: &Path, data: &[u8]) -> Outcome {
+    use crate::jobs::pack::{decode_record, encode_mesh, TileHierarchy};
+    let Some((&kind, rest)) = data.split_first() else {
+        return Outcome::Refused("empty input".into());
+    };
+    if kind % 2 == 0 {
+        let Some((len, record)) = rest.split_first_chunk::<4>() else {
+            return Outcome::Refused("no length".into());
+        };
+        let inflated = u64::from(u32::from_le_bytes(*len));
+        let mut made = None;
+        let mut why = String::new();
+        for (c, n) in [(Some("zlib"), inflated), (None, record.len() as u64)] {
+            match decode_record(record, c, n) {
+                Ok(m) => {
+                    let n = m.positions.len();
+                    assert_eq!(m.normals.len(), n, "a normal per position");
+                    assert!(
+                        m.indices.iter().all(|&i| (i as usize) < n),
+                        "an index beyond the positions"
+                    );
+                    assert!(m.appearance.is_empty() || m.appearance.len() == n);
+                    assert!(m
+                        .appearance
+                        .iter()
+                        .all(|a| (a.style as usize) < m.styles.len()));
+                    let mut raw = Vec::new();
+                    encode_mesh(&m, &mut raw);
+                    let again = decode_record(&raw, None, raw.len() as u64)
+                        .unwrap_or_else(|e| panic!("a record encoded back is refused: {e}"));
+                    let mut raw2 = Vec::new();
+                    encode_mesh(&again, &mut raw2);
+                    assert_eq!(raw, raw2, "a record encoded back reads differently");
+                    made = Some(m.triangle_count());
+                }
+                Err(e) => why = e,
+            }
+        }
+        return made.map_or(Outcome::Refused(why), Outcome::Made);
+    }
+    let path = dir.join("tile.hier.json");
+    match TileHierarchy::parse(rest, &path) {
+        Ok(h) => {
+            for (i, m) in h.maps.iter().enumerate() {
+                assert!(m.parent.is_none_or(|p| p < i), "map {i} before its parent");
+            }
+            Outcome::Made(h.blocks.len() + h.maps.len())
+        }
+        Err(e) => {
+            let msg = e.to_string();
+            assert!(
+                msg.contains("tile.hier.json"),
+                "the error does not name the file: {msg}"
+            );
+            Outcome::Refused(msg)
+        }
+    }
+}

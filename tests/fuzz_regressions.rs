@@ -36,6 +36,18 @@ fn replay(target: &str, check: impl Fn(&Path, &[u8]) -> Outcome) -> Vec<Outcome>
 }
 
 #[test]
+fn tile_inputs() {
+    let out = replay("tile", fuzzing::check_tile);
+    assert!(
+        out.iter()
+            .filter(|o| matches!(o, Outcome::Made(n) if *n > 0))
+            .count()
+            >= 3,
+        "the seed record (zlib and raw) and hierarchy are read: {out:?}"
+    );
+}
+
+#[test]
 fn route_inputs() {
     replay("route", fuzzing::check_route);
     // The bundled example routes resolve.

@@ -7,7 +7,7 @@ set -euo pipefail
 here="$(cd "$(dirname "$0")" && pwd)"
 root="$(cd "$here/../.." && pwd)"
 corpus="$here/corpus"
-for t in shapefile geojson gpkg osm_pbf wkb prj route plan repair faces extrude; do
+for t in shapefile geojson gpkg osm_pbf wkb prj route plan repair faces extrude tile; do
     mkdir -p "$corpus/$t"
     if [ -d "$here/seeds/$t" ]; then cp "$here/seeds/$t"/* "$corpus/$t/"; fi
 done
