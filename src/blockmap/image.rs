@@ -265,7 +265,7 @@ fn screen_rect(b: &crate::geom::Aabb3, camera: &Camera, width: u32, height: u32)
             if i & 4 == 0 { b.min.z } else { b.max.z },
         );
         let c = m * p.extend(1.0);
-        if !(c.w >= camera.near * 0.5) || !c.is_finite() {
+        if !c.is_finite() || c.w < camera.near * 0.5 {
             return all;
         }
         let (x, y) = ((c.x / c.w + 1.0) * 0.5 * w, (1.0 - c.y / c.w) * 0.5 * h);
