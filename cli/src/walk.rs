@@ -208,6 +208,10 @@ fn print_summary(record: &WalkRecord, out: &std::path::Path) -> anyhow::Result<(
 /// A walk over a tiled city, streamed.
 fn run_streamed(args: &Args, location: &str) -> anyhow::Result<()> {
     use blockwalk::stream::job;
+    anyhow::ensure!(
+        !args.oracle && !args.reference,
+        "--oracle and --reference measure a city held in memory; a streamed walk compares every frame with its fully resident twin with --check (and farfield-sweep measures the far field against meshes)"
+    );
     let mut options = args.stream.options(&args.far, args.size.pair())?;
     options.check = args.stream.check;
     options.keep_every = args.render.then_some(args.image_every);
