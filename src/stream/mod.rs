@@ -9,7 +9,8 @@
 //! - [`serve`]: a small HTTP file server with range requests;
 //! - [`city`]: [`StreamCity`], the index and the hierarchies (what a client holds);
 //! - [`loader`]: the worker threads and the least-recently-used cache;
-//! - [`play`]: the walk, its stand-ins and measures.
+//! - [`play`](mod@play): the walk (`Streamer`, frame by frame), its stand-ins and measures;
+//! - [`job`]: a streamed walk as one call; [`sweep`]: the far field against its time over tiles.
 
 pub mod city;
 pub mod job;
