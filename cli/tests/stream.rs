@@ -91,14 +91,17 @@ fn a_tiled_city_is_walked_by_streaming_from_a_folder_and_over_http() {
     assert_eq!(csv.lines().count(), 13, "a header and 12 frames");
 
     // The same walk as JSON over HTTP, from `blockwalk serve` on a free port.
-    let mut server = std::process::Command::new(env!("CARGO_BIN_EXE_blockwalk"))
-        .args(["serve", j, "--addr", "127.0.0.1:0"])
-        .stdout(std::process::Stdio::piped())
-        .spawn()
-        .expect("run blockwalk serve");
+    let mut server = Killed(
+        std::process::Command::new(env!("CARGO_BIN_EXE_blockwalk"))
+            .args(["serve", j, "--addr", "127.0.0.1:0"])
+            .stdout(std::process::Stdio::piped())
+            .stderr(std::process::Stdio::null())
+            .spawn()
+            .expect("run blockwalk serve"),
+    );
     let mut line = String::new();
     std::io::BufRead::read_line(
-        &mut std::io::BufReader::new(server.stdout.take().unwrap()),
+        &mut std::io::BufReader::new(server.0.stdout.take().unwrap()),
         &mut line,
     )
     .unwrap();
@@ -132,8 +135,7 @@ fn a_tiled_city_is_walked_by_streaming_from_a_folder_and_over_http() {
     assert_eq!(j["summary"]["frames"], 12);
     assert_eq!(j["summary"]["wait_total_s"], 0.0, "real time never waits");
     assert_eq!(j["startup"]["buildings"], 600);
-    server.kill().unwrap();
-    server.wait().unwrap();
+    drop(server);
 
     // Refusals, each naming the problem.
     let bad = blockwalk(&["walk", j_str(&jobs), "--far", "relief", "--frames", "2"]);
@@ -149,6 +151,16 @@ fn a_tiled_city_is_walked_by_streaming_from_a_folder_and_over_http() {
     assert!(!bad.status.success());
     let e = String::from_utf8_lossy(&bad.stderr);
     assert!(e.contains("index.json") && e.contains("jobs merge"), "{e}");
+}
+
+/// A child process killed when dropped, so that a failing test leaves no server behind.
+struct Killed(std::process::Child);
+
+impl Drop for Killed {
+    fn drop(&mut self) {
+        let _ = self.0.kill();
+        let _ = self.0.wait();
+    }
 }
 
 fn j_str(p: &std::path::Path) -> &str {
