@@ -32,14 +32,6 @@ use blockwalk::scene::CitySource;
 /// The environment variable that makes this binary the child of one N.
 const CHILD: &str = "BLOCKWALK_SCALE_CHILD";
 
-/// Peak resident memory in bytes since the last reset, where the system says.
-fn peak_bytes() -> Option<u64> {
-    let s = std::fs::read_to_string("/proc/self/status").ok()?;
-    let line = s.lines().find(|l| l.starts_with("VmHWM:"))?;
-    let kb: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
-    Some(kb * 1024)
-}
-
 /// User + system CPU seconds of this process (all threads) so far, where the system says.
 fn cpu_seconds() -> f64 {
     // Fields 14 and 15 of /proc/self/stat (after the parenthesised command name), in clock
@@ -73,7 +65,7 @@ fn stage<T>(name: &str, f: impl FnOnce() -> T) -> T {
         "{name} {} {} {}",
         t.elapsed().as_secs_f64(),
         cpu_seconds() - c,
-        mib(peak_bytes())
+        mib(blockwalk::process::peak_rss_bytes())
     );
     out
 }

@@ -37,6 +37,7 @@ pub mod geom;
 pub mod index;
 pub mod jobs;
 pub mod output;
+pub mod process;
 pub mod relief;
 #[cfg(feature = "render")]
 pub mod render;

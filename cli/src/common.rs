@@ -292,15 +292,6 @@ impl std::str::FromStr for Size {
     }
 }
 
-/// Peak resident memory of this process in bytes (`VmHWM` from `/proc/self/status`), where the
-/// system has it.
-pub fn peak_memory_bytes() -> Option<u64> {
-    let s = std::fs::read_to_string("/proc/self/status").ok()?;
-    let line = s.lines().find(|l| l.starts_with("VmHWM:"))?;
-    let kb: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
-    Some(kb * 1024)
-}
-
 /// The far-field options `walk` and `view` share: the representation, τ, K, the relief
 /// impostors' settings and the hysteresis.
 #[derive(clap::Args, Debug, Clone)]

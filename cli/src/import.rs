@@ -13,7 +13,7 @@ use blockwalk::geom::predicates::polygon_area;
 use blockwalk::importers::Columns;
 use serde_json::json;
 
-use super::common::{peak_memory_bytes, spinner, CityArgs};
+use super::common::{spinner, CityArgs};
 
 /// Arguments.
 #[derive(clap::Args, Debug)]
@@ -140,7 +140,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         .map(|b| polygon_area(&b.footprint))
         .sum();
     let triangles: usize = meshes.iter().map(|m| m.triangle_count()).sum();
-    let peak = peak_memory_bytes();
+    let peak = blockwalk::process::peak_rss_bytes();
     if args.json {
         let v = json!({
             "name": city.name,

@@ -119,7 +119,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                         "tiles": p.tiles.len(),
                         "max_tile_buildings": p.tiles.iter().map(|t| t.buildings).max(),
                         "seconds": secs,
-                        "peak_rss_bytes": super::common::peak_memory_bytes(),
+                        "peak_rss_bytes": blockwalk::process::peak_rss_bytes(),
                         "commands": (0..p.tiles.len()).map(|i| format!("{exe} jobs run {} --tile {i}", path.display())).collect::<Vec<_>>(),
                     })
                 );

@@ -109,13 +109,6 @@ pub fn manifest_path(plan_path: &Path, tile: usize) -> PathBuf {
     tiles_dir(plan_path).join(format!("tile_{tile:05}.json"))
 }
 
-fn peak_rss_bytes() -> Option<u64> {
-    let s = std::fs::read_to_string("/proc/self/status").ok()?;
-    let line = s.lines().find(|l| l.starts_with("VmHWM:"))?;
-    let kb: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
-    Some(kb * 1024)
-}
-
 /// Before a tile runs: its manifest goes first (the tile is unfinished until the new one is
 /// written), then what an earlier run of it left: the temporaries of a killed run (hidden
 /// `.tile_NNNNN*` entries) and its BlockMaps folder (rewritten whole when maps are asked for,
@@ -566,7 +559,7 @@ pub fn run_tile(
         files,
         blockmaps,
         seconds: t0.elapsed().as_secs_f64(),
-        peak_rss_bytes: peak_rss_bytes(),
+        peak_rss_bytes: crate::process::peak_rss_bytes(),
     };
     let text = serde_json::to_string(&manifest).map_err(|source| JobsError::Json {
         file: mpath.clone(),

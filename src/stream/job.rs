@@ -118,7 +118,7 @@ pub fn run_job(
     progress: &mut dyn FnMut(usize, usize),
 ) -> Result<StreamRecord, StreamError> {
     let city = StreamCity::open(&job.location)?;
-    let rss_after_open = super::play::rss_bytes();
+    let rss_after_open = crate::process::rss_bytes();
     let (route, default_frames) = route_for(
         &city,
         &job.route,

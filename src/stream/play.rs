@@ -281,26 +281,6 @@ pub struct StreamRun {
     pub kept: Vec<(usize, RgbaImage)>,
 }
 
-/// Peak resident memory of this process (`VmHWM`), bytes.
-pub fn peak_rss_bytes() -> Option<u64> {
-    status_kib("VmHWM:").map(|k| k * 1024)
-}
-
-/// Resident memory of this process now (`VmRSS`), bytes.
-pub fn rss_bytes() -> Option<u64> {
-    status_kib("VmRSS:").map(|k| k * 1024)
-}
-
-fn status_kib(key: &str) -> Option<u64> {
-    let s = std::fs::read_to_string("/proc/self/status").ok()?;
-    s.lines()
-        .find(|l| l.starts_with(key))?
-        .split_whitespace()
-        .nth(1)?
-        .parse()
-        .ok()
-}
-
 /// A block's box as a mesh in the stand-in colour.
 fn box_standin(b: &crate::index::BlockBounds) -> Mesh {
     let mut m = oracle::box_mesh(b.aabb.min.as_vec3(), b.aabb.max.as_vec3());
@@ -955,6 +935,6 @@ fn summarise(
                 .filter(|f| f.converged() && f.differing_pixels != Some(0))
                 .count()
         }),
-        peak_rss_bytes: peak_rss_bytes(),
+        peak_rss_bytes: crate::process::peak_rss_bytes(),
     }
 }
