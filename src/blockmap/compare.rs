@@ -362,6 +362,21 @@ pub fn psnr_db(se: f64, samples: usize) -> f64 {
     }
 }
 
+/// Colour PSNR in dB between two images of the same size, over their RGB samples (alpha
+/// ignored; infinite when identical).
+pub fn image_psnr_db(a: &image::RgbaImage, b: &image::RgbaImage) -> f64 {
+    let se: f64 = a
+        .pixels()
+        .zip(b.pixels())
+        .map(|(p, q)| {
+            (0..3)
+                .map(|k| (p.0[k] as f64 - q.0[k] as f64).powi(2))
+                .sum::<f64>()
+        })
+        .sum();
+    psnr_db(se, 3 * a.width() as usize * a.height() as usize)
+}
+
 /// Silhouette pixels `(x, y)` of a coverage mask `w × h` (row-major): covered with an uncovered
 /// 4-neighbour, or the reverse.
 pub fn silhouette_pixels(cov: &[bool], w: usize, h: usize) -> Vec<(i64, i64)> {

@@ -34,12 +34,12 @@ pub fn write(
         source,
     })?;
     let mut csv = String::from(
-        "frame,at_s,needed,hits,maps,meshes,standin_maps,standin_boxes,replaced,queued_a,queued_c,queued_b,loaded,bytes_loaded,resident_bytes,wait_s,handoff_s,select_s,draw_s,differing_pixels,psnr_db\n",
+        "frame,at_s,needed,hits,maps,meshes,standin_maps,standin_boxes,replaced,queued_needed,queued_standins,queued_ahead,loaded,bytes_loaded,resident_bytes,wait_s,handoff_s,select_s,prefetch_s,draw_s,differing_pixels,psnr_db\n",
     );
     let opt = |v: Option<f64>| v.map(|v| format!("{v}")).unwrap_or_default();
     for f in &record.run.frames {
         csv.push_str(&format!(
-            "{},{:.4},{},{},{},{},{},{},{},{},{},{},{},{},{},{:.6},{:.6},{:.6},{:.6},{},{}\n",
+            "{},{:.4},{},{},{},{},{},{},{},{},{},{},{},{},{},{:.6},{:.6},{:.6},{:.6},{:.6},{},{}\n",
             f.frame,
             f.at_s,
             f.needed,
@@ -58,6 +58,7 @@ pub fn write(
             f.wait_s,
             f.handoff_s,
             f.select_s,
+            f.prefetch_s,
             f.draw_s,
             f.differing_pixels
                 .map(|d| d.to_string())

@@ -29,6 +29,7 @@ use std::time::{Duration, Instant};
 
 use image::RgbaImage;
 
+use crate::blockmap::compare::image_psnr_db;
 use crate::blockmap::image::cast_image;
 use crate::blockmap::{BlockMap, SelectOptions, Selector};
 use crate::blocks::BlockId;
@@ -167,7 +168,8 @@ pub struct StreamFrame {
     pub standin_boxes: usize,
     /// Selected items not drawn as themselves (replaced by a stand-in, or covered by one).
     pub replaced: usize,
-    /// Requests queued after the frame, by class A (needed), C (coarser stand-ins), B (ahead).
+    /// Requests queued after the frame: needed now, their coarser stand-ins, the route ahead
+    /// (each item once).
     pub queued: [usize; 3],
     /// Loads received during the frame.
     pub loaded: usize,
@@ -177,10 +179,12 @@ pub struct StreamFrame {
     pub resident_bytes: u64,
     /// Seconds the render thread waited for loads (0 in real-time mode).
     pub wait_s: f64,
-    /// Seconds spent handing requests and results over (queue locks).
+    /// Seconds spent handing requests over and taking results (the queue's lock and channel).
     pub handoff_s: f64,
     /// Seconds selecting.
     pub select_s: f64,
+    /// Seconds selecting for the route ahead (the prefetch).
+    pub prefetch_s: f64,
     /// Seconds drawing.
     pub draw_s: f64,
     /// Pixels differing from the fully resident frame (with `check`).
@@ -298,9 +302,16 @@ struct Drawn {
     standin: Vec<bool>,
 }
 
-/// Draws meshes, boxes and maps composited by depth (the CPU hybrid frame); map pixels of
-/// stand-ins tinted when `mark`.
-fn draw(d: &Drawn, camera: &Camera, size: (u32, u32), mark: bool) -> RgbaImage {
+/// Draws meshes, boxes and maps composited by depth (the CPU hybrid frame, as
+/// [`crate::visibility::CpuFrameRenderer::draw_composited`] composites: a map pixel wins where
+/// it is nearer than the mesh pass); with `mark`, also the same image with the stand-in maps'
+/// pixels tinted, from the same passes.
+fn draw(
+    d: &Drawn,
+    camera: &Camera,
+    size: (u32, u32),
+    mark: bool,
+) -> (RgbaImage, Option<RgbaImage>) {
     let mut list: Vec<(BlockId, &Mesh)> = Vec::with_capacity(d.meshes.len() + d.boxes.len());
     for (b, r) in &d.meshes {
         if let Resident::Mesh(m) = &**r {
@@ -318,38 +329,38 @@ fn draw(d: &Drawn, camera: &Camera, size: (u32, u32), mark: bool) -> RgbaImage {
             Resident::Mesh(_) => None,
         })
         .collect();
+    let mut marked = (mark && d.standin.iter().any(|&s| s)).then(|| img.clone());
     if !maps.is_empty() {
         let all: Vec<usize> = (0..maps.len()).collect();
         let mi = cast_image(&maps, &all, camera, size.0, size.1);
         for (i, px) in img.pixels_mut().enumerate() {
             if mi.hit[i] && mi.depth[i] < depth[i] {
-                let mut c = mi.color[i];
-                if mark && d.standin[mi.map[i] as usize] {
-                    for (k, t) in [255u8, 40, 200].iter().enumerate() {
-                        c[k] = ((c[k] as u16 + *t as u16) / 2) as u8;
-                    }
-                }
+                let c = mi.color[i];
                 *px = image::Rgba(c);
+                if let Some(m) = marked.as_mut() {
+                    let mut t = c;
+                    if d.standin[mi.map[i] as usize] {
+                        for (k, tint) in [255u8, 40, 200].iter().enumerate() {
+                            t[k] = ((t[k] as u16 + *tint as u16) / 2) as u8;
+                        }
+                    }
+                    m.as_mut()[4 * i..4 * i + 4].copy_from_slice(&t);
+                }
             }
         }
     }
-    img
+    let marked = if mark { Some(marked.unwrap_or_else(|| img.clone())) } else { None };
+    (img, marked)
 }
 
+/// Pixels whose colour differs, and the colour PSNR ([`image_psnr_db`]).
 fn psnr_and_diff(a: &RgbaImage, b: &RgbaImage) -> (u64, f64) {
-    let mut diff = 0u64;
-    let mut se = 0.0f64;
-    for (p, q) in a.pixels().zip(b.pixels()) {
-        if p.0[..3] != q.0[..3] {
-            diff += 1;
-        }
-        for k in 0..3 {
-            let d = p.0[k] as f64 - q.0[k] as f64;
-            se += d * d;
-        }
-    }
-    let n = (a.width() as usize * a.height() as usize * 3).max(1);
-    (diff, crate::blockmap::compare::psnr_db(se, n))
+    let diff = a
+        .pixels()
+        .zip(b.pixels())
+        .filter(|(p, q)| p.0[..3] != q.0[..3])
+        .count() as u64;
+    (diff, image_psnr_db(a, b))
 }
 
 /// The walk's state between frames.
@@ -667,8 +678,7 @@ impl<'a> Streamer<'a> {
         f.meshes = drawn.meshes.len();
         f.standin_maps = standin_kept.len();
         f.standin_boxes = box_slots.len();
-        // Requests: A (missing now), C (their ancestors), B (the route ahead).
-        let th = Instant::now();
+        // Requests: the frame's missing items, their coarser stand-ins, the route ahead.
         let mut reqs: Vec<(Priority, ContentId)> = Vec::new();
         let a = missing(w);
         let (needed_class, standin_class) = if opts.needed_first { (0, 1) } else { (1, 0) };
@@ -705,6 +715,8 @@ impl<'a> Streamer<'a> {
         for (k, &(_, c)) in c_items.iter().enumerate() {
             reqs.push(((standin_class, k as u32), c));
         }
+        let tp = Instant::now();
+        let mut queued: HashSet<ContentId> = reqs.iter().map(|r| r.1).collect();
         let mut b_count = 0u32;
         for ahead in ahead.iter().take(opts.prefetch_frames) {
             let s = w.selector.select_frozen(ahead, height, None);
@@ -714,25 +726,20 @@ impl<'a> Streamer<'a> {
                 .map(|&n| content_of_map(n))
                 .chain(pb.iter().map(|&s| content_of_block(s)))
             {
-                if !w.cache.contains(c) && !w.failed.contains_key(&c) {
+                if !w.cache.contains(c) && !w.failed.contains_key(&c) && queued.insert(c) {
                     reqs.push(((2, b_count), c));
                     b_count += 1;
                 }
             }
         }
+        f.prefetch_s = tp.elapsed().as_secs_f64();
         f.queued = [a.len(), c_items.len(), b_count as usize];
+        let th = Instant::now();
         loader.request(&reqs);
         f.handoff_s += th.elapsed().as_secs_f64();
         let td = Instant::now();
-        // Every frame is drawn (the CPU hybrid frame); kept ones again with stand-ins marked.
-        let img = draw(&drawn, camera, opts.size, false);
-        let marked = keep.then(|| {
-            if f.standin_maps > 0 {
-                draw(&drawn, camera, opts.size, true)
-            } else {
-                img.clone()
-            }
-        });
+        // Every frame is drawn (the CPU hybrid frame); kept ones also with stand-ins marked.
+        let (img, marked) = draw(&drawn, camera, opts.size, keep);
         f.draw_s = td.elapsed().as_secs_f64();
         if first_frame_s.is_none() {
             *first_frame_s = Some(city.startup.seconds + t_walk.elapsed().as_secs_f64());
@@ -773,7 +780,7 @@ impl<'a> Streamer<'a> {
                 }
                 if complete {
                     let t = Instant::now();
-                    let truth = draw(&all, camera, opts.size, false);
+                    let truth = draw(&all, camera, opts.size, false).0;
                     f.mesh_draw_s = Some(t.elapsed().as_secs_f64());
                     let (d, p) = psnr_and_diff(&img, &truth);
                     f.mesh_differing_pixels = Some(d);
@@ -797,7 +804,7 @@ impl<'a> Streamer<'a> {
                 }
             }
             if complete {
-                let truth = draw(&full, camera, opts.size, false);
+                let truth = draw(&full, camera, opts.size, false).0;
                 let (d, p) = psnr_and_diff(&img, &truth);
                 f.differing_pixels = Some(d);
                 f.psnr_db = Some(p);

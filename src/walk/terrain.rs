@@ -8,7 +8,7 @@ use std::time::Instant;
 
 use serde::Serialize;
 
-use crate::blockmap::compare::psnr_db;
+use crate::blockmap::compare::image_psnr_db;
 use crate::city::Mesh;
 use crate::geom::Camera;
 use crate::scene::terrain::SceneTerrain;
@@ -121,23 +121,13 @@ pub fn terrain_sweep(
                         .zip(&ref_ids.ids)
                         .filter(|(a, b)| a != b)
                         .count();
-                    let se: f64 = img
-                        .as_raw()
-                        .chunks_exact(4)
-                        .zip(ref_img.as_raw().chunks_exact(4))
-                        .map(|(a, b)| {
-                            (0..3)
-                                .map(|k| (a[k] as f64 - b[k] as f64).powi(2))
-                                .sum::<f64>()
-                        })
-                        .sum();
                     (
                         cut.len(),
                         tris,
                         ms,
                         declared,
                         mism as f64 / n as f64,
-                        psnr_db(se, 3 * n),
+                        image_psnr_db(&img, ref_img),
                     )
                 })
                 .collect();

@@ -34,7 +34,7 @@ pub use summary::FarSummary;
 
 use super::CullMode;
 pub use crate::blockmap::compare::nearest_in_mask;
-use crate::blockmap::compare::{psnr_db, silhouette_pixels};
+use crate::blockmap::compare::silhouette_pixels;
 use crate::blockmap::{SelectOptions, SelectStats, Selection};
 
 /// Pixels whose coverage differs between two frames of one camera (`background`: no block).
@@ -280,21 +280,9 @@ pub fn image_error_with_bound(
         }
     }
     let figures = bound.map(|b| b.check(w as u32, h as u32, &listed, &mesh_sil));
-    let se: f64 = mesh
-        .pixels()
-        .zip(hybrid.pixels())
-        .map(|(a, b)| {
-            (0..3)
-                .map(|c| {
-                    let d = a.0[c] as f64 - b.0[c] as f64;
-                    d * d
-                })
-                .sum::<f64>()
-        })
-        .sum();
     ImageError {
         coverage_error: mismatched as f64 / (w * h).max(1) as f64,
-        psnr_db: psnr_db(se, 3 * w * h),
+        psnr_db: crate::blockmap::compare::image_psnr_db(mesh, hybrid),
         silhouette_px: worst,
         silhouette_ratio_max: figures.map(|f| f.ratio_max),
         beyond_bound: figures.map(|f| f.beyond_bound),
