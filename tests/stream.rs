@@ -527,3 +527,70 @@ fn astana_in_tiles_draws_the_same_frames_as_astana_whole() {
         "{with_buildings} frames with buildings"
     );
 }
+
+/// A street layer in another CRS than the city's lands in the city's frame: Bubeneč in tiles
+/// (EPSG:3857) walked along its streets given in EPSG:3857 and in UTM 33N gives the same walk.
+#[test]
+fn a_street_layer_in_another_crs_is_read_into_the_citys_frame() {
+    let data = support::repo().join("data");
+    let tmp = tempfile::tempdir().unwrap();
+    let jobs = tmp.path().join("jobs");
+    let p = plan(
+        &data.join("bubenec/buildings.shp"),
+        &data.join("bubenec/streets.shp"),
+        &PlanOptions {
+            max_buildings: 40,
+            build: Default::default(),
+        },
+        &mut |_| {},
+    )
+    .unwrap();
+    let plan_path = write_plan(&p, &jobs).unwrap();
+    for t in 0..p.tiles.len() {
+        run_tile(&plan_path, t, None).unwrap();
+    }
+    let (index, _) = merge(&jobs).unwrap();
+    assert!(
+        matches!(index.crs, Some(blockwalk::importers::Crs::WebMercator)),
+        "{:?}",
+        index.crs
+    );
+    let city = StreamCity::open(&jobs.to_string_lossy()).unwrap();
+    let route = |streets: &str| {
+        let (r, _, notes) = blockwalk::stream::job::route_for(
+            &city,
+            &blockwalk::route::RouteChoice::Street,
+            Some(&data.join(streets)),
+            16.0 / 9.0,
+        )
+        .unwrap();
+        assert!(!notes.is_empty(), "the street layer's reading is reported");
+        r
+    };
+    let (a, b) = (
+        route("bubenec/streets.shp"),
+        route("bubenec_utm33n/streets.shp"),
+    );
+    assert_eq!(a.keys().len(), b.keys().len());
+    let worst = a
+        .keys()
+        .iter()
+        .zip(b.keys())
+        .map(|(p, q)| (p.position - q.position).length())
+        .fold(0.0, f64::max);
+    assert!(worst < 0.05, "the two walks are {worst} m apart");
+    // A walk over streets that do not meet the city is refused, not placed elsewhere.
+    let far = blockwalk::stream::job::route_for(
+        &city,
+        &blockwalk::route::RouteChoice::Street,
+        Some(&data.join("helsinki/streets_blockclass.shp")),
+        16.0 / 9.0,
+    );
+    let e = far
+        .expect_err("Helsinki's streets under Prague")
+        .to_string();
+    assert!(
+        e.contains("streets_blockclass.shp") && e.contains("city's blocks"),
+        "{e}"
+    );
+}

@@ -213,12 +213,15 @@ fn run_streamed(args: &Args, location: &str) -> anyhow::Result<()> {
     use blockwalk::render::window_stream::run_stream_viewer;
     let opts = args.stream.options(&args.far, args.size.pair())?;
     let city = blockwalk::stream::StreamCity::open(location)?;
-    let (route, _) = blockwalk::stream::job::route_for(
+    let (route, _, notes) = blockwalk::stream::job::route_for(
         &city,
         &args.route,
         args.city.streets.as_deref(),
         args.size.aspect(),
     )?;
+    for n in notes {
+        eprintln!("note: {n}");
+    }
     eprintln!("{KEYS}");
     let summary = run_stream_viewer(&city, &opts, route, args.viewer_options()?)
         .with_context(|| format!("viewing {location}"))?;

@@ -250,6 +250,9 @@ fn run_streamed(args: &Args, location: &str) -> anyhow::Result<()> {
         mib(st.content_bytes),
         st.source
     );
+    for n in &record.notes {
+        outln!("note: {n}");
+    }
     for r in &st.refused {
         outln!(
             "refused: tile {} ({} buildings not drawn): {}",

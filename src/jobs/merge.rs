@@ -44,6 +44,10 @@ pub struct TileIndex {
     /// later into the same frame (e.g. a street layer for a walk).
     #[serde(default)]
     pub transform_centre: Option<[f64; 2]>,
+    /// The footprints' CRS, which the metric transform starts from (`None` when the input
+    /// could not be read at merge time).
+    #[serde(default)]
+    pub crs: Option<blockwalk_importers::Crs>,
     /// Tiles.
     pub tiles: Vec<IndexTile>,
     /// Blocks in all tiles.
@@ -164,6 +168,7 @@ pub fn merge(dir: &Path) -> Result<(TileIndex, PathBuf), JobsError> {
         city: plan.city.clone(),
         frame_origin: [plan.frame_origin[0].0, plan.frame_origin[1].0],
         transform_centre: Some([plan.transform_centre[0].0, plan.transform_centre[1].0]),
+        crs: blockwalk_importers::shp::read_crs(&plan.footprints.path).ok(),
         blocks: tiles.iter().map(|t| t.blocks.len()).sum(),
         buildings: tiles.iter().map(|t| t.buildings).sum(),
         triangles: tiles.iter().map(|t| t.triangles).sum(),

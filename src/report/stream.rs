@@ -16,6 +16,7 @@ pub fn json(record: &StreamRecord) -> serde_json::Value {
         "frames": record.cameras.len(),
         "kept_frames": record.run.kept.iter().map(|(f, _)| *f).collect::<Vec<_>>(),
         "summary": record.run.summary,
+        "notes": record.notes,
     })
 }
 

@@ -39,48 +39,70 @@ pub struct StreamRecord {
     pub rss_after_open: Option<u64>,
     /// The walk.
     pub run: StreamRun,
+    /// Notes of reading the street layer, when one was given.
+    pub notes: Vec<String>,
 }
 
+/// How far beyond the blocks' box a street layer must reach for a walk over the city.
+const STREETS_MARGIN_M: f64 = 1000.0;
+
+/// The street layer `path` in the city's metric frame: read as a city's streets are
+/// ([`crate::city::build`]'s street rules: repair, refusals with their reasons), reprojected from
+/// its own CRS through the city's (the index's CRS and transform centre). Returns the lines and
+/// the reading's notes.
 fn street_lines(
     city: &StreamCity,
     path: &std::path::Path,
-) -> Result<Vec<LineString<f64>>, StreamError> {
+) -> Result<(Vec<LineString<f64>>, Vec<String>), StreamError> {
+    let bad = |why: String| StreamError::Format {
+        file: path.display().to_string(),
+        why,
+    };
     let layer = blockwalk_importers::read_layer(path, &blockwalk_importers::Theme::Streets)
-        .map_err(|e| StreamError::Format {
-            file: path.display().to_string(),
-            why: e.to_string(),
-        })?;
+        .map_err(|e| bad(e.to_string()))?;
     let centre = city.index.transform_centre.unwrap_or([0.0, 0.0]);
-    let t = layer
-        .crs
-        .try_metric_transform(centre)
-        .map_err(|e| StreamError::Format {
-            file: path.display().to_string(),
-            why: e.to_string(),
-        })?;
-    let mut out = Vec::new();
-    for f in &layer.features {
-        let mut push = |l: &LineString<f64>| {
-            let pts: Vec<geo_types::Coord<f64>> =
-                l.0.iter()
-                    .filter_map(|c| t.try_to_metric([c.x, c.y]).ok())
-                    .map(|[x, y]| geo_types::Coord { x, y })
-                    .collect();
-            if pts.len() >= 2 {
-                out.push(LineString(pts));
-            }
-        };
-        match &f.geometry {
-            geo_types::Geometry::LineString(l) => push(l),
-            geo_types::Geometry::MultiLineString(m) => m.0.iter().for_each(&mut push),
-            _ => {}
+    let city_crs = match (&city.index.crs, &layer.crs) {
+        (Some(c), _) => c.clone(),
+        (None, blockwalk_importers::Crs::Unknown) => blockwalk_importers::Crs::Unknown,
+        (None, other) => {
+            return Err(bad(format!(
+                "the street layer is in {}, but the tiled city's index does not say its CRS (run `blockwalk jobs merge` again to record it)",
+                other.describe()
+            )))
         }
+    };
+    let t = city_crs
+        .try_metric_transform(centre)
+        .and_then(|t| t.for_layer(&layer.crs))
+        .map_err(|e| bad(e.to_string()))?;
+    let mut report = crate::city::CityReport::default();
+    let streets = crate::city::build::layers::build_streets(
+        &layer,
+        &t,
+        &crate::city::build::BuildOptions::default(),
+        &mut report,
+    );
+    if let Some(why) = report.street_layer_unusable {
+        return Err(bad(why));
     }
-    Ok(out)
+    // A layer of another place is refused, not walked beside the city.
+    let b = city.city_box();
+    let (o, lo, hi) = (city.frame.origin, b.min.truncate(), b.max.truncate());
+    let near = streets.iter().flat_map(|s| s.line.0.iter()).any(|c| {
+        let p = glam::DVec2::new(c.x - o.x, c.y - o.y);
+        p.cmpge(lo - STREETS_MARGIN_M).all() && p.cmple(hi + STREETS_MARGIN_M).all()
+    });
+    if !near {
+        return Err(bad(format!(
+            "no street line comes within {STREETS_MARGIN_M} m of the city's blocks: a layer of another place, or in another CRS than its .prj says"
+        )));
+    }
+    Ok((streets.into_iter().map(|s| s.line).collect(), report.notes))
 }
 
 /// The route `choice` over `city`'s blocks (the street walk over the street layer `streets`,
-/// read into the city's frame), for images of `aspect`; with its default frame count.
+/// read into the city's frame), for images of `aspect`; with its default frame count and the
+/// notes of reading the street layer (what was kept and refused).
 ///
 /// # Errors
 /// A street layer that cannot be read; a route that cannot be made.
@@ -89,10 +111,10 @@ pub fn route_for(
     choice: &RouteChoice,
     streets: Option<&std::path::Path>,
     aspect: f64,
-) -> Result<(crate::route::CameraRoute, Option<usize>), StreamError> {
-    let lines = match streets {
+) -> Result<(crate::route::CameraRoute, Option<usize>, Vec<String>), StreamError> {
+    let (lines, notes) = match streets {
         Some(p) => street_lines(city, p)?,
-        None => Vec::new(),
+        None => Default::default(),
     };
     let ctx = RouteContext {
         city: &city.index.city,
@@ -103,9 +125,10 @@ pub fn route_for(
         aspect,
         terrain: None,
     };
-    choice
+    let (route, frames) = choice
         .resolve(&ctx)
-        .map_err(|e| StreamError::Bad(e.to_string()))
+        .map_err(|e| StreamError::Bad(e.to_string()))?;
+    Ok((route, frames, notes))
 }
 
 /// Opens the city, makes the route over the blocks' box (the street walk over `streets`),
@@ -119,7 +142,7 @@ pub fn run_job(
 ) -> Result<StreamRecord, StreamError> {
     let city = StreamCity::open(&job.location)?;
     let rss_after_open = crate::process::rss_bytes();
-    let (route, default_frames) = route_for(
+    let (route, default_frames, notes) = route_for(
         &city,
         &job.route,
         job.streets.as_deref(),
@@ -134,5 +157,6 @@ pub fn run_job(
         cameras,
         rss_after_open,
         run,
+        notes,
     })
 }

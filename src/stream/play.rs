@@ -349,7 +349,11 @@ fn draw(
             }
         }
     }
-    let marked = if mark { Some(marked.unwrap_or_else(|| img.clone())) } else { None };
+    let marked = if mark {
+        Some(marked.unwrap_or_else(|| img.clone()))
+    } else {
+        None
+    };
     (img, marked)
 }
 

@@ -33,12 +33,12 @@ pub use transform::MetricTransform;
 #[cfg(test)]
 use identify::linear_unit;
 use proj4rs::proj::Proj;
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 #[cfg(test)]
 use transform::Frame;
 
 /// A coordinate reference system, as far as blockwalk needs to know it.
-#[derive(Clone, Debug, PartialEq, Serialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(tag = "kind", rename_all = "snake_case")]
 pub enum Crs {
     /// A projected CRS in metres whose units are true ground metres up to the projection's small
