@@ -144,6 +144,19 @@ fn a_tiled_city_is_walked_by_streaming_from_a_folder_and_over_http() {
     let bad = blockwalk(&["walk", j_str(&jobs), "--budget", "lots", "--frames", "2"]);
     assert!(!bad.status.success());
     assert!(String::from_utf8_lossy(&bad.stderr).contains("768MiB"));
+    // A plan's folder not merged yet.
+    let unmerged = tmp.path().join("unmerged");
+    ok(&blockwalk(&[
+        "jobs",
+        "plan",
+        c,
+        "-o",
+        unmerged.to_str().unwrap(),
+    ]));
+    let bad = blockwalk(&["walk", unmerged.to_str().unwrap(), "--frames", "2"]);
+    assert!(!bad.status.success());
+    let e = String::from_utf8_lossy(&bad.stderr);
+    assert!(e.contains("index.json") && e.contains("jobs merge"), "{e}");
     let not = tmp.path().join("not_tiled");
     std::fs::create_dir_all(&not).unwrap();
     std::fs::write(not.join("index.json"), "{\"format\": \"something else\"}").unwrap();

@@ -131,7 +131,13 @@ impl StreamCity {
     pub fn open(location: &str) -> Result<Self, StreamError> {
         let t0 = Instant::now();
         let (source, name) = Source::parse(location);
-        let text = source.fetch(&name, None).map_err(fetch_err)?;
+        let text = source.fetch(&name, None).map_err(|e| match e {
+            FetchError::Missing(file) => StreamError::Format {
+                file,
+                why: "missing: a tiled city's index, written by `blockwalk jobs merge DIR` once every tile has run".into(),
+            },
+            e => fetch_err(e),
+        })?;
         let iname = source.name_of(&name);
         let index: TileIndex = serde_json::from_slice(&text).map_err(|e| StreamError::Format {
             file: iname.clone(),

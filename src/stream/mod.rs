@@ -44,14 +44,16 @@ pub enum StreamError {
 }
 
 /// True when `location` names a tiled city (`jobs merge`'s output): a URL, a folder holding
-/// `index.json`, or a `.json` file that is not a route or a city layer.
+/// `index.json` (or a `jobs plan` folder not merged yet), or a file named `index.json`.
 pub fn is_tiled_city(location: &str) -> bool {
     if location.starts_with("http://") || location.starts_with("https://") {
         return true;
     }
     let p = std::path::Path::new(location);
     if p.is_dir() {
-        return p.join("index.json").is_file() && !p.join("buildings.shp").exists();
+        // `jobs plan`'s folder counts too, so that one not merged yet is named as such.
+        return (p.join("index.json").is_file() || p.join("plan.json").is_file())
+            && !p.join("buildings.shp").exists();
     }
     p.file_name().is_some_and(|n| n == "index.json")
 }

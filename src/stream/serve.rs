@@ -71,31 +71,16 @@ fn resolve(root: &Path, url: &str) -> Option<PathBuf> {
     let path = url.split(['?', '#']).next().unwrap_or("");
     let mut out = root.to_path_buf();
     for part in path.split('/').filter(|p| !p.is_empty()) {
-        let decoded = percent_decode(part)?;
-        let c = Path::new(&decoded);
+        let decoded = percent_encoding::percent_decode_str(part)
+            .decode_utf8()
+            .ok()?;
+        let c = Path::new(decoded.as_ref());
         match c.components().next() {
             Some(Component::Normal(n)) if c.components().count() == 1 => out.push(n),
             _ => return None,
         }
     }
     Some(out)
-}
-
-fn percent_decode(s: &str) -> Option<String> {
-    let b = s.as_bytes();
-    let mut out = Vec::with_capacity(b.len());
-    let mut i = 0;
-    while i < b.len() {
-        if b[i] == b'%' {
-            let h = std::str::from_utf8(b.get(i + 1..i + 3)?).ok()?;
-            out.push(u8::from_str_radix(h, 16).ok()?);
-            i += 3;
-        } else {
-            out.push(b[i]);
-            i += 1;
-        }
-    }
-    String::from_utf8(out).ok()
 }
 
 fn answer(root: &Path, req: tiny_http::Request, counts: &ServeCounts) {
