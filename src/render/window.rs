@@ -292,8 +292,7 @@ pub fn run_viewer(
         route_t: 0.0,
         last_tick: Instant::now(),
         started: Instant::now(),
-        title_at: Instant::now(),
-        title_frames: 0,
+        title: FpsTitle::new(),
         visible: Vec::new(),
         far: Vec::new(),
         far_step,
@@ -400,6 +399,15 @@ impl WindowSurface {
         })
     }
 
+    /// What a viewer does when its window has opened: the camera takes the window's aspect,
+    /// the summary its adapter, and the first frame is asked for.
+    pub(crate) fn opened(&self, camera: &mut Camera, summary: &mut ViewerSummary) {
+        let size = self.window.inner_size();
+        camera.aspect = size.width.max(1) as f64 / size.height.max(1) as f64;
+        summary.adapter = self.gpu.adapter_name();
+        self.window.request_redraw();
+    }
+
     /// The surface at `width × height`.
     pub(crate) fn reconfigure(&mut self, width: u32, height: u32) {
         self.config.width = width;
@@ -484,6 +492,35 @@ pub(crate) fn route_time(
         true
     } else {
         false
+    }
+}
+
+/// Frames per second for the window's title, measured over half a second at least.
+#[derive(Debug)]
+pub(crate) struct FpsTitle {
+    at: Instant,
+    frames: usize,
+}
+
+impl FpsTitle {
+    /// Counting from now.
+    pub(crate) fn new() -> Self {
+        Self {
+            at: Instant::now(),
+            frames: 0,
+        }
+    }
+
+    /// Counts a frame shown; every half second or more, the frames per second since the last
+    /// time (then the title is due).
+    pub(crate) fn frame(&mut self) -> Option<f64> {
+        self.frames += 1;
+        let since = self.at.elapsed().as_secs_f64();
+        (since >= 0.5).then(|| {
+            let fps = self.frames as f64 / since;
+            *self = Self::new();
+            fps
+        })
     }
 }
 
@@ -622,8 +659,7 @@ struct App {
     route_t: f64,
     last_tick: Instant,
     started: Instant,
-    title_at: Instant,
-    title_frames: usize,
+    title: FpsTitle,
     visible: Vec<BlockId>,
     /// Maps to draw this frame (indices into the far field's maps).
     far: Vec<usize>,
@@ -850,10 +886,7 @@ impl App {
         self.summary.far_nodes = self.far.len();
         self.summary.far_pixels = far_pixels;
         self.far_total += self.far.len() as u64;
-        self.title_frames += 1;
-        let since = self.title_at.elapsed().as_secs_f64();
-        if since >= 0.5 {
-            let fps = self.title_frames as f64 / since;
+        if let Some(fps) = self.title.frame() {
             state.window.set_title(&format!(
                 "blockwalk — {} — {:.1} fps — {} blocks, {} triangles{} — {}{}{}",
                 self.scene.scene.name,
@@ -881,8 +914,6 @@ impl App {
                     ""
                 },
             ));
-            self.title_at = Instant::now();
-            self.title_frames = 0;
         }
         if let Some(path) = &self.options.screenshot {
             if self.summary.frames >= self.options.frames.max(1) {
@@ -907,10 +938,7 @@ impl ApplicationHandler for App {
         }
         match self.init(event_loop) {
             Ok(state) => {
-                let size = state.window.inner_size();
-                self.camera.aspect = size.width.max(1) as f64 / size.height.max(1) as f64;
-                self.summary.adapter = state.gpu.adapter_name();
-                state.window.request_redraw();
+                state.opened(&mut self.camera, &mut self.summary);
                 self.state = Some(state);
                 self.started = Instant::now();
                 self.last_tick = Instant::now();

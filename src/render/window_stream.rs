@@ -13,7 +13,7 @@ use winit::event_loop::{ActiveEventLoop, ControlFlow, EventLoop};
 use winit::window::WindowId;
 
 use super::window::{
-    route_time, Controls, ViewerOptions, ViewerSummary, WindowError, WindowSurface,
+    route_time, Controls, FpsTitle, ViewerOptions, ViewerSummary, WindowError, WindowSurface,
 };
 use crate::geom::Camera;
 use crate::route::CameraRoute;
@@ -32,8 +32,7 @@ struct StreamApp<'a> {
     route_t: f64,
     last_tick: Instant,
     started: Instant,
-    title_at: Instant,
-    title_frames: usize,
+    title: FpsTitle,
     summary: ViewerSummary,
 }
 
@@ -90,10 +89,7 @@ impl StreamApp<'_> {
         self.summary.frames += 1;
         let last = self.streamer.frames().last().cloned().unwrap_or_default();
         self.summary.far_nodes = last.maps;
-        self.title_frames += 1;
-        let since = self.title_at.elapsed().as_secs_f64();
-        if since >= 0.5 {
-            let fps = self.title_frames as f64 / since;
+        if let Some(fps) = self.title.frame() {
             surf.window.set_title(&format!(
                 "blockwalk — {} (streamed) — {:.1} fps — {} maps, {} meshes, {} stand-ins — {:.0} MiB held{}",
                 self.name,
@@ -104,8 +100,6 @@ impl StreamApp<'_> {
                 last.resident_bytes as f64 / 1048576.0,
                 if self.controls.playing { " — playing" } else { "" },
             ));
-            self.title_at = Instant::now();
-            self.title_frames = 0;
         }
         if let Some(path) = &self.options.screenshot {
             if self.summary.frames >= self.options.frames.max(1) {
@@ -136,10 +130,7 @@ impl ApplicationHandler for StreamApp<'_> {
             self.options.height,
         ) {
             Ok(surf) => {
-                let size = surf.window.inner_size();
-                self.camera.aspect = size.width.max(1) as f64 / size.height.max(1) as f64;
-                self.summary.adapter = surf.gpu.adapter_name();
-                surf.window.request_redraw();
+                surf.opened(&mut self.camera, &mut self.summary);
                 self.surf = Some(surf);
                 self.started = Instant::now();
                 self.last_tick = Instant::now();
@@ -215,8 +206,7 @@ pub fn run_stream_viewer(
         camera,
         last_tick: Instant::now(),
         started: Instant::now(),
-        title_at: Instant::now(),
-        title_frames: 0,
+        title: FpsTitle::new(),
         summary: ViewerSummary::default(),
     };
     event_loop
