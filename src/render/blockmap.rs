@@ -522,17 +522,8 @@ mod tests {
     /// creation), so a CI without an adapter still checks it.
     #[test]
     fn shader_is_valid_wgsl() {
-        use wgpu::naga;
         let src = wgsl_constants() + include_str!("blockmap.wgsl");
-        let module = naga::front::wgsl::parse_str(&src).unwrap_or_else(|e| {
-            panic!("{}", e.emit_to_string(&src));
-        });
-        naga::valid::Validator::new(
-            naga::valid::ValidationFlags::all(),
-            naga::valid::Capabilities::empty(),
-        )
-        .validate(&module)
-        .unwrap_or_else(|e| panic!("{e:?}"));
+        let module = super::super::validated_wgsl(&src);
         for name in ["vs_main", "fs_main"] {
             assert!(module.entry_points.iter().any(|e| e.name == name), "{name}");
         }

@@ -854,17 +854,8 @@ mod tests {
     /// does at pipeline creation).
     #[test]
     fn shader_is_valid_wgsl() {
-        use wgpu::naga;
         let src = wgsl_constants() + include_str!("mesh.wgsl");
-        let module = naga::front::wgsl::parse_str(&src).unwrap_or_else(|e| {
-            panic!("{}", e.emit_to_string(&src));
-        });
-        naga::valid::Validator::new(
-            naga::valid::ValidationFlags::all(),
-            naga::valid::Capabilities::empty(),
-        )
-        .validate(&module)
-        .unwrap_or_else(|e| panic!("{e:?}"));
+        super::super::validated_wgsl(&src);
         assert!(src.contains(&format!(
             "const TERRAIN_ID: u32 = {}u;",
             crate::visibility::TERRAIN_ID

@@ -502,3 +502,20 @@ impl PassTimer {
         Ok(ticks as f64 * gpu.queue.get_timestamp_period() as f64 * 1e-9)
     }
 }
+
+/// Parses and validates WGSL without a device (naga, as wgpu does at pipeline creation), so a
+/// CI without an adapter still checks every shader; panics with naga's message.
+#[cfg(test)]
+pub(crate) fn validated_wgsl(src: &str) -> wgpu::naga::Module {
+    use wgpu::naga;
+    let module = naga::front::wgsl::parse_str(src).unwrap_or_else(|e| {
+        panic!("{}", e.emit_to_string(src));
+    });
+    naga::valid::Validator::new(
+        naga::valid::ValidationFlags::all(),
+        naga::valid::Capabilities::empty(),
+    )
+    .validate(&module)
+    .unwrap_or_else(|e| panic!("{e:?}"));
+    module
+}
