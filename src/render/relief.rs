@@ -780,7 +780,7 @@ mod tests {
     #[test]
     fn shader_is_valid_wgsl() {
         let src = include_str!("relief.wgsl");
-        let module = super::super::validated_wgsl(&src);
+        let module = super::super::validated_wgsl(src);
         for name in ["vs_main", "fs_main"] {
             assert!(module.entry_points.iter().any(|e| e.name == name), "{name}");
         }
