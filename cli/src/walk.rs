@@ -269,7 +269,7 @@ fn run_streamed(args: &Args, location: &str) -> anyhow::Result<()> {
         s.first_frame_s * 1e3
     );
     outln!(
-        "route {} with {} frames, {:?} mode, budget {:.0} MiB{}: {} frames with stand-ins, {} episodes (longest {} frames){}",
+        "route {} with {} frames, {:?} mode, budget {:.0} MiB{}: {} frames with stand-ins in {} episodes (the longest that ended: {} frames; still open at the end: {}){}",
         record.route,
         s.frames,
         s.options.mode,
@@ -281,6 +281,7 @@ fn run_streamed(args: &Args, location: &str) -> anyhow::Result<()> {
         s.frames_with_standins,
         s.episodes,
         s.episode_max_frames,
+        s.unfinished_episodes,
         match s.first_converged {
             Some((f, t)) => format!(", first converged frame {f} at {t:.2} s"),
             None => ", never converged".into(),
