@@ -13,7 +13,7 @@ use blockwalk::city::export::gltf::glb_bytes;
 use blockwalk::city::extrude::try_extrude_city;
 use blockwalk::city::generate::{generate_city, write_city, GenerateParams};
 use blockwalk::jobs::{
-    manifest_path, merge, plan, run_tile, write_plan, JobsError, Plan, PlanOptions,
+    manifest_path, merge, plan, run_tile, write_plan, JobsError, Plan, PlanOptions, TileOptions,
 };
 use blockwalk::scene::CitySource;
 
@@ -129,7 +129,7 @@ fn tiles_on_ground_equal_one_job(
     let mut got_nodes: Nodes = HashMap::new();
     let mut read_twice = 0;
     for t in 0..p.tiles.len() {
-        let r = run_tile(&plan_path, t, None).unwrap();
+        let r = run_tile(&plan_path, t, &TileOptions::default()).unwrap();
         assert!(r.manifest.buildings <= max || r.manifest.blocks.len() == 1);
         read_twice += r.manifest.buildings_read - r.manifest.buildings;
         for b in &r.manifest.blocks {
@@ -273,7 +273,7 @@ fn merge_names_a_missing_tile() {
     let (p, plan_path) = small_plan(&tmp.path().join("jobs"), &city);
     assert!(p.tiles.len() >= 3);
     for t in (0..p.tiles.len()).filter(|&t| t != 1) {
-        run_tile(&plan_path, t, None).unwrap();
+        run_tile(&plan_path, t, &TileOptions::default()).unwrap();
     }
     match merge(&tmp.path().join("jobs")) {
         Err(JobsError::MissingTile { tile, file, .. }) => {
@@ -288,7 +288,7 @@ fn merge_names_a_missing_tile() {
         "{msg}"
     );
     // Once it has run, the merge passes.
-    run_tile(&plan_path, 1, None).unwrap();
+    run_tile(&plan_path, 1, &TileOptions::default()).unwrap();
     merge(&tmp.path().join("jobs")).unwrap();
 }
 
@@ -298,11 +298,11 @@ fn a_plan_from_another_city_is_refused() {
     let city = generated(&tmp.path().join("city"), 600, 1);
     let jobs = tmp.path().join("jobs");
     let (p, plan_path) = small_plan(&jobs, &city);
-    run_tile(&plan_path, 0, None).unwrap();
+    run_tile(&plan_path, 0, &TileOptions::default()).unwrap();
     // The city's files are replaced by another city's: running a tile of the old plan refuses,
     // naming the plan and the file.
     generated(&city, 600, 2);
-    match run_tile(&plan_path, 1, None) {
+    match run_tile(&plan_path, 1, &TileOptions::default()) {
         Err(JobsError::InputChanged { plan, file, .. }) => {
             assert_eq!(plan, plan_path);
             assert!(file.ends_with("buildings.shp"), "{}", file.display());
@@ -314,7 +314,7 @@ fn a_plan_from_another_city_is_refused() {
     let (p2, plan_path2) = small_plan(&jobs, &city);
     assert_ne!(p.plan_id, p2.plan_id);
     for t in 1..p2.tiles.len() {
-        run_tile(&plan_path2, t, None).unwrap();
+        run_tile(&plan_path2, t, &TileOptions::default()).unwrap();
     }
     match merge(&jobs) {
         Err(JobsError::OtherPlan {
@@ -337,7 +337,7 @@ fn a_tile_out_of_range_is_refused() {
     let city = generated(&tmp.path().join("city"), 300, 1);
     let (p, plan_path) = small_plan(&tmp.path().join("jobs"), &city);
     let n = p.tiles.len();
-    match run_tile(&plan_path, n, None) {
+    match run_tile(&plan_path, n, &TileOptions::default()) {
         Err(e @ JobsError::TileOutOfRange { .. }) => {
             let JobsError::TileOutOfRange { plan, tile, tiles } = &e else {
                 unreachable!()
@@ -355,7 +355,7 @@ fn a_tile_out_of_range_is_refused() {
     let not_plan = tmp.path().join("x.json");
     std::fs::write(&not_plan, "{\"format\": \"something else\"}").unwrap();
     assert!(matches!(
-        run_tile(&not_plan, 0, None),
+        run_tile(&not_plan, 0, &TileOptions::default()),
         Err(JobsError::Format { file, .. }) if file == not_plan
     ));
 }
@@ -419,7 +419,15 @@ fn a_tile_with_blockmaps_lists_and_merges_its_maps() {
         checks: 0,
         ..Default::default()
     };
-    let r = run_tile(&plan_path, 0, Some(&opts)).unwrap();
+    let r = run_tile(
+        &plan_path,
+        0,
+        &TileOptions {
+            maps: Some(opts),
+            ..TileOptions::default()
+        },
+    )
+    .unwrap();
     let maps = r.manifest.blockmaps.as_ref().expect("map figures");
     let n = maps["maps"].as_u64().unwrap() as usize;
     assert!(n >= 1);
@@ -436,8 +444,179 @@ fn a_tile_with_blockmaps_lists_and_merges_its_maps() {
         assert_eq!(bytes.len() as u64, f.bytes, "{}", f.path);
     }
     for t in 1..p.tiles.len() {
-        run_tile(&plan_path, t, None).unwrap();
+        run_tile(&plan_path, t, &TileOptions::default()).unwrap();
     }
     let (index, _) = merge(&tmp.path().join("jobs")).unwrap();
     assert_eq!(index.tiles[0].files.len(), 4 + 2 * n);
+}
+
+/// Content URIs of a tileset JSON tile tree, depth first.
+fn content_uris(tile: &serde_json::Value, out: &mut Vec<String>) {
+    if let Some(u) = tile["content"]["uri"].as_str() {
+        out.push(u.to_string());
+    }
+    for c in tile["children"].as_array().into_iter().flatten() {
+        content_uris(c, out);
+    }
+}
+
+/// The 8 corners of a 3D Tiles `box` (centre and three half-axes).
+fn box_corners(b: &serde_json::Value) -> Vec<glam::DVec3> {
+    let v: Vec<f64> = b
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|x| x.as_f64().unwrap())
+        .collect();
+    let c = glam::DVec3::new(v[0], v[1], v[2]);
+    let ax = [3, 6, 9].map(|i| glam::DVec3::new(v[i], v[i + 1], v[i + 2]));
+    let mut out = Vec::new();
+    for s in 0..8 {
+        let sign = |k: usize| if s >> k & 1 == 1 { 1.0 } else { -1.0 };
+        out.push(c + sign(0) * ax[0] + sign(1) * ax[1] + sign(2) * ax[2]);
+    }
+    out
+}
+
+/// `p` inside the box `b` within `tol` metres along each half-axis.
+fn box_holds(b: &serde_json::Value, p: glam::DVec3, tol: f64) -> bool {
+    let v: Vec<f64> = b
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|x| x.as_f64().unwrap())
+        .collect();
+    let c = glam::DVec3::new(v[0], v[1], v[2]);
+    [3, 6, 9].iter().all(|&i| {
+        let a = glam::DVec3::new(v[i], v[i + 1], v[i + 2]);
+        let len = a.length();
+        len == 0.0 || ((p - c).dot(a) / len).abs() <= len + tol
+    })
+}
+
+/// Every child's box inside its parent's, every child's geometric error at most its parent's.
+fn check_nesting(tile: &serde_json::Value, groups: &mut usize) {
+    for c in tile["children"].as_array().into_iter().flatten() {
+        *groups += 1;
+        for p in box_corners(&c["boundingVolume"]["box"]) {
+            assert!(
+                box_holds(&tile["boundingVolume"]["box"], p, 1e-6),
+                "a child's box leaves its parent's"
+            );
+        }
+        assert!(c["geometricError"].as_f64().unwrap() <= tile["geometricError"].as_f64().unwrap());
+        check_nesting(c, groups);
+    }
+}
+
+#[test]
+fn tiles_with_tilesets_merge_under_one_root_tileset() {
+    let tmp = tempfile::tempdir().unwrap();
+    let city = generated(&tmp.path().join("city"), 1200, 5);
+    let (p, plan_path) = small_plan(&tmp.path().join("jobs"), &city);
+    assert!(p.tiles.len() >= 4, "{} tiles", p.tiles.len());
+    let opts = TileOptions {
+        tileset: Some(blockwalk::tiles::TilesetOptions {
+            k: 32,
+            ..Default::default()
+        }),
+        ..TileOptions::default()
+    };
+    let mut transforms = Vec::new();
+    for t in 0..p.tiles.len() {
+        let r = run_tile(&plan_path, t, &opts).unwrap();
+        let ts = r.manifest.tileset.clone().expect("a tileset");
+        // Its files are listed (and so checked by merge), its tileset.json among them.
+        assert!(r.manifest.files.iter().any(|f| f.path == ts.path));
+        assert_eq!(
+            ts.bytes,
+            r.manifest
+                .files
+                .iter()
+                .filter(|f| f.path.starts_with(&format!("tiles/tile_{t:05}_tileset/")))
+                .map(|f| f.bytes)
+                .sum::<u64>()
+        );
+        let doc: serde_json::Value =
+            serde_json::from_slice(&std::fs::read(tmp.path().join("jobs").join(&ts.path)).unwrap())
+                .unwrap();
+        transforms.push(doc["root"]["transform"].clone());
+        // The buildings with meshes of the tile, each in one leaf.
+        let with_mesh = r.meshes.iter().filter(|m| m.triangle_count() > 0).count();
+        assert_eq!(ts.buildings, with_mesh, "tile {t}");
+    }
+    let (index, _) = merge(&tmp.path().join("jobs")).unwrap();
+    assert_eq!(index.tileset.as_deref(), Some("tileset.json"));
+    let root: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(tmp.path().join("jobs/tileset.json")).unwrap())
+            .unwrap();
+    // Every tile's tileset is referenced exactly once, and nothing else.
+    let mut uris = Vec::new();
+    content_uris(&root["root"], &mut uris);
+    uris.sort();
+    let mut want: Vec<String> = index
+        .tiles
+        .iter()
+        .map(|t| t.tileset.as_ref().unwrap().path.clone())
+        .collect();
+    want.sort();
+    assert_eq!(uris, want);
+    assert_eq!(
+        index
+            .tiles
+            .iter()
+            .map(|t| t.tileset.as_ref().unwrap().buildings)
+            .sum::<usize>(),
+        p.buildings,
+        "every building of the plan in one tile's leaves"
+    );
+    // One placement for all tiles; the root adds, has none of its own, and nests its boxes.
+    assert!(transforms.windows(2).all(|w| w[0] == w[1]));
+    assert!(root["root"].get("transform").is_none());
+    assert_eq!(root["root"]["refine"], "ADD");
+    let mut n = 0;
+    check_nesting(&root["root"], &mut n);
+    assert!(n >= p.tiles.len(), "{n} tiles under the root");
+    assert!(
+        root["geometricError"].as_f64().unwrap()
+            >= root["root"]["geometricError"].as_f64().unwrap()
+    );
+    // Each tile's box (local, through the shared transform) inside the leaf that references it.
+    let m = glam::DMat4::from_cols_array(
+        &serde_json::from_value::<[f64; 16]>(transforms[0].clone()).unwrap(),
+    );
+    fn leaves<'a>(t: &'a serde_json::Value, out: &mut Vec<&'a serde_json::Value>) {
+        if t["content"]["uri"].is_string() {
+            out.push(t);
+        }
+        for c in t["children"].as_array().into_iter().flatten() {
+            leaves(c, out);
+        }
+    }
+    let mut ls = Vec::new();
+    leaves(&root["root"], &mut ls);
+    for l in ls {
+        let uri = l["content"]["uri"].as_str().unwrap();
+        let t = index
+            .tiles
+            .iter()
+            .find(|t| t.tileset.as_ref().unwrap().path == uri)
+            .unwrap();
+        let a = t.tileset.as_ref().unwrap().aabb;
+        for s in 0..8 {
+            let pick = |k: usize| if s >> k & 1 == 1 { a[k + 3] } else { a[k] };
+            let q = m.transform_point3(glam::DVec3::new(pick(0), pick(1), pick(2)));
+            assert!(box_holds(&l["boundingVolume"]["box"], q, 1e-6));
+        }
+    }
+
+    // A tile run again without its tileset: merge refuses, naming the tile.
+    run_tile(&plan_path, 1, &TileOptions::default()).unwrap();
+    assert!(!tmp.path().join("jobs/tiles/tile_00001_tileset").exists());
+    match merge(&tmp.path().join("jobs")) {
+        Err(JobsError::TileMismatch { tile: 1, why, .. }) => {
+            assert!(why.contains("no tileset"), "{why}")
+        }
+        other => panic!("expected tile 1 refused, got {other:?}"),
+    }
 }

@@ -18,7 +18,7 @@ use blockwalk::city::generate::{generate_city, write_city, GenerateParams};
 use blockwalk::city::Mesh;
 use blockwalk::geom::Camera;
 use blockwalk::jobs::pack::{decode_record, TileHierarchy};
-use blockwalk::jobs::{merge, plan, run_tile, write_plan, PlanOptions};
+use blockwalk::jobs::{merge, plan, run_tile, write_plan, PlanOptions, TileOptions};
 use blockwalk::scene::CitySource;
 use blockwalk::stream::play::StreamOptions;
 use blockwalk::stream::serve::Server;
@@ -73,7 +73,15 @@ fn fixture() -> &'static Fixture {
             ..Default::default()
         };
         for t in 0..p.tiles.len() {
-            run_tile(&plan_path, t, Some(&maps)).unwrap();
+            run_tile(
+                &plan_path,
+                t,
+                &TileOptions {
+                    maps: Some(maps.clone()),
+                    ..TileOptions::default()
+                },
+            )
+            .unwrap();
         }
         merge(&jobs).unwrap();
         Fixture {
@@ -499,7 +507,7 @@ fn astana_in_tiles_draws_the_same_frames_as_astana_whole() {
     .unwrap();
     let plan_path = write_plan(&p, &jobs).unwrap();
     for t in 0..p.tiles.len() {
-        run_tile(&plan_path, t, None).unwrap();
+        run_tile(&plan_path, t, &TileOptions::default()).unwrap();
     }
     merge(&jobs).unwrap();
     let city = StreamCity::open(&jobs.to_string_lossy()).unwrap();
@@ -547,7 +555,7 @@ fn a_street_layer_in_another_crs_is_read_into_the_citys_frame() {
     .unwrap();
     let plan_path = write_plan(&p, &jobs).unwrap();
     for t in 0..p.tiles.len() {
-        run_tile(&plan_path, t, None).unwrap();
+        run_tile(&plan_path, t, &TileOptions::default()).unwrap();
     }
     let (index, _) = merge(&jobs).unwrap();
     assert!(

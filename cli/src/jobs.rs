@@ -7,7 +7,8 @@ use std::time::Instant;
 
 use anyhow::Context;
 use blockwalk::blockmap::{BuildOptions, CityMapsOptions, Stop, TreeOptions};
-use blockwalk::jobs::{city_files, merge, plan, run_tile, write_plan, PlanOptions};
+use blockwalk::jobs::{city_files, merge, plan, run_tile, write_plan, PlanOptions, TileOptions};
+use blockwalk::tiles::TilesetOptions;
 use serde_json::json;
 
 use super::common::spinner;
@@ -55,11 +56,17 @@ enum Step {
         /// stop where a node's meshes take fewer bytes than a map.
         #[arg(long)]
         blockmaps: Option<u32>,
+        /// Write the tile's own 3D Tiles tileset too (tiles/tile_NNNNN_tileset/, as `blockwalk
+        /// tileset` writes a city's, at the --blockmaps K or 64); `merge` then writes a root
+        /// tileset.json that references every tile's.
+        #[arg(long)]
+        tileset: bool,
         /// Print one JSON object instead of the summary.
         #[arg(long)]
         json: bool,
     },
-    /// Check that every tile finished and write DIR/index.json.
+    /// Check that every tile finished and write DIR/index.json (and DIR/tileset.json over the
+    /// tiles' tilesets when their jobs wrote them).
     Merge {
         /// The plan's folder.
         dir: PathBuf,
@@ -145,6 +152,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             plan,
             tile,
             blockmaps,
+            tileset,
             json,
         } => {
             if let Some(k) = blockmaps {
@@ -167,7 +175,14 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 checks: 0,
                 ..CityMapsOptions::default()
             });
-            let r = run_tile(&plan, tile, maps.as_ref());
+            let opts = TileOptions {
+                maps,
+                tileset: tileset.then(|| TilesetOptions {
+                    k: blockmaps.unwrap_or(TilesetOptions::default().k),
+                    ..TilesetOptions::default()
+                }),
+            };
+            let r = run_tile(&plan, tile, &opts);
             pb.finish_and_clear();
             let r = r?;
             let m = &r.manifest;
@@ -175,7 +190,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 outln!("{}", serde_json::to_string(m).context("manifest as JSON")?);
             } else {
                 outln!(
-                    "tile {} (key {}): {} blocks, {} buildings ({} read), {} triangles, {} BlockMaps, {} in {:.1} s, peak {} MiB",
+                    "tile {} (key {}): {} blocks, {} buildings ({} read), {} triangles, {} BlockMaps, {} 3D Tiles, {} in {:.1} s, peak {} MiB",
                     m.tile,
                     m.key,
                     m.blocks.len(),
@@ -183,6 +198,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                     m.buildings_read,
                     m.triangles,
                     m.blockmaps.as_ref().map_or(0, |b| b["maps"].as_u64().unwrap_or(0)),
+                    m.tileset.as_ref().map_or(0, |t| t.tiles),
                     r.manifest_path.display(),
                     m.seconds,
                     m.peak_rss_bytes.unwrap_or(0) / (1 << 20)
@@ -212,6 +228,12 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                     index.max_peak_rss_bytes.unwrap_or(0) / (1 << 20),
                     path.display()
                 );
+                if let Some(t) = &index.tileset {
+                    outln!(
+                        "3D Tiles: {} over the tiles' tilesets",
+                        dir.join(t).display()
+                    );
+                }
             }
         }
     }

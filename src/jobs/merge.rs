@@ -27,6 +27,9 @@ pub struct IndexTile {
     pub seconds: f64,
     /// Peak resident memory of the job, bytes.
     pub peak_rss_bytes: Option<u64>,
+    /// The tile's own tileset, when its job built one.
+    #[serde(default)]
+    pub tileset: Option<TileTileset>,
 }
 
 /// `index.json`: the index of tiles and the sums.
@@ -62,14 +65,28 @@ pub struct TileIndex {
     pub job_seconds: f64,
     /// The largest peak resident memory of a job, bytes.
     pub max_peak_rss_bytes: Option<u64>,
+    /// The root `tileset.json` referencing every tile's tileset (relative to the plan's
+    /// folder), when the tiles have tilesets.
+    #[serde(default)]
+    pub tileset: Option<String>,
 }
 
 /// Step 3: checks every tile of the plan in `dir` (`dir/plan.json`) and writes `dir/index.json`.
 ///
+/// When the tiles' jobs built tilesets, it writes `dir/tileset.json` first: a 3D Tiles 1.1
+/// tileset without content of its own whose leaves are the tiles' tilesets (external tilesets,
+/// each placed by its own root transform). Its inner tiles follow the plan's quadtree: a tile
+/// for every quadtree node above two or more tiles, refined by `ADD`, with a box holding its
+/// children's (written in the frame of the transform, ECEF for a georeferenced city) and a
+/// geometric error of at least its children's and half its box's diagonal (the rule of
+/// [`crate::tiles::build_tileset`]'s top level). A country's thousands of tiles thus stream
+/// by region.
+///
 /// # Errors
 /// [`JobsError::MissingTile`] for a tile without a manifest, [`JobsError::OtherPlan`] for a
 /// manifest of another plan, [`JobsError::TileMismatch`] for a manifest that disagrees with
-/// the plan or a file whose size or CRC-32 is not the manifest's.
+/// the plan or a file whose size or CRC-32 is not the manifest's, and for tilesets built by
+/// some tiles and not others, or placed by different transforms.
 pub fn merge(dir: &Path) -> Result<(TileIndex, PathBuf), JobsError> {
     let plan_path = dir.join("plan.json");
     let plan = Plan::read(&plan_path)?;
@@ -154,6 +171,7 @@ pub fn merge(dir: &Path) -> Result<(TileIndex, PathBuf), JobsError> {
             files: m.files,
             seconds: m.seconds,
             peak_rss_bytes: m.peak_rss_bytes,
+            tileset: m.tileset,
         });
     }
     if let Some(b) = seen_blocks.iter().position(|s| !s) {
@@ -162,6 +180,7 @@ pub fn merge(dir: &Path) -> Result<(TileIndex, PathBuf), JobsError> {
             why: format!("block {b} is in no tile"),
         });
     }
+    let tileset = root_tileset(dir, &plan.plan_id, &tiles)?;
     let index = TileIndex {
         format: INDEX_FORMAT.into(),
         plan_id: plan.plan_id.clone(),
@@ -178,6 +197,7 @@ pub fn merge(dir: &Path) -> Result<(TileIndex, PathBuf), JobsError> {
             .sum(),
         job_seconds: tiles.iter().map(|t| t.seconds).sum(),
         max_peak_rss_bytes: tiles.iter().filter_map(|t| t.peak_rss_bytes).max(),
+        tileset,
         tiles,
     };
     let ipath = dir.join("index.json");
@@ -193,4 +213,179 @@ pub fn merge(dir: &Path) -> Result<(TileIndex, PathBuf), JobsError> {
             source,
         })?;
     Ok((index, ipath))
+}
+
+/// A node of the root tileset's tree: a plan tile's tileset, or a quadtree node grouping others.
+struct Group {
+    /// The plan tile whose key this is, if any.
+    tile: Option<usize>,
+    /// Child quadtree keys.
+    kids: Vec<u64>,
+}
+
+/// The root `tileset.json` over the tiles' tilesets (see [`merge`]), or `None` when no tile
+/// built one.
+fn root_tileset(
+    dir: &Path,
+    plan_id: &str,
+    tiles: &[IndexTile],
+) -> Result<Option<String>, JobsError> {
+    use crate::geom::Aabb3;
+    use glam::{DMat4, DVec3};
+    use serde_json::{json, Value};
+    use std::collections::BTreeMap;
+
+    let with: Vec<&IndexTile> = tiles.iter().filter(|t| t.tileset.is_some()).collect();
+    if with.is_empty() {
+        return Ok(None);
+    }
+    let path = dir.join("tileset.json");
+    let mismatch = |tile: usize, why: String| JobsError::TileMismatch {
+        tile,
+        file: path.clone(),
+        why,
+    };
+    // Every tile with buildings built one, or none did.
+    if let Some(t) = tiles
+        .iter()
+        .find(|t| t.tileset.is_none() && t.buildings > 0)
+    {
+        return Err(mismatch(
+            t.id,
+            "this tile's job built no tileset while others did: run it again with the same options"
+                .into(),
+        ));
+    }
+    let transform = with[0].tileset.as_ref().and_then(|s| s.transform);
+    if let Some(t) = with
+        .iter()
+        .find(|t| t.tileset.as_ref().and_then(|s| s.transform) != transform)
+    {
+        return Err(mismatch(
+            t.id,
+            format!(
+                "its tileset is placed by another transform than tile {}'s",
+                with[0].id
+            ),
+        ));
+    }
+    let m = transform.map_or(DMat4::IDENTITY, |t| DMat4::from_cols_array(&t));
+    // The quadtree above the tiles: every ancestor key of a tile's key.
+    let mut nodes: BTreeMap<u64, Group> = BTreeMap::new();
+    for (i, t) in with.iter().enumerate() {
+        nodes
+            .entry(t.key)
+            .or_insert(Group {
+                tile: None,
+                kids: Vec::new(),
+            })
+            .tile = Some(i);
+        let mut k = t.key;
+        while k > 1 {
+            let parent = k >> 2;
+            let p = nodes.entry(parent).or_insert(Group {
+                tile: None,
+                kids: Vec::new(),
+            });
+            if p.kids.contains(&k) {
+                break;
+            }
+            p.kids.push(k);
+            k = parent;
+        }
+    }
+    for g in nodes.values_mut() {
+        g.kids.sort_unstable();
+    }
+    let aabb_of = |t: &TileTileset| {
+        Aabb3::new(
+            DVec3::new(t.aabb[0], t.aabb[1], t.aabb[2]),
+            DVec3::new(t.aabb[3], t.aabb[4], t.aabb[5]),
+        )
+    };
+    let box_json = |a: &Aabb3| {
+        let c = m.transform_point3(a.center());
+        let h = 0.5 * a.extent();
+        let [x, y, z] =
+            [DVec3::X * h.x, DVec3::Y * h.y, DVec3::Z * h.z].map(|v| m.transform_vector3(v));
+        json!([c.x, c.y, c.z, x.x, x.y, x.z, y.x, y.y, y.z, z.x, z.y, z.z])
+    };
+    // (tile JSON, local box, geometric error) of a node; a group of one child is that child.
+    fn emit(
+        key: u64,
+        nodes: &BTreeMap<u64, Group>,
+        with: &[&IndexTile],
+        leaf: &dyn Fn(&IndexTile) -> (Value, Aabb3, f64),
+        group: &dyn Fn(Vec<(Value, Aabb3, f64)>) -> (Value, Aabb3, f64),
+    ) -> (Value, Aabb3, f64) {
+        let g = &nodes[&key];
+        let mut parts: Vec<(Value, Aabb3, f64)> = Vec::new();
+        if let Some(i) = g.tile {
+            parts.push(leaf(with[i]));
+        }
+        for &k in &g.kids {
+            parts.push(emit(k, nodes, with, leaf, group));
+        }
+        if parts.len() == 1 {
+            return parts.pop().expect("one part");
+        }
+        group(parts)
+    }
+    let leaf = |t: &IndexTile| {
+        let s = t.tileset.as_ref().expect("tiles with a tileset");
+        let a = aabb_of(s);
+        (
+            json!({
+                "boundingVolume": { "box": box_json(&a) },
+                "geometricError": s.geometric_error,
+                "content": { "uri": s.path },
+                "extras": { "kind": "job_tile", "tile": t.id, "key": t.key },
+            }),
+            a,
+            s.geometric_error,
+        )
+    };
+    let group = |parts: Vec<(Value, Aabb3, f64)>| {
+        let a = parts.iter().fold(Aabb3::EMPTY, |a, p| a.union(p.1));
+        let ge = parts
+            .iter()
+            .map(|p| p.2)
+            .fold(0.5 * a.extent().length(), f64::max);
+        (
+            json!({
+                "boundingVolume": { "box": box_json(&a) },
+                "geometricError": ge,
+                "refine": "ADD",
+                "children": parts.into_iter().map(|p| p.0).collect::<Vec<_>>(),
+            }),
+            a,
+            ge,
+        )
+    };
+    let top = *nodes.keys().next().expect("at least one node");
+    // The root of the quadtree is key 1 (or the only tile's key).
+    let root_key = if nodes.contains_key(&1) { 1 } else { top };
+    let (mut root, _, ge) = emit(root_key, &nodes, &with, &leaf, &group);
+    if root.get("refine").is_none() {
+        // One tile: a root that adds it.
+        root["refine"] = json!("ADD");
+    }
+    let doc = json!({
+        "asset": {
+            "version": "1.1",
+            "generator": "blockwalk",
+            "extras": { "plan_id": plan_id, "tiles": with.len() },
+        },
+        "geometricError": ge,
+        "root": root,
+    });
+    let text = serde_json::to_vec_pretty(&doc).expect("a JSON value serialises");
+    crate::output::write_bytes(&path, text)
+        .map(drop)
+        .map_err(crate::output::OutputError::into_io)
+        .map_err(|source| JobsError::Io {
+            file: path.clone(),
+            source,
+        })?;
+    Ok(Some("tileset.json".into()))
 }

@@ -25,9 +25,13 @@
 //!    straddling tile bounds is read by both tiles but assigned to exactly one), checks the
 //!    counts against the plan, extrudes, writes `tiles/tile_NNNNN.glb` and, last, the manifest
 //!    `tiles/tile_NNNNN.json` that says the tile is done.
+//!    Optionally ([`TileOptions`]) the tile's BlockMaps (for streaming) and its own 3D Tiles
+//!    tileset (`tiles/tile_NNNNN_tileset/`, [`crate::tiles::build_tileset`] over its blocks).
 //! 3. [`merge`]: checks that every tile is done, belongs to this plan and that its files are
 //!    intact (size and CRC-32), and writes `index.json`: per tile its id, quadtree key, bounds,
-//!    blocks, buildings, triangles and files with their hashes, and the sums.
+//!    blocks, buildings, triangles and files with their hashes, and the sums. When the tiles
+//!    have tilesets, it also writes the root `tileset.json` that references them as external
+//!    tilesets, grouped along the plan's quadtree (see [`merge`]).
 //!
 //! Supported input: a street layer (blocks are street faces) and Shapefile footprints (the
 //! streaming reader, [`blockwalk_importers::shp::read_streaming`]); other footprint formats are
@@ -44,7 +48,10 @@ pub use cut::cut_tiles;
 pub use input::city_files;
 pub use merge::{merge, IndexTile, TileIndex};
 pub use plan::{layer_files, plan, write_plan, Plan, PlanBlock, PlanOptions, PlanTile};
-pub use tile::{manifest_path, run_tile, tiles_dir, TileBlock, TileFile, TileManifest, TileRun};
+pub use tile::{
+    manifest_path, run_tile, tiles_dir, TileBlock, TileFile, TileManifest, TileOptions, TileRun,
+    TileTileset,
+};
 
 use std::io::Read;
 use std::path::{Path, PathBuf};

@@ -16,6 +16,7 @@ use crate::city::build::{build_city_in_frame, BuildOptions};
 use crate::city::export::gltf::write_glb_with_terrain;
 use crate::city::extrude::try_extrude_city;
 use crate::city::{City, Mesh};
+use crate::tiles::{build_tileset, TilesetOptions};
 
 use super::input::{empty_like, metric_transform, read_err};
 use super::pack::{
@@ -78,10 +79,49 @@ pub struct TileManifest {
     /// The BlockMaps' figures (maps, K, bytes, measured ε, thin features, seconds), when built.
     #[serde(default)]
     pub blockmaps: Option<serde_json::Value>,
+    /// The tile's 3D Tiles tileset, when built: what `merge` needs to reference it from the
+    /// root `tileset.json`.
+    #[serde(default)]
+    pub tileset: Option<TileTileset>,
     /// Seconds the job took.
     pub seconds: f64,
     /// Peak resident memory of the job's process, bytes (`VmHWM`), where the system tells.
     pub peak_rss_bytes: Option<u64>,
+}
+
+/// A tile's own 3D Tiles tileset (`tiles/tile_NNNNN_tileset/`), as its manifest records it.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct TileTileset {
+    /// Its `tileset.json`, relative to the plan's folder.
+    pub path: String,
+    /// The tileset's top-level geometric error, metres.
+    pub geometric_error: f64,
+    /// Its root's box in the local frame (the whole city's: every tile shares it), metres:
+    /// `[min x, min y, min z, max x, max y, max z]`.
+    pub aabb: [f64; 6],
+    /// Its root transform (local → ECEF, column-major), or `None` for a city without a
+    /// geodetic CRS.
+    pub transform: Option<[f64; 16]>,
+    /// Tiles in it.
+    pub tiles: usize,
+    /// Buildings in its leaves.
+    pub buildings: usize,
+    /// Bytes of its `tileset.json` and contents.
+    pub bytes: u64,
+    /// Seconds it took.
+    pub seconds: f64,
+}
+
+/// What a tile job writes beyond its `.glb`, mesh pack and hierarchy.
+#[derive(Clone, Debug, Default)]
+pub struct TileOptions {
+    /// Its BlockMaps, for streaming ([`build_city_maps`] over the tile's blocks, written as
+    /// `tiles/tile_NNNNN_maps/node_KEY.png` + `.json`).
+    pub maps: Option<CityMapsOptions>,
+    /// Its 3D Tiles tileset ([`build_tileset`] over the tile's blocks, written as
+    /// `tiles/tile_NNNNN_tileset/`), which [`merge`](super::merge) references from a root
+    /// `tileset.json`. A terrain given here is refused: a tile's tileset holds buildings only.
+    pub tileset: Option<TilesetOptions<'static>>,
 }
 
 /// The result of [`run_tile`].
@@ -127,9 +167,12 @@ fn clear_tile(dir: &Path, tile: usize) -> Result<(), JobsError> {
     for e in std::fs::read_dir(dir).map_err(io(dir))? {
         let e = e.map_err(io(dir))?;
         let name = e.file_name().to_string_lossy().into_owned();
-        // `.tile_00001.glb.XXXX.part`, `.tile_00001_maps.new-XXXX`, `.tile_00001_maps.old-XXXX`.
+        // `.tile_00001.glb.XXXX.part`, `.tile_00001_maps.new-XXXX`, `.tile_00001_maps.old-XXXX`,
+        // `.tile_00001_tileset.new-XXXX`.
         let rest = name.strip_prefix(&mine);
-        if !rest.is_some_and(|r| r.starts_with('.') || r.starts_with("_maps.")) {
+        if !rest.is_some_and(|r| {
+            r.starts_with('.') || r.starts_with("_maps.") || r.starts_with("_tileset.")
+        }) {
             continue;
         }
         let p = e.path();
@@ -140,13 +183,25 @@ fn clear_tile(dir: &Path, tile: usize) -> Result<(), JobsError> {
         };
         r.map_err(io(&p))?;
     }
-    let maps = dir.join(format!("tile_{tile:05}_maps"));
-    if maps.is_dir() {
-        let only_maps = std::fs::read_dir(&maps)
-            .map_err(io(&maps))?
-            .all(|e| e.is_ok_and(|e| crate::blockmap::is_maps_entry(&e.file_name())));
-        if only_maps {
-            std::fs::remove_dir_all(&maps).map_err(io(&maps))?;
+    let owned: [(String, fn(&std::ffi::OsStr) -> bool); 2] = [
+        (
+            format!("tile_{tile:05}_maps"),
+            crate::blockmap::is_maps_entry,
+        ),
+        (
+            format!("tile_{tile:05}_tileset"),
+            crate::tiles::is_tileset_entry,
+        ),
+    ];
+    for (name, owns) in owned {
+        let sub = dir.join(name);
+        if sub.is_dir() {
+            let only_ours = std::fs::read_dir(&sub)
+                .map_err(io(&sub))?
+                .all(|e| e.is_ok_and(|e| owns(&e.file_name())));
+            if only_ours {
+                std::fs::remove_dir_all(&sub).map_err(io(&sub))?;
+            }
         }
     }
     Ok(())
@@ -179,21 +234,23 @@ fn check_stamp(plan_path: &Path, want: &FileStamp) -> Result<(), JobsError> {
 
 /// Step 2: runs tile `tile` of the plan at `plan_path`, writing beside it in `tiles/` (see the
 /// module documentation). Deterministic: the same plan and inputs give the same files. With
-/// `maps`, the tile's BlockMaps too ([`build_city_maps`] over the tile's blocks, written as
-/// `tiles/tile_NNNNN_maps/node_KEY.png` + `.json`). Their quadtree is built over the tile's own
-/// blocks, whose box is the region it splits: below the tile its nodes are not the nodes of a
-/// quadtree over the whole city, and no map covers more than one tile.
+/// [`TileOptions::maps`], the tile's BlockMaps too, and with [`TileOptions::tileset`] its 3D
+/// Tiles tileset. Their quadtree is built over the tile's own blocks, whose box is the region it
+/// splits: below the tile its nodes are not the nodes of a quadtree over the whole city, and no
+/// map covers more than one tile.
 ///
 /// # Errors
 /// [`JobsError::TileOutOfRange`], [`JobsError::InputChanged`] when the footprint file is not
 /// the plan's, [`JobsError::TileMismatch`] when the buildings found disagree with the plan's
 /// counts, reading, building and export errors naming their file.
-pub fn run_tile(
-    plan_path: &Path,
-    tile: usize,
-    maps: Option<&CityMapsOptions>,
-) -> Result<TileRun, JobsError> {
+pub fn run_tile(plan_path: &Path, tile: usize, opts: &TileOptions) -> Result<TileRun, JobsError> {
     let t0 = Instant::now();
+    if opts.tileset.is_some_and(|t| t.terrain.is_some()) {
+        return Err(JobsError::Unsupported {
+            file: plan_path.to_path_buf(),
+            why: "a tile's tileset holds buildings only: give the terrain to `blockwalk tileset` or a DEM to the plan".into(),
+        });
+    }
     let plan = Plan::read(plan_path)?;
     let Some(pt) = plan.tiles.get(tile) else {
         return Err(JobsError::TileOutOfRange {
@@ -430,20 +487,22 @@ pub fn run_tile(
     };
     drop(block_meshes);
     let mut blockmaps = None;
-    if let (Some(mo), false) = (maps, city.buildings.is_empty()) {
-        // The map builder indexes blocks by id: give it the tile's blocks numbered 0..n.
-        let dense = BlockLayout {
-            blocks: layout
-                .blocks
-                .iter()
-                .enumerate()
-                .map(|(i, b)| Block {
-                    id: BlockId(i as u32),
-                    ..b.clone()
-                })
-                .collect(),
-            ..layout.clone()
-        };
+    // The map builder and the tileset index blocks by id: give them the tile's blocks numbered
+    // 0..n.
+    let dense = || BlockLayout {
+        blocks: layout
+            .blocks
+            .iter()
+            .enumerate()
+            .map(|(i, b)| Block {
+                id: BlockId(i as u32),
+                ..b.clone()
+            })
+            .collect(),
+        ..layout.clone()
+    };
+    if let (Some(mo), false) = (&opts.maps, city.buildings.is_empty()) {
+        let dense = dense();
         let bounds = crate::index::block_bounds(&city, &dense);
         let cm = build_city_maps(&city, &dense, &bounds, mo, &|_, _| {}).map_err(|e| {
             JobsError::TileMismatch {
@@ -509,6 +568,52 @@ pub fn run_tile(
             "build_s": s["build_s"],
         }));
     }
+    let mut tileset = None;
+    if let (Some(to), false) = (&opts.tileset, city.buildings.is_empty()) {
+        let dense = dense();
+        let bounds = crate::index::block_bounds(&city, &dense);
+        let name = format!("tile_{tile:05}_tileset");
+        let tdir = dir.join(&name);
+        let (set, summary) = build_tileset(&city, &dense, &bounds, &meshes, &tdir, to, &|_, _| {})
+            .map_err(|e| JobsError::TileMismatch {
+                tile,
+                file: tdir.clone(),
+                why: format!("3D Tiles: {e}"),
+            })?;
+        let root = set.tiles[0].aabb;
+        let mut listed = Vec::new();
+        list_files(&tdir, &mut listed)?;
+        listed.sort();
+        let mut bytes = 0;
+        for p in listed {
+            let st = FileStamp::of(&p)?;
+            let rel = p.strip_prefix(&dir).unwrap_or(&p);
+            bytes += st.bytes;
+            files.push(TileFile {
+                path: format!(
+                    "tiles/{}",
+                    rel.components()
+                        .map(|c| c.as_os_str().to_string_lossy())
+                        .collect::<Vec<_>>()
+                        .join("/")
+                ),
+                bytes: st.bytes,
+                crc32: st.crc32,
+            });
+        }
+        tileset = Some(TileTileset {
+            path: format!("tiles/{name}/tileset.json"),
+            geometric_error: set.geometric_error,
+            aabb: [
+                root.min.x, root.min.y, root.min.z, root.max.x, root.max.y, root.max.z,
+            ],
+            transform: set.georef.map(|g| g.ecef_from_local),
+            tiles: summary.tiles,
+            buildings: summary.buildings,
+            bytes,
+            seconds: summary.seconds,
+        });
+    }
     if !city.buildings.is_empty() {
         let hpath = hierarchy_path(plan_path, tile);
         let text = serde_json::to_vec(&hierarchy).map_err(|source| JobsError::Json {
@@ -558,6 +663,7 @@ pub fn run_tile(
         blocks,
         files,
         blockmaps,
+        tileset,
         seconds: t0.elapsed().as_secs_f64(),
         peak_rss_bytes: crate::process::peak_rss_bytes(),
     };
@@ -580,4 +686,22 @@ pub fn run_tile(
         layout,
         meshes,
     })
+}
+
+/// Every file under `dir`, depth first.
+fn list_files(dir: &Path, out: &mut Vec<PathBuf>) -> Result<(), JobsError> {
+    let io = |file: &Path| {
+        let file = file.to_path_buf();
+        move |source| JobsError::Io { file, source }
+    };
+    for e in std::fs::read_dir(dir).map_err(io(dir))? {
+        let e = e.map_err(io(dir))?;
+        let p = e.path();
+        if e.file_type().map_err(io(&p))?.is_dir() {
+            list_files(&p, out)?;
+        } else {
+            out.push(p);
+        }
+    }
+    Ok(())
 }
