@@ -491,10 +491,10 @@ fn plan(tree: &BqrTree, maps: &MapTree, layout: &BlockLayout, meshes: &[Mesh]) -
     tiles
 }
 
-/// True for the entries a tileset folder holds (`tileset.json`, `tiles`): a folder of only
-/// these may be replaced by a new tileset.
+/// True for the entries a tileset folder holds (`tileset.json`, `tiles`, `terrain`, and the
+/// implicit form's `subtrees`): a folder of only these may be replaced by a new tileset.
 pub fn is_tileset_entry(name: &std::ffi::OsStr) -> bool {
-    name == "tileset.json" || name == "tiles" || name == "terrain"
+    name == "tileset.json" || name == "tiles" || name == "terrain" || name == "subtrees"
 }
 
 /// Builds the tileset of a city and writes it to `dir`: `tileset.json` and `tiles/*.glb`, and
