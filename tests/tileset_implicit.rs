@@ -318,6 +318,20 @@ fn the_implicit_tree_read_from_its_subtrees_is_the_explicit_tree() {
     }
 }
 
+#[test]
+fn an_implicit_tileset_folder_replaces_and_is_replaced_by_a_tileset() {
+    let (scene, meshes) = helsinki();
+    let work = tempfile::tempdir().unwrap();
+    let dir = work.path().join("tiles");
+    write(&scene, &meshes, &dir, false, 3, false).unwrap();
+    write(&scene, &meshes, &dir, true, 3, false).unwrap();
+    assert!(dir.join("subtrees/0/0/0.subtree").is_file());
+    assert!(!walk(&dir).iter().any(|f| f.starts_with("tiles/leaf_")));
+    write(&scene, &meshes, &dir, true, 3, false).unwrap();
+    write(&scene, &meshes, &dir, false, 3, false).unwrap();
+    assert!(!dir.join("subtrees").exists());
+}
+
 /// Relative paths of every file under `dir`, sorted.
 fn walk(dir: &Path) -> Vec<String> {
     let mut out = Vec::new();

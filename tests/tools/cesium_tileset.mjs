@@ -111,6 +111,14 @@ try {
   // Responses of another server (the tileset_url's): recorded as the local server records its own.
   const remoteBase = spec.tileset_url ? new URL('.', spec.tileset_url).href : null;
   if (remoteBase) {
+    tab.on('request', (r) => {
+      if (r.url().startsWith(remoteBase)) requests.issued = (requests.issued || 0) + 1;
+    });
+    tab.on('requestfailed', (r) => {
+      if (r.url().startsWith(remoteBase)) {
+        (requests.failed = requests.failed || []).push(`${r.url()}: ${r.failure() && r.failure().errorText}`);
+      }
+    });
     tab.on('response', (r) => {
       if (!r.url().startsWith(remoteBase)) return;
       const rel = decodeURIComponent(r.url().slice(remoteBase.length).split(/[?#]/)[0]);
