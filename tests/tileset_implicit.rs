@@ -355,7 +355,7 @@ fn walk(dir: &Path) -> Vec<String> {
 fn check_archive(path: &Path, dir: &Path) {
     let bytes = std::fs::read(path).unwrap();
     let mut zip = zip::ZipArchive::new(std::io::Cursor::new(bytes.clone())).unwrap();
-    let names: Vec<String> = zip.file_names().map(str::to_string).collect();
+    let names: Vec<String> = zip.file_names().map(|n| n.unwrap().into_owned()).collect();
     // The index is the last central directory record, and stored.
     let last = (0..zip.len())
         .max_by_key(|&i| zip.by_index_raw(i).unwrap().central_header_start())

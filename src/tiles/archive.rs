@@ -369,7 +369,13 @@ impl Staged {
             Self::Archive { staging, file } => {
                 let name = file.path().to_path_buf();
                 let file = write_archive(staging.path(), file, &name)?;
-                Ok(Some(file.commit()?))
+                file.commit()?;
+                // The archive's length (the writer also counts the headers it patched).
+                let len = std::fs::metadata(&name).map_err(|source| ArchiveError::Io {
+                    path: name.clone(),
+                    source,
+                })?;
+                Ok(Some(len.len()))
             }
         }
     }
