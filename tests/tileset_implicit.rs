@@ -151,8 +151,11 @@ fn demorton(m: u64) -> (u32, u32) {
     (x, y)
 }
 
+/// (level, x, y) by node key.
+type Coords = BTreeMap<u64, (u32, u32, u32)>;
+
 /// The implicit tree expanded from its subtree files, by node key, and each key's (level, x, y).
-fn read_implicit(dir: &Path) -> (BTreeMap<u64, T>, BTreeMap<u64, (u32, u32, u32)>) {
+fn read_implicit(dir: &Path) -> (BTreeMap<u64, T>, Coords) {
     let doc: Value =
         serde_json::from_slice(&std::fs::read(dir.join("tileset.json")).unwrap()).unwrap();
     let root = &doc["root"];

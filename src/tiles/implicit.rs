@@ -329,7 +329,7 @@ fn subtree_bytes(
     let mut buffer: Vec<u8> = Vec::new();
     let mut views: Vec<Value> = Vec::new();
     let mut view = |bytes: &[u8]| -> usize {
-        while buffer.len() % 8 != 0 {
+        while !buffer.len().is_multiple_of(8) {
             buffer.push(0);
         }
         views.push(json!({ "buffer": 0, "byteOffset": buffer.len(), "byteLength": bytes.len() }));
@@ -373,7 +373,7 @@ fn subtree_bytes(
             "kind": { "values": view(&kinds) },
         },
     });
-    while buffer.len() % 8 != 0 {
+    while !buffer.len().is_multiple_of(8) {
         buffer.push(0);
     }
     let doc = json!({
@@ -386,7 +386,7 @@ fn subtree_bytes(
         "childSubtreeAvailability": child_av,
     });
     let mut text = serde_json::to_vec(&doc).expect("a JSON value serialises");
-    while text.len() % 8 != 0 {
+    while !text.len().is_multiple_of(8) {
         text.push(b' ');
     }
     let mut out = Vec::with_capacity(24 + text.len() + buffer.len());
@@ -433,7 +433,7 @@ pub fn write(
         .map(|(i, c)| (*c, i))
         .collect();
     let roots: Vec<usize> = (0..tiles.len())
-        .filter(|&i| imp.coords[i].level % imp.subtree_levels == 0)
+        .filter(|&i| imp.coords[i].level.is_multiple_of(imp.subtree_levels))
         .collect();
     let mut bytes = 0u64;
     for &r in &roots {
