@@ -7,6 +7,13 @@
 //! camera (`visibility::oracle::shade`, `ours_<view>.png`) and a side-by-side `pair_<view>.png`,
 //! in `target/tileset-cesium/` (or `$BLOCKWALK_SCREENSHOT_DIR`).
 //!
+//! The same tiles are loaded in three forms, each held to the same assertions: the explicit
+//! folder, the implicit quadtree (subtree files of 3 levels, so that child subtrees are read
+//! too) and that implicit tileset as one `.3tz` served by our own server
+//! ([`blockwalk::stream::serve`], which reads the entries through the archive's index; CesiumJS
+//! reads no `.3tz` itself). Screenshots of the implicit and `.3tz` forms are prefixed
+//! `implicit_` and `3tz_`.
+//!
 //! The city stands on a terrain (gentle hills within about a metre of the ground, 20 m cells, a
 //! hole) written as the second tileset beside the buildings': both views draw terrain tiles too,
 //! and both trees' files are requested.
@@ -20,7 +27,7 @@ use blockwalk::city::appearance;
 use blockwalk::city::extrude::extrude_city;
 use blockwalk::geom::Camera;
 use blockwalk::scene::{CitySource, Scene, SceneOptions};
-use blockwalk::tiles::{build_tileset, TilesetOptions};
+use blockwalk::tiles::{build_tileset, Georef, TilesetOptions};
 use blockwalk::visibility::oracle::shade;
 use glam::DVec3;
 use serde_json::{json, Value};
@@ -75,23 +82,34 @@ fn cesium_loads_the_helsinki_tileset_and_refines_it() {
     });
     let meshes = extrude_city(&city);
     let work = tempfile::tempdir().unwrap();
-    let tiles_dir = work.path().join("tileset");
-    let (set, summary) = build_tileset(
-        &city,
-        &scene.layout,
-        &scene.bounds,
-        &meshes,
-        &tiles_dir,
-        &TilesetOptions {
-            terrain: Some(&tin),
-            terrain_leaf_triangles: 2000,
-            ..TilesetOptions::default()
-        },
-        &|_, _| {},
-    )
-    .unwrap();
-    assert!(summary.terrain_tiles > 1);
-    let g = set.georef.expect("Helsinki is georeferenced");
+    let build = |name: &str, implicit: bool, archive: bool| {
+        let out = work.path().join(name);
+        let (set, summary) = build_tileset(
+            &city,
+            &scene.layout,
+            &scene.bounds,
+            &meshes,
+            &out,
+            &TilesetOptions {
+                terrain: Some(&tin),
+                terrain_leaf_triangles: 2000,
+                implicit,
+                subtree_levels: 3,
+                archive,
+                ..TilesetOptions::default()
+            },
+            &|_, _| {},
+        )
+        .unwrap();
+        assert!(summary.terrain_tiles > 1);
+        assert_eq!(summary.implicit, implicit);
+        (out, set.georef.expect("Helsinki is georeferenced"))
+    };
+    let (explicit_dir, g) = build("tileset", false, false);
+    let (implicit_dir, _) = build("implicit", true, false);
+    let (archive, _) = build("tileset.3tz", true, true);
+    assert!(archive.is_file());
+    let server = blockwalk::stream::serve::Server::start(&archive, "127.0.0.1:0", 4).unwrap();
 
     // Views over the middle of the city: from 3 km away (the root's map alone is fine enough)
     // and from 80 m up, 220 m from the middle (leaves needed nearby).
@@ -102,47 +120,113 @@ fn cesium_loads_the_helsinki_tileset_and_refines_it() {
         ("near", centre + DVec3::new(0.0, -220.0, 80.0)),
     ];
     let out = support::node::screenshot_dir("tileset-cesium");
-    let spec = json!({
-        "chromium": chromium,
-        "tileset_dir": tiles_dir,
-        "out_dir": out,
-        "width": W,
-        "height": H,
-        "maximum_screen_space_error": 16,
-        "sky": appearance::SKY,
-        "ground": appearance::GROUND,
-        "sun_local": appearance::sun_direction().to_array(),
-        "views": views.iter().map(|(name, eye)| json!({
-            "name": name, "eye": eye.to_array(), "target": centre.to_array(), "fov_y_deg": 60.0,
-        })).collect::<Vec<_>>(),
-    });
-    let spec_path = work.path().join("spec.json");
-    std::fs::write(&spec_path, serde_json::to_vec_pretty(&spec).unwrap()).unwrap();
-    let report = support::node::run_json(&node, "cesium_tileset.mjs", &spec_path);
-    std::fs::write(
-        out.join("cesium_report.json"),
-        serde_json::to_vec_pretty(&report).unwrap(),
-    )
-    .unwrap();
+    // Our own rendering of each camera, once.
+    let ours: Vec<image::RgbaImage> = views
+        .iter()
+        .map(|(name, eye)| {
+            let mut cam = Camera::looking_at(*eye, centre);
+            cam.aspect = W as f64 / H as f64;
+            cam.far = 20_000.0;
+            let blocks: Vec<_> = scene
+                .block_meshes()
+                .iter()
+                .map(|(id, m)| (*id, m))
+                .collect();
+            let img = shade(&blocks, &cam, W, H);
+            img.save(out.join(format!("ours_{name}.png"))).unwrap();
+            img
+        })
+        .collect();
+    let forms = [
+        ("explicit", "", explicit_dir.clone(), None),
+        ("implicit", "implicit_", implicit_dir, None),
+        (
+            ".3tz",
+            "3tz_",
+            work.path().to_path_buf(),
+            Some(format!("{}tileset.json", server.url())),
+        ),
+    ];
+    for (form, prefix, dir, url) in forms {
+        let spec = json!({
+            "chromium": chromium,
+            "tileset_dir": dir,
+            "tileset_url": url,
+            "prefix": prefix,
+            "out_dir": out,
+            "width": W,
+            "height": H,
+            "maximum_screen_space_error": 16,
+            "sky": appearance::SKY,
+            "ground": appearance::GROUND,
+            "sun_local": appearance::sun_direction().to_array(),
+            "views": views.iter().map(|(name, eye)| json!({
+                "name": name, "eye": eye.to_array(), "target": centre.to_array(), "fov_y_deg": 60.0,
+            })).collect::<Vec<_>>(),
+        });
+        let spec_path = work.path().join(format!("spec{prefix}.json"));
+        std::fs::write(&spec_path, serde_json::to_vec_pretty(&spec).unwrap()).unwrap();
+        let report = support::node::run_json(&node, "cesium_tileset.mjs", &spec_path);
+        std::fs::write(
+            out.join(format!("{prefix}cesium_report.json")),
+            serde_json::to_vec_pretty(&report).unwrap(),
+        )
+        .unwrap();
+        check_report(form, prefix, &report, &g, &views, &ours, &out);
+    }
+    // The archive's entries were all served through its index.
+    assert_eq!(
+        server
+            .counts()
+            .missing
+            .load(std::sync::atomic::Ordering::Relaxed),
+        0
+    );
+}
+
+/// The assertions on one form's report: no page error, every file asked for was there, both
+/// trees requested, each view loaded without failure, far = maps only, near = leaves, and the
+/// skyline as our rendering's.
+fn check_report(
+    form: &str,
+    prefix: &str,
+    report: &Value,
+    g: &Georef,
+    views: &[(&str, DVec3)],
+    ours: &[image::RgbaImage],
+    out: &Path,
+) {
     let errors = report["page_errors"].as_array().unwrap();
-    assert!(errors.is_empty(), "page errors: {errors:#?}");
-    // Both trees were requested: the buildings' contents and the terrain's tileset and tiles;
-    // nothing asked for was missing.
+    assert!(errors.is_empty(), "{form}: page errors: {errors:#?}");
+    // Both trees were requested: the buildings' contents (and subtrees) and the terrain's
+    // tileset and tiles; nothing asked for was missing.
     let files: Vec<&str> = report["requests"]["tileset_files"]
         .as_array()
         .unwrap()
         .iter()
         .map(|f| f.as_str().unwrap())
         .collect();
-    for want in [
-        "tileset.json",
-        "tiles/leaf_",
-        "terrain/tileset.json",
-        "terrain/tiles/t_",
-    ] {
+    let wanted: &[&str] = if form == "explicit" {
+        &[
+            "tileset.json",
+            "tiles/leaf_",
+            "terrain/tileset.json",
+            "terrain/tiles/t_",
+        ]
+    } else {
+        &[
+            "tileset.json",
+            "subtrees/0/0/0.subtree",
+            "subtrees/3/",
+            "tiles/0/0/0.glb",
+            "terrain/tileset.json",
+            "terrain/tiles/t_",
+        ]
+    };
+    for want in wanted {
         assert!(
             files.iter().any(|f| f.starts_with(want)),
-            "{want} never requested: {files:?}"
+            "{form}: {want} never requested: {files:?}"
         );
     }
     let missing = report["requests"]["missing"].as_array().unwrap();
@@ -150,7 +234,7 @@ fn cesium_loads_the_helsinki_tileset_and_refines_it() {
         missing
             .iter()
             .all(|m| !files.contains(&m.as_str().unwrap())),
-        "tileset files missing: {missing:?}"
+        "{form}: tileset files missing: {missing:?}"
     );
     let setup = &report["setup"];
     assert_eq!(setup["webgl2"], true, "{setup}");
@@ -166,71 +250,63 @@ fn cesium_loads_the_helsinki_tileset_and_refines_it() {
             .filter(|s| s.as_str().unwrap().starts_with(kind))
             .count()
     };
-    for (k, (name, eye)) in views.iter().enumerate() {
+    for (k, (name, _)) in views.iter().enumerate() {
         let v = &report["views"][k];
         assert_eq!(v["name"], *name);
         assert_eq!(
             v["tiles_loaded"], true,
-            "{name}: not every tile loaded: {v}"
+            "{form} {name}: not every tile loaded: {v}"
         );
         assert!(
             v["failed"].as_array().unwrap().is_empty(),
-            "{name}: tiles failed: {}",
+            "{form} {name}: tiles failed: {}",
             v["failed"]
         );
         assert!(
             !v["loaded"].as_array().unwrap().is_empty(),
-            "{name}: nothing loaded"
+            "{form} {name}: nothing loaded"
         );
         let (maps, leaves, terrain) = (
             kinds(v, "visible", "blockmap"),
             kinds(v, "visible", "buildings"),
             kinds(v, "visible", "terrain:"),
         );
-        assert!(terrain > 0, "{name}: no terrain tile drawn: {v}");
+        assert!(terrain > 0, "{form} {name}: no terrain tile drawn: {v}");
         println!(
-            "{name}: {} tiles loaded, drawn: {maps} BlockMap tiles, {leaves} building leaves, {terrain} terrain tiles, {} triangles, {:.1} s",
+            "{form} {name}: {} tiles loaded, drawn: {maps} BlockMap tiles, {leaves} building leaves, {terrain} terrain tiles, {} triangles, {:.1} s",
             v["loaded"].as_array().unwrap().len(),
             v["triangles"],
             v["seconds"].as_f64().unwrap()
         );
         match *name {
             // Far: the inner tiles' coarse meshes only.
-            "far" => assert!(maps > 0 && leaves == 0, "{name}: {v}"),
+            "far" => assert!(maps > 0 && leaves == 0, "{form} {name}: {v}"),
             // Near: leaves replaced their parents' maps.
-            _ => assert!(leaves > 0, "{name}: no leaf drawn: {v}"),
+            _ => assert!(leaves > 0, "{form} {name}: no leaf drawn: {v}"),
         }
 
         // Our own rendering of the same camera, and the pair side by side.
-        let mut cam = Camera::looking_at(*eye, centre);
-        cam.aspect = W as f64 / H as f64;
-        cam.far = 20_000.0;
-        let blocks: Vec<_> = scene
-            .block_meshes()
-            .iter()
-            .map(|(id, m)| (*id, m))
-            .collect();
-        let ours = shade(&blocks, &cam, W, H);
-        ours.save(out.join(format!("ours_{name}.png"))).unwrap();
-        let theirs = image::open(out.join(format!("cesium_{name}.png")))
+        let ours = &ours[k];
+        let theirs = image::open(out.join(format!("{prefix}cesium_{name}.png")))
             .unwrap()
             .to_rgba8();
         assert_eq!(theirs.dimensions(), (W, H));
         let mut pair = image::RgbaImage::new(2 * W, H);
-        image::imageops::overlay(&mut pair, &ours, 0, 0);
+        image::imageops::overlay(&mut pair, ours, 0, 0);
         image::imageops::overlay(&mut pair, &theirs, W as i64, 0);
-        pair.save(out.join(format!("pair_{name}.png"))).unwrap();
-        let agree = sky_agreement(&ours, &theirs);
+        pair.save(out.join(format!("{prefix}pair_{name}.png")))
+            .unwrap();
+        let agree = sky_agreement(ours, &theirs);
         println!(
-            "{name}: sky/not-sky agreement with our rendering {:.3}; {}",
+            "{form} {name}: sky/not-sky agreement with our rendering {:.3}; {}",
             agree,
-            out.join(format!("pair_{name}.png")).display()
+            out.join(format!("{prefix}pair_{name}.png")).display()
         );
         // The same camera sees the same skyline: the horizon and the buildings against the sky
         // (the views differ in lighting and in the far field's coarse mesh, not in place). From
         // 1.5 km up our ground plane's edge (20 km away) sits below Cesium's curved horizon:
         // a band of a few rows that the far view allows for.
         let need = if *name == "far" { 0.9 } else { 0.98 };
-        assert!(agree > need, "{name}: sky agreement {agree}");
+        assert!(agree > need, "{form} {name}: sky agreement {agree}");
     }
 }

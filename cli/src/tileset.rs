@@ -21,7 +21,23 @@ pub struct Args {
     /// bytes than the meshes, Cignoni et al., §4).
     #[arg(long, value_parser = clap::value_parser!(u32).range(1..))]
     pub levels: Option<u32>,
-    /// Output directory (tileset.json and tiles/).
+    /// Write a 3D Tiles 1.1 implicit quadtree (subtree files under subtrees/, contents at
+    /// tiles/{level}/{x}/{y}.glb, each tile's own box and error as tile metadata) with the same
+    /// tiles as the default explicit tileset.json. For viewers with implicit tiling (CesiumJS,
+    /// 3d-tiles-tools); the terrain's tileset stays explicit.
+    #[arg(long)]
+    pub implicit: bool,
+    /// Levels per subtree file of the implicit form.
+    #[arg(long, default_value_t = blockwalk::tiles::implicit::DEFAULT_SUBTREE_LEVELS,
+          value_parser = clap::value_parser!(u32).range(1..=16))]
+    pub subtree_levels: u32,
+    /// Write one file, a 3D Tiles archive (.3tz: a ZIP with an MD5 index), instead of a folder;
+    /// implied when -o ends in .3tz. Works with the explicit and the implicit form. CesiumJS
+    /// reads no .3tz itself: `blockwalk serve CITY.3tz` serves its entries, so a viewer loads
+    /// http://ADDR/tileset.json.
+    #[arg(long = "3tz")]
+    pub archive: bool,
+    /// Output directory (tileset.json and tiles/), or the .3tz file.
     #[arg(short = 'o', long = "out")]
     pub out: PathBuf,
     /// Print one JSON object instead of the human summary.
@@ -57,6 +73,13 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let opts = TilesetOptions {
         k: args.k,
         stop: args.levels.map_or(Stop::Competitive, Stop::Levels),
+        implicit: args.implicit,
+        subtree_levels: args.subtree_levels,
+        archive: args.archive
+            || args
+                .out
+                .extension()
+                .is_some_and(|e| e.eq_ignore_ascii_case("3tz")),
         ..TilesetOptions::default()
     };
     let (_, summary) = build_tileset(
@@ -95,6 +118,24 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             total_s
         );
         outln!("root geometric error {:.2} m", summary.root_geometric_error);
+        outln!(
+            "{} form{}{}",
+            if summary.implicit {
+                "implicit"
+            } else {
+                "explicit"
+            },
+            if summary.implicit {
+                format!(" ({} subtree files)", summary.subtrees)
+            } else {
+                String::new()
+            },
+            if summary.archive {
+                ", one .3tz archive"
+            } else {
+                ""
+            }
+        );
         outln!("{}", summary.placement());
         outln!("wrote {}", summary.tileset_json.display());
     }

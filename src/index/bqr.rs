@@ -345,6 +345,12 @@ impl BqrTree {
         })
     }
 
+    /// The quadrant of node `i` (its square's south-west and north-east corners, local x, y), or
+    /// `None` past the end. The root's is the square the keys subdivide.
+    pub fn quadrant(&self, i: usize) -> Option<(DVec2, DVec2)> {
+        self.nodes.get(i).map(|n| (n.quad_min, n.quad_max))
+    }
+
     /// Number of mobile objects.
     pub fn object_count(&self) -> usize {
         self.object_count

@@ -3,7 +3,14 @@
 //! `206 Partial Content`. Paths that leave the folder are refused. It serves the tests and
 //! `blockwalk serve`; any static server with range support (nginx, Caddy, S3) serves the same
 //! folder.
+//!
+//! Given a 3D Tiles archive (`.3tz`, [`crate::tiles::archive`]) instead of a folder, it serves
+//! the archive's entries by path, each found through the archive's index and decompressed: a
+//! viewer loads `http://ADDR/tileset.json` as from the folder the archive was made of (CesiumJS
+//! reads no `.3tz` itself). Every answer allows any origin (`Access-Control-Allow-Origin: *`),
+//! so a web viewer served from elsewhere may load the tiles.
 
+use crate::tiles::archive::Archive;
 use std::io::{Read, Seek};
 use std::net::SocketAddr;
 use std::path::{Component, Path, PathBuf};
@@ -83,26 +90,101 @@ fn resolve(root: &Path, url: &str) -> Option<PathBuf> {
     Some(out)
 }
 
-fn answer(root: &Path, req: tiny_http::Request, counts: &ServeCounts) {
+/// What is served: a folder's files, or an archive's entries.
+#[derive(Debug)]
+enum Store {
+    Dir(PathBuf),
+    Archive(Archive),
+}
+
+/// A body to send: its reader (positioned at 0) and length.
+type Body = (Box<dyn ReadSeek>, u64);
+
+trait ReadSeek: Read + Seek + Send {}
+impl<T: Read + Seek + Send> ReadSeek for T {}
+
+/// What a request path finds.
+enum Found {
+    Body(Body),
+    Forbidden,
+    Missing,
+    Broken,
+}
+
+impl Store {
+    fn find(&self, url: &str) -> Found {
+        match self {
+            Store::Dir(root) => {
+                let Some(path) = resolve(root, url) else {
+                    return Found::Forbidden;
+                };
+                match std::fs::File::open(&path) {
+                    Ok(f) if f.metadata().is_ok_and(|m| m.is_file()) => {
+                        let len = f.metadata().map(|m| m.len()).unwrap_or(0);
+                        Found::Body((Box::new(f), len))
+                    }
+                    _ => Found::Missing,
+                }
+            }
+            Store::Archive(a) => {
+                // The entry path: the request path, decoded, without its leading slash.
+                let Some(rel) = resolve(Path::new(""), url) else {
+                    return Found::Forbidden;
+                };
+                let Some(rel) = rel.to_str().map(|r| r.replace('\\', "/")) else {
+                    return Found::Missing;
+                };
+                match a.read(&rel) {
+                    Ok(Some(bytes)) => {
+                        let len = bytes.len() as u64;
+                        Found::Body((Box::new(std::io::Cursor::new(bytes)), len))
+                    }
+                    Ok(None) => Found::Missing,
+                    Err(_) => Found::Broken,
+                }
+            }
+        }
+    }
+}
+
+/// The media type of a served path, by its extension.
+fn content_type(url: &str) -> &'static str {
+    let path = url.split(['?', '#']).next().unwrap_or("");
+    match path.rsplit_once('.').map(|(_, e)| e) {
+        Some("json") => "application/json",
+        Some("glb") => "model/gltf-binary",
+        _ => "application/octet-stream",
+    }
+}
+
+fn answer(store: &Store, req: tiny_http::Request, counts: &ServeCounts) {
     counts.requests.fetch_add(1, Ordering::Relaxed);
     let head = *req.method() == tiny_http::Method::Head;
     if !head && *req.method() != tiny_http::Method::Get {
         let _ = req.respond(tiny_http::Response::empty(405));
         return;
     }
-    let Some(path) = resolve(root, req.url()) else {
-        let _ = req.respond(tiny_http::Response::empty(403));
-        return;
+    let cors = || {
+        tiny_http::Header::from_bytes(&b"Access-Control-Allow-Origin"[..], &b"*"[..])
+            .expect("an ASCII header")
     };
-    let file = match std::fs::File::open(&path) {
-        Ok(f) if f.metadata().is_ok_and(|m| m.is_file()) => f,
-        _ => {
+    let (file, len) = match store.find(req.url()) {
+        Found::Body(b) => b,
+        Found::Forbidden => {
+            let _ = req.respond(tiny_http::Response::empty(403).with_header(cors()));
+            return;
+        }
+        Found::Missing => {
             counts.missing.fetch_add(1, Ordering::Relaxed);
-            let _ = req.respond(tiny_http::Response::empty(404));
+            let _ = req.respond(tiny_http::Response::empty(404).with_header(cors()));
+            return;
+        }
+        Found::Broken => {
+            let _ = req.respond(tiny_http::Response::empty(500).with_header(cors()));
             return;
         }
     };
-    let len = file.metadata().map(|m| m.len()).unwrap_or(0);
+    let kind = content_type(req.url());
     let range = req
         .headers()
         .iter()
@@ -132,7 +214,8 @@ fn answer(root: &Path, req: tiny_http::Request, counts: &ServeCounts) {
         tiny_http::StatusCode(status),
         vec![
             header("Accept-Ranges", "bytes".into()),
-            header("Content-Type", "application/octet-stream".into()),
+            header("Content-Type", kind.into()),
+            cors(),
         ],
         Box::new(file.take(if head { 0 } else { count })) as Box<dyn Read + Send>,
         Some(count as usize),
@@ -152,14 +235,22 @@ fn answer(root: &Path, req: tiny_http::Request, counts: &ServeCounts) {
 }
 
 impl Server {
-    /// Serves `root` on `addr` (e.g. `127.0.0.1:0` for any free port) with `threads` threads.
+    /// Serves `root` on `addr` (e.g. `127.0.0.1:0` for any free port) with `threads` threads:
+    /// a folder's files, or a `.3tz` archive's entries (see the module documentation).
     ///
     /// # Errors
-    /// The address cannot be bound, or `root` is not a folder.
+    /// The address cannot be bound, or `root` is neither a folder nor a 3D Tiles archive.
     pub fn start(root: &Path, addr: &str, threads: usize) -> Result<Self, String> {
-        if !root.is_dir() {
-            return Err(format!("{}: not a folder", root.display()));
-        }
+        let store = Arc::new(if root.is_dir() {
+            Store::Dir(root.to_path_buf())
+        } else if root.is_file() {
+            Store::Archive(Archive::open(root).map_err(|e| e.to_string())?)
+        } else {
+            return Err(format!(
+                "{}: neither a folder nor a .3tz archive",
+                root.display()
+            ));
+        });
         let server = Arc::new(
             tiny_http::Server::http(addr).map_err(|e| format!("listening on {addr}: {e}"))?,
         );
@@ -172,11 +263,11 @@ impl Server {
         let threads = (0..threads.max(1))
             .map(|_| {
                 let (server, stop, counts) = (server.clone(), stop.clone(), counts.clone());
-                let root = root.to_path_buf();
+                let store = store.clone();
                 std::thread::spawn(move || {
                     while !stop.load(Ordering::Relaxed) {
                         match server.recv_timeout(std::time::Duration::from_millis(100)) {
-                            Ok(Some(req)) => answer(&root, req, &counts),
+                            Ok(Some(req)) => answer(&store, req, &counts),
                             Ok(None) => {}
                             Err(_) => break,
                         }

@@ -31,10 +31,18 @@
 //!   (an external tileset, whose own root transform places it; its bounding box written in
 //!   ECEF). A viewer loading `tileset.json` gets both, each refined on its own; one loading
 //!   `terrain/tileset.json` gets the terrain alone. Without terrain `tileset.json` is as before.
+//! - Implicit tiling (optional, [`TilesetOptions::implicit`]): the same tiles written as a
+//!   3D Tiles 1.1 implicit quadtree, subtree files carrying each tile's own box and error as
+//!   tile metadata ([`implicit`]: how BqR keys become (level, x, y), and where a node's own
+//!   blocks go). The terrain's tileset stays explicit.
+//! - One file (optional, [`TilesetOptions::archive`]): either form packed into a 3D Tiles
+//!   archive, `.3tz` ([`archive`]), written under a temporary name and renamed when complete.
 //! - Output is deterministic: the same city gives the same bytes.
 
+pub mod archive;
 pub mod geodesy;
 pub mod heightfield;
+pub mod implicit;
 pub mod terrain;
 
 use crate::blockmap::{
@@ -102,6 +110,17 @@ pub enum TilesError {
         #[source]
         source: TerrainError,
     },
+    /// The tile tree cannot be written as an implicit quadtree.
+    #[error("implicit tileset of {city}: {what}")]
+    Implicit {
+        /// City name.
+        city: String,
+        /// Why.
+        what: String,
+    },
+    /// The `.3tz` archive could not be written.
+    #[error(transparent)]
+    Archive(#[from] archive::ArchiveError),
     /// The city has no block with a building: there is nothing to tile.
     #[error("tileset of {city}: no block holds a building, nothing to export")]
     Empty {
@@ -118,6 +137,15 @@ pub struct TilesetOptions<'a> {
     /// Which quadtree nodes get a map (inner tiles); [`Stop::Competitive`] by default (Cignoni et al.
     /// §4: a map where it costs fewer bytes than the meshes).
     pub stop: Stop,
+    /// Write the buildings' tree as an implicit quadtree (subtree files, templated content
+    /// names; see [`implicit`]); `false` (explicit `tileset.json`) by default.
+    pub implicit: bool,
+    /// Levels per subtree file of the implicit form; [`implicit::DEFAULT_SUBTREE_LEVELS`] by
+    /// default.
+    pub subtree_levels: u32,
+    /// Write one `.3tz` file (the 3D Tiles archive, [`archive`]) at the output path instead of a
+    /// folder; `false` by default.
+    pub archive: bool,
     /// A terrain to write as a second tileset, `terrain/tileset.json` (see the module
     /// documentation); `None` by default.
     #[serde(skip)]
@@ -131,6 +159,9 @@ impl Default for TilesetOptions<'_> {
         Self {
             k: 64,
             stop: Stop::Competitive,
+            implicit: false,
+            subtree_levels: implicit::DEFAULT_SUBTREE_LEVELS,
+            archive: false,
             terrain: None,
             terrain_leaf_triangles: 16_384,
         }
@@ -202,6 +233,8 @@ pub struct Tileset {
     pub geometric_error: f64,
     /// The terrain's tileset (`terrain/tileset.json`), when a terrain was given.
     pub terrain: Option<terrain::TerrainTiles>,
+    /// The implicit layout, when the tileset was written as an implicit quadtree.
+    pub implicit: Option<implicit::Implicit>,
 }
 
 /// What [`build_tileset`] wrote, as `blockwalk tileset` prints it.
@@ -215,8 +248,15 @@ pub struct TilesetSummary {
     pub map_tiles: usize,
     /// Leaf tiles (building meshes).
     pub leaf_tiles: usize,
-    /// Bytes of `tileset.json` and every content file.
+    /// Bytes of `tileset.json`, every content and subtree file (the archive's bytes for a
+    /// `.3tz`).
     pub bytes: u64,
+    /// Written as an implicit quadtree.
+    pub implicit: bool,
+    /// Subtree files (implicit form; 0 for the explicit one).
+    pub subtrees: usize,
+    /// Written as one `.3tz` archive.
+    pub archive: bool,
     /// Depth of the tile tree (root alone = 0).
     pub depth: u32,
     /// Seconds for the whole export (maps, contents, files).
@@ -233,7 +273,7 @@ pub struct TilesetSummary {
     pub georef: Option<Georef>,
     /// The CRS and what was done with it.
     pub crs: String,
-    /// The `tileset.json` file.
+    /// The `tileset.json` file (the archive for a `.3tz`).
     pub tileset_json: PathBuf,
 }
 
@@ -451,10 +491,10 @@ fn plan(tree: &BqrTree, maps: &MapTree, layout: &BlockLayout, meshes: &[Mesh]) -
     tiles
 }
 
-/// True for the entries a tileset folder holds (`tileset.json`, `tiles`): a folder of only
-/// these may be replaced by a new tileset.
+/// True for the entries a tileset folder holds (`tileset.json`, `tiles`, `terrain`, and the
+/// implicit form's `subtrees`): a folder of only these may be replaced by a new tileset.
 pub fn is_tileset_entry(name: &std::ffi::OsStr) -> bool {
-    name == "tileset.json" || name == "tiles" || name == "terrain"
+    name == "tileset.json" || name == "tiles" || name == "terrain" || name == "subtrees"
 }
 
 /// Builds the tileset of a city and writes it to `dir`: `tileset.json` and `tiles/*.glb`, and
@@ -494,11 +534,7 @@ pub fn build_tileset(
         t.check().map_err(|source| TilesError::Terrain { source })?;
     }
     // Checked before any work: a folder holding anything but a previous tileset is refused.
-    let staged = crate::output::StagedDir::create(
-        dir,
-        "tileset (tileset.json and tiles/)",
-        is_tileset_entry,
-    )?;
+    let staged = archive::Staged::create(dir, opts.archive)?;
     let tree = BqrTree::build(bounds, &BqrParams::default()).map_err(|e| TilesError::Quadtree {
         city: city.name.clone(),
         what: e.to_string(),
@@ -625,18 +661,28 @@ pub fn build_tileset(
         )?),
         None => None,
     };
+    let implicit = match opts.implicit {
+        true => {
+            let mut imp =
+                implicit::layout(&city.name, &tiles, tree.quadrant(0), opts.subtree_levels)?;
+            implicit::write(&mut tiles, &mut imp, staged.path(), dir)?;
+            Some(imp)
+        }
+        false => None,
+    };
     let set = Tileset {
         geometric_error: root_ge.max(0.5 * root_box.extent().length()),
         georef,
         crs,
         tiles,
         terrain,
+        implicit,
     };
     let doc = set.to_json();
     let path = dir.join("tileset.json");
     let text = serde_json::to_vec_pretty(&doc).expect("a JSON value serialises");
     std::fs::write(staged.path().join("tileset.json"), &text).map_err(io(&path))?;
-    staged.commit()?;
+    let archive_bytes = staged.commit()?;
 
     let depth = {
         let mut d = vec![0u32; set.tiles.len()];
@@ -660,15 +706,22 @@ pub fn build_tileset(
             .iter()
             .filter(|t| t.kind == TileKind::Buildings)
             .count(),
-        bytes: text.len() as u64
-            + set
-                .tiles
-                .iter()
-                .map(|t| t.content_bytes as u64)
-                .sum::<u64>()
-            + set.terrain.as_ref().map_or(0, |t| {
-                t.json_bytes as u64 + t.tiles.iter().map(|t| t.content_bytes as u64).sum::<u64>()
-            }),
+        bytes: archive_bytes.unwrap_or(
+            text.len() as u64
+                + set.implicit.as_ref().map_or(0, |i| i.subtree_bytes)
+                + set
+                    .tiles
+                    .iter()
+                    .map(|t| t.content_bytes as u64)
+                    .sum::<u64>()
+                + set.terrain.as_ref().map_or(0, |t| {
+                    t.json_bytes as u64
+                        + t.tiles.iter().map(|t| t.content_bytes as u64).sum::<u64>()
+                }),
+        ),
+        implicit: set.implicit.is_some(),
+        subtrees: set.implicit.as_ref().map_or(0, |i| i.subtrees),
+        archive: archive_bytes.is_some(),
         depth,
         seconds: t0.elapsed().as_secs_f64(),
         buildings: set.tiles.iter().map(|t| t.buildings.len()).sum(),
@@ -680,16 +733,25 @@ pub fn build_tileset(
         root_geometric_error: root_ge,
         georef: set.georef,
         crs: set.crs.clone(),
-        tileset_json: path,
+        tileset_json: if archive_bytes.is_some() {
+            dir.to_path_buf()
+        } else {
+            path
+        },
     };
     Ok((set, summary))
 }
 
 /// A box as 3D Tiles writes it: centre, then the three half-axes (x, y, z) as columns.
-fn box_json(a: &Aabb3) -> Value {
+fn box_array(a: &Aabb3) -> [f64; 12] {
     let c = a.center();
     let h = 0.5 * a.extent();
-    json!([c.x, c.y, c.z, h.x, 0.0, 0.0, 0.0, h.y, 0.0, 0.0, 0.0, h.z])
+    [c.x, c.y, c.z, h.x, 0.0, 0.0, 0.0, h.y, 0.0, 0.0, 0.0, h.z]
+}
+
+/// [`box_array`] as JSON.
+fn box_json(a: &Aabb3) -> Value {
+    json!(box_array(a))
 }
 
 /// A local box as an oriented box through `m` (local → the tile's frame, e.g. ECEF): the centre
@@ -725,7 +787,10 @@ impl Tileset {
             }
             v
         }
-        let mut root = tile(self, 0);
+        let mut root = match &self.implicit {
+            Some(imp) => implicit::root_json(&self.tiles, imp),
+            None => tile(self, 0),
+        };
         let m = self.georef.map_or(DMat4::IDENTITY, |g| {
             DMat4::from_cols_array(&g.ecef_from_local)
         });
@@ -755,7 +820,7 @@ impl Tileset {
                 ],
             });
         }
-        json!({
+        let mut doc = json!({
             "asset": {
                 "version": "1.1",
                 "generator": "blockwalk",
@@ -767,7 +832,11 @@ impl Tileset {
             },
             "geometricError": geometric_error,
             "root": root,
-        })
+        });
+        if self.implicit.is_some() {
+            doc["schema"] = implicit::schema();
+        }
+        doc
     }
 }
 

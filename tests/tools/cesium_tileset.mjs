@@ -7,13 +7,21 @@
 //
 // Usage: node cesium_tileset.mjs SPEC.json
 // SPEC: { "chromium": "/usr/bin/chromium", "tileset_dir": DIR, "out_dir": DIR,
+//         "tileset_url": URL (optional: the tileset.json of another server, e.g. `blockwalk
+//         serve` on a .3tz, loaded instead of the one in tileset_dir), "prefix": "" (optional:
+//         the screenshots' name prefix),
 //         "width": 480, "height": 270, "maximum_screen_space_error": 16,
 //         "sky": [r, g, b], "ground": [r, g, b], "sun_local": [x, y, z],
 //         "views": [{ "name": "far", "eye": [x, y, z], "target": [x, y, z], "fov_y_deg": 60 }] }
 // Eye and target are in the tileset's local frame (x east, y north, z up, metres), placed on the
 // globe through the root tile's transform (or, for a tileset whose root groups the buildings'
-// tree and an external terrain tileset, `extras.kind` "group", through its first child's). Prints one JSON report on stdout; exit status 0 when
-// the script ran (the caller judges the report), 2 when it could not run.
+// tree and an external terrain tileset, `extras.kind` "group", through its first child's).
+// Tiles are named `kind:node_key` from their `extras` (explicit tiles) or their tile metadata
+// (implicit tiles: properties `kind` and `node_key`), `?` when they carry neither (the implicit
+// root as tileset.json writes it). Every response under the tileset's folder URL is recorded
+// (`requests.tileset_files`, relative paths; `requests.missing`, those answered 404 or worse).
+// Prints one JSON report on stdout; exit status 0 when the script ran (the caller judges the
+// report), 2 when it could not run.
 import fs from 'node:fs';
 import http from 'node:http';
 import path from 'node:path';
@@ -100,6 +108,25 @@ try {
   await tab.setViewport({ width: spec.width, height: spec.height });
   tab.on('console', (m) => report.console.push(`${m.type()}: ${m.text()}`));
   tab.on('pageerror', (e) => report.page_errors.push(String(e)));
+  // Responses of another server (the tileset_url's): recorded as the local server records its own.
+  const remoteBase = spec.tileset_url ? new URL('.', spec.tileset_url).href : null;
+  if (remoteBase) {
+    tab.on('request', (r) => {
+      if (r.url().startsWith(remoteBase)) requests.issued = (requests.issued || 0) + 1;
+    });
+    tab.on('requestfailed', (r) => {
+      if (r.url().startsWith(remoteBase)) {
+        (requests.failed = requests.failed || []).push(`${r.url()}: ${r.failure() && r.failure().errorText}`);
+      }
+    });
+    tab.on('response', (r) => {
+      if (!r.url().startsWith(remoteBase)) return;
+      const rel = decodeURIComponent(r.url().slice(remoteBase.length).split(/[?#]/)[0]);
+      requests.tileset_files.push(rel);
+      if (r.status() >= 400) requests.missing.push(rel);
+      else requests.served += 1;
+    });
+  }
   tab.on('request', (r) => {
     const u = new URL(r.url());
     if (u.hostname !== '127.0.0.1' && u.protocol !== 'data:' && u.protocol !== 'blob:') {
@@ -128,7 +155,7 @@ try {
     scene.fog.enabled = false;
     if (scene.sun) scene.sun.show = false;
     if (scene.moon) scene.moon.show = false;
-    const tileset = await C.Cesium3DTileset.fromUrl('/tileset/tileset.json', {
+    const tileset = await C.Cesium3DTileset.fromUrl(spec.tileset_url || '/tileset/tileset.json', {
       maximumScreenSpaceError: spec.maximum_screen_space_error,
     });
     scene.primitives.add(tileset);
@@ -143,8 +170,16 @@ try {
     scene.light = new C.DirectionalLight({ direction: dirToWorld([-s[0], -s[1], -s[2]]), intensity: 2.0 });
     window.bw = { C, viewer, tileset, toWorld, dirToWorld, failed: [], loaded: [], visible: [] };
     tileset.tileFailed.addEventListener((e) => window.bw.failed.push(`${e.url}: ${e.message}`));
-    tileset.tileLoad.addEventListener((tile) => window.bw.loaded.push(tile.extras ? tile.extras.kind + ':' + tile.extras.node_key : '?'));
-    tileset.tileVisible.addEventListener((tile) => window.bw.visible.push(tile.extras ? tile.extras.kind + ':' + tile.extras.node_key : '?'));
+    const label = (tile) => {
+      if (tile.extras && tile.extras.kind) return tile.extras.kind + ':' + tile.extras.node_key;
+      const m = tile.metadata;
+      if (m && typeof m.hasProperty === 'function' && m.hasProperty('kind')) {
+        return m.getProperty('kind') + ':' + String(m.getProperty('node_key'));
+      }
+      return '?';
+    };
+    tileset.tileLoad.addEventListener((tile) => window.bw.loaded.push(label(tile)));
+    tileset.tileVisible.addEventListener((tile) => window.bw.visible.push(label(tile)));
     const cart = C.Cartographic.fromCartesian(toWorld([0, 0, 0]));
     return {
       cesium: C.VERSION,
@@ -198,7 +233,7 @@ try {
         triangles: stats.numberOfTrianglesSelected,
       };
     }, { ...view, timeout_ms: view.timeout_ms || 30000 }, spec);
-    const shot = path.join(spec.out_dir, `cesium_${view.name}.png`);
+    const shot = path.join(spec.out_dir, `${spec.prefix || ''}cesium_${view.name}.png`);
     await tab.screenshot({ path: shot });
     result.screenshot = shot;
     report.views.push(result);
