@@ -120,7 +120,8 @@ pub struct TileOptions {
     pub maps: Option<CityMapsOptions>,
     /// Its 3D Tiles tileset ([`build_tileset`] over the tile's blocks, written as
     /// `tiles/tile_NNNNN_tileset/`), which [`merge`](super::merge) references from a root
-    /// `tileset.json`. A terrain given here is refused: a tile's tileset holds buildings only.
+    /// `tileset.json`. A terrain or an archive (`.3tz`) asked for here is refused: a tile's
+    /// tileset holds buildings only, in a folder the root can reference.
     pub tileset: Option<TilesetOptions<'static>>,
 }
 
@@ -245,11 +246,20 @@ fn check_stamp(plan_path: &Path, want: &FileStamp) -> Result<(), JobsError> {
 /// counts, reading, building and export errors naming their file.
 pub fn run_tile(plan_path: &Path, tile: usize, opts: &TileOptions) -> Result<TileRun, JobsError> {
     let t0 = Instant::now();
-    if opts.tileset.is_some_and(|t| t.terrain.is_some()) {
-        return Err(JobsError::Unsupported {
-            file: plan_path.to_path_buf(),
-            why: "a tile's tileset holds buildings only: give the terrain to `blockwalk tileset` or a DEM to the plan".into(),
-        });
+    if let Some(t) = &opts.tileset {
+        let why = if t.terrain.is_some() {
+            Some("a tile's tileset holds buildings only: give the terrain to `blockwalk tileset` or a DEM to the plan")
+        } else if t.archive {
+            Some("a tile's tileset is a folder, which the root tileset.json references: a .3tz cannot be referenced from outside it")
+        } else {
+            None
+        };
+        if let Some(why) = why {
+            return Err(JobsError::Unsupported {
+                file: plan_path.to_path_buf(),
+                why: why.into(),
+            });
+        }
     }
     let plan = Plan::read(plan_path)?;
     let Some(pt) = plan.tiles.get(tile) else {
