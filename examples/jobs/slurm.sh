@@ -130,11 +130,16 @@ if [ $WAIT = 0 ]; then
   exit 0
 fi
 echo "merge: a job after array $ARRAY (waiting for it)..." >&2
-if sbatch "${MERGE_OPTS[@]}" --wait "$LOGS/merge.sbatch" >/dev/null; then
+rc=0
+MERGE=$(sbatch "${MERGE_OPTS[@]}" --wait "$LOGS/merge.sbatch") || rc=$?
+MERGE=${MERGE%%;*}
+# sbatch --wait exits 0 for a job cancelled before it ran (its dependency failed): ask for the state.
+STATE=$(scontrol -o show job "$MERGE" 2>/dev/null | grep -o 'JobState=[A-Z_]*' || true)
+if [ $rc = 0 ] && [ "${STATE:-JobState=COMPLETED}" = JobState=COMPLETED ] && [ -s "$LOGS/merge.out" ]; then
   cat "$LOGS/merge.out"
   exit 0
 fi
-echo "slurm.sh: the merge did not run or failed; the array's tasks that did not complete:" >&2
+echo "slurm.sh: merge job $MERGE did not complete (${STATE:-exit $rc}); the array's tasks that did not complete:" >&2
 scontrol -o show job "$ARRAY" 2>/dev/null \
   | awk '{for (i = 1; i <= NF; i++) if ($i ~ /^(ArrayTaskId|JobState|ExitCode)=/) printf "%s ", $i; print ""}' \
   | grep -v 'JobState=COMPLETED' >&2 || true

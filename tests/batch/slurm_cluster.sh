@@ -9,7 +9,8 @@
 #
 # Needs Debian's slurm-wlm and munge (`apt-get install slurm-wlm munge`) and root: slurmd starts
 # each job's steps as the submitting user. The cluster's user (SlurmUser, SlurmdUser) is the
-# user running this script. BLOCKWALK_SLURM_KEEP=1 keeps the temporary folder.
+# user running this script. COMMAND is stopped after BLOCKWALK_SLURM_TIMEOUT seconds (default
+# 600; exit 124). BLOCKWALK_SLURM_KEEP=1 keeps the temporary folder.
 #
 # Configuration: ClusterName=blockwalk-test, SlurmctldHost=localhost, one node `localhost` with the
 # CPUs and memory `slurmd -C` finds, one partition `batch`, proctrack/linuxproc, task/none,
@@ -26,11 +27,11 @@ T=$(mktemp -d "${TMPDIR:-/tmp}/blockwalk-slurm.XXXXXX")
 chmod 711 "$T"
 mkdir -p "$T/munge" "$T/state" "$T/spool" "$T/log"
 USER_NAME=$(id -un)
-MUNGED_PID="" CTLD_PID="" SLURMD_PID=""
+MUNGED_PID="" CTLD_PID="" SLURMD_PID="" CMD_PID=""
 
 logs() {
   for f in "$T"/log/*.log; do
-    [ -f "$f" ] || continue
+    [ -s "$f" ] || continue
     echo "----- $(basename "$f") (last 60 lines) -----" >&2
     tail -n 60 "$f" >&2
   done
@@ -50,6 +51,7 @@ cleanup() {
   trap - EXIT INT TERM
   trap '' PIPE   # a closed reader of the logs must not stop the cleanup
   set +e
+  [ -n "$CMD_PID" ] && stop "$CMD_PID"
   if [ -n "$CTLD_PID" ] && kill -0 "$CTLD_PID" 2>/dev/null; then
     # This cluster's jobs only (SLURM_CONF names it): their steps end before slurmd does.
     scancel --user="$USER_NAME" >/dev/null 2>&1
@@ -150,4 +152,11 @@ done
 [ "$state" = idle ] || fail "node localhost is '${state:-unknown}', not idle, after 60 s: $(scontrol show node localhost 2>&1 | grep -E 'State|Reason' | tr -s ' ' | tr '\n' ' ')"
 echo "slurm_cluster: munged, slurmctld (port $CTLD_PORT) and slurmd (port $SLURMD_PORT) up, node localhost idle ($NODE); SLURM_CONF=$SLURM_CONF" >&2
 
-"$@"
+# In the background, so that a signal to this script reaches the trap at once.
+timeout "${BLOCKWALK_SLURM_TIMEOUT:-600}" "$@" &
+CMD_PID=$!
+rc=0
+wait $CMD_PID || rc=$?
+CMD_PID=""
+[ $rc -ne 124 ] || echo "slurm_cluster: $* ran past ${BLOCKWALK_SLURM_TIMEOUT:-600} s" >&2
+exit $rc
