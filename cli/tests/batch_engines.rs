@@ -272,7 +272,7 @@ fn slurm_array_of_tiles_equals_the_single_process_run() {
     let slurm = |bin: &Path, out: &Path, logs: &Path, plan_job: &str| {
         format!(
             "BLOCKWALK='{}' '{}' --streets '{}' --max-buildings {MAX_BUILDINGS} --parallel 3 \
-             --time 10 --mem 512M {plan_job} --logs '{}' --wait '{}' '{}' -- --json",
+             --time 10 --mem 512M --poll 0.5 {plan_job} --logs '{}' --wait '{}' '{}' -- --json",
             bin.display(),
             script.display(),
             data("helsinki/streets_blockclass.shp").display(),

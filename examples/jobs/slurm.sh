@@ -23,6 +23,7 @@
 #                        tile_I.out/.err per task, merge.out/.err
 #   --wait               wait for the merge and exit with its status; on a failure, list the
 #                        tasks that failed
+#   --poll SECONDS       how often the state of a job waited for is asked (default 5)
 #
 # The environment: BLOCKWALK (the binary; default `blockwalk` on PATH), and sbatch's own
 # SBATCH_* variables (SBATCH_PARTITION, SBATCH_TIMELIMIT, ...), which the options override.
@@ -36,7 +37,7 @@ set -euo pipefail
 die() { echo "slurm.sh: $*" >&2; exit 2; }
 usage() { sed -n '2,/^set /p' "$0" | sed '$d; s/^# \{0,1\}//' >&2; exit 2; }
 
-STREETS="" MAXB=50000 P=16 PARTITION="" TIME=1:00:00 MEM=2G ACCOUNT="" PLAN_JOB=0 LOGS="" WAIT=0
+STREETS="" MAXB=50000 P=16 PARTITION="" TIME=1:00:00 MEM=2G ACCOUNT="" PLAN_JOB=0 LOGS="" WAIT=0 POLL=5
 EXTRA=() POS=() RUN_OPTS=()
 while [ $# -gt 0 ]; do
   case $1 in
@@ -52,6 +53,7 @@ while [ $# -gt 0 ]; do
     --plan-job) PLAN_JOB=1; shift ;;
     --logs) LOGS=$2; shift 2 ;;
     --wait) WAIT=1; shift ;;
+    --poll) POLL=$2; shift 2 ;;
     -h|--help) usage ;;
     --) shift; RUN_OPTS=("$@"); break ;;
     -*) die "unknown option $1 (see --help)" ;;
@@ -60,6 +62,7 @@ while [ $# -gt 0 ]; do
 done
 [ ${#POS[@]} -eq 2 ] || usage
 [[ $P =~ ^[1-9][0-9]*$ ]] || die "--parallel must be a positive integer, not '$P'"
+[[ $POLL =~ ^[0-9]+(\.[0-9]+)?$ ]] || die "--poll must be a number of seconds, not '$POLL'"
 command -v sbatch >/dev/null || die "sbatch not found: run this on a Slurm login node"
 
 B=$(command -v "${BLOCKWALK:-blockwalk}") || die "blockwalk not found (set BLOCKWALK to the binary)"
@@ -91,15 +94,31 @@ script() {
   } > "$file"
 }
 
+# Waits until job $1 has ended; prints its last state (JobState=COMPLETED, ...), or nothing when
+# the controller has already forgotten it (MinJobAge after its end).
+wait_job() {
+  local state
+  while :; do
+    state=$(scontrol -o show job "$1" 2>/dev/null | grep -o 'JobState=[A-Z_]*' | head -n 1 || true)
+    case $state in
+      JobState=PENDING|JobState=CONFIGURING|JobState=RUNNING|JobState=COMPLETING|JobState=SUSPENDED|\
+      JobState=REQUEUED*|JobState=RESIZING|JobState=SIGNALING|JobState=STAGE_OUT) sleep "$POLL" ;;
+      *) echo "$state"; return ;;
+    esac
+  done
+}
+
 # 1. The plan, which says how many tiles there are.
 if [ $PLAN_JOB = 1 ]; then
   # Its standard output is the list of the tiles' commands.
   { echo '#!/bin/bash'; printf '%q ' "$B" "${PLAN_ARGS[@]}"; printf '> %q\n' "$LOGS/commands.txt"; } \
     > "$LOGS/plan.sbatch"
   echo "plan: a Slurm job (waiting for it)..." >&2
-  sbatch "${COMMON[@]}" --wait --job-name=blockwalk-plan \
-    --output="$LOGS/plan.out" --error="$LOGS/plan.err" "$LOGS/plan.sbatch" >/dev/null \
-    || die "the plan job failed: $(tail -n 5 "$LOGS/plan.err" 2>/dev/null)"
+  PLAN=$(sbatch "${COMMON[@]}" --job-name=blockwalk-plan \
+    --output="$LOGS/plan.out" --error="$LOGS/plan.err" "$LOGS/plan.sbatch")
+  STATE=$(wait_job "${PLAN%%;*}")
+  [ "${STATE:-JobState=COMPLETED}" = JobState=COMPLETED ] \
+    || die "plan job ${PLAN%%;*}: ${STATE#JobState=}: $(tail -n 5 "$LOGS/plan.err" 2>/dev/null)"
 else
   "$B" "${PLAN_ARGS[@]}" > "$LOGS/commands.txt" 2> "$LOGS/plan.err" \
     || die "jobs plan failed: $(cat "$LOGS/plan.err")"
@@ -129,17 +148,16 @@ if [ $WAIT = 0 ]; then
   echo "$ARRAY ${MERGE%%;*}"
   exit 0
 fi
-echo "merge: a job after array $ARRAY (waiting for it)..." >&2
-rc=0
-MERGE=$(sbatch "${MERGE_OPTS[@]}" --wait "$LOGS/merge.sbatch") || rc=$?
+echo "merge: a job after array $ARRAY (waiting for it, asking every $POLL s)..." >&2
+MERGE=$(sbatch "${MERGE_OPTS[@]}" "$LOGS/merge.sbatch")
 MERGE=${MERGE%%;*}
-# sbatch --wait exits 0 for a job cancelled before it ran (its dependency failed): ask for the state.
-STATE=$(scontrol -o show job "$MERGE" 2>/dev/null | grep -o 'JobState=[A-Z_]*' || true)
-if [ $rc = 0 ] && [ "${STATE:-JobState=COMPLETED}" = JobState=COMPLETED ] && [ -s "$LOGS/merge.out" ]; then
+# A merge whose dependency failed is cancelled before it runs.
+STATE=$(wait_job "$MERGE")
+if [ "${STATE:-JobState=COMPLETED}" = JobState=COMPLETED ] && [ -s "$LOGS/merge.out" ]; then
   cat "$LOGS/merge.out"
   exit 0
 fi
-echo "slurm.sh: merge job $MERGE did not complete (${STATE:-exit $rc}); the array's tasks that did not complete:" >&2
+echo "slurm.sh: merge job $MERGE did not complete (${STATE:-no merge.out}); the array's tasks that did not complete:" >&2
 scontrol -o show job "$ARRAY" 2>/dev/null \
   | awk '{for (i = 1; i <= NF; i++) if ($i ~ /^(ArrayTaskId|JobState|ExitCode)=/) printf "%s ", $i; print ""}' \
   | grep -v 'JobState=COMPLETED' >&2 || true

@@ -11,9 +11,9 @@ Load it with `dagster dev -f examples/jobs/dagster/blockwalk_tiles.py` after set
     BLOCKWALK_OUT            the plan's folder
     BLOCKWALK_MAX_BUILDINGS  buildings per tile (default 50000)
 
-then materialise `tile_plan`, then the partitions of `city_tile` (a backfill of all of them, which
-the run launcher spreads over its workers), then `merged_city`. A partition whose run failed is
-materialised again alone. A new plan replaces the partitions of the old one.
+then materialise `tile_plan`, then every partition of `city_tile` (a backfill: one run per
+partition, as many at once as the run coordinator allows), then `merged_city`. A partition whose
+run failed is materialised again alone. A new plan replaces the partitions of the old one.
 """
 
 import json
