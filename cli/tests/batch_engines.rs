@@ -281,13 +281,27 @@ fn slurm_array_of_tiles_equals_the_single_process_run() {
             out.display()
         )
     };
-    // On one cluster: the run that must succeed, then one whose tile 2 fails.
+    // On one cluster: the run that must succeed; then one whose tile 2 fails, after which tile 2
+    // is run again alone (its batch script resubmitted as a one-task array, the binary now one
+    // that succeeds), then the merge's script.
+    let until_done = "while [ -n \"$(squeue -h -j \"$j\")\" ]; do sleep 0.5; done";
     let body = format!(
-        "set -e; {}; echo; rc=0; {} > '{}' 2>&1 || rc=$?; echo \"failing run: exit $rc\"",
-        slurm(Path::new(BIN), &out, &logs, "--plan-job"),
-        slurm(&bad_bin, &bad_out, &bad_logs, ""),
-        tmp.path().join("bad.log").display()
+        "set -e\n{good}\necho\nrc=0\n{bad} > '{log}' 2>&1 || rc=$?\n\
+         echo \"failing run: exit $rc\"\n\
+         [ -e '{bad_out}/index.json' ] || echo 'no index after the failure'\n\
+         printf '#!/bin/sh\\nexec %s \"$@\"\\n' '{bin}' > '{bad_bin}'\n\
+         j=$(sbatch --parsable --array=2 '{bad_logs}/tile.sbatch')\n{until_done}\n\
+         j=$(sbatch --parsable '{bad_logs}/merge.sbatch')\n{until_done}\n\
+         echo \"tile 2 again: $(cat '{bad_logs}/merge.out')\"\n",
+        good = slurm(Path::new(BIN), &out, &logs, "--plan-job"),
+        bad = slurm(&bad_bin, &bad_out, &bad_logs, ""),
+        log = tmp.path().join("bad.log").display(),
+        bad_out = bad_out.display(),
+        bad_logs = bad_logs.display(),
+        bad_bin = bad_bin.display(),
+        bin = BIN,
     );
+    std::fs::write(tmp.path().join("body.sh"), &body).unwrap();
     let t0 = Instant::now();
     let mut argv = sudo.clone();
     argv.extend([
@@ -324,6 +338,16 @@ fn slurm_array_of_tiles_equals_the_single_process_run() {
     // passed through), the merge's summary is in the merge log.
     assert!(logs.join("plan.sbatch").is_file(), "no plan job");
     let tile_script = std::fs::read_to_string(logs.join("tile.sbatch")).unwrap();
+    for line in [
+        "#SBATCH --time=10",
+        "#SBATCH --mem=512M",
+        "#SBATCH --job-name=blockwalk-tiles",
+    ] {
+        assert!(
+            tile_script.lines().any(|l| l == line),
+            "{line}: {tile_script}"
+        );
+    }
     assert!(
         tile_script.contains("--tile \"$SLURM_ARRAY_TASK_ID\" --json"),
         "{tile_script}"
@@ -354,15 +378,15 @@ fn slurm_array_of_tiles_equals_the_single_process_run() {
         "the failed task is not named: {bad}"
     );
     assert!(bad.contains("tile 2 fails here"), "{bad}");
-    assert!(!bad_out.join("index.json").exists());
+    assert!(stdout.contains("no index after the failure"), "{stdout}");
+    // Tile 2 run again alone, then merged: the same result.
     assert!(
-        !bad_logs.join("merge.out").exists()
-            || std::fs::read_to_string(bad_logs.join("merge.out"))
-                .unwrap()
-                .is_empty()
+        stdout.contains(&format!("tile 2 again: buildings: {tiles} tiles")),
+        "{stdout}"
     );
+    assert_same_result("slurm, tile 2 run again", &bad_out, &reference);
     eprintln!(
-        "slurm: {tiles} tiles as an array job on a single-node cluster, {compared} files equal to the single-process run; a failing task stops the merge; {secs:.1} s with the cluster's start and stop"
+        "slurm: {tiles} tiles as an array job on a single-node cluster, {compared} files equal to the single-process run; a failing task stops the merge, and run again alone gives the same result; {secs:.1} s with the cluster's start and stop"
     );
 }
 

@@ -13,22 +13,26 @@
 #   --max-buildings N    buildings per tile (default 50000)
 #   --parallel P         array tasks running at once, the array's %P (default 16)
 #   --partition NAME     partition of every job (default: the cluster's default partition)
-#   --time LIMIT         time limit of every job, in sbatch's form (default 1:00:00)
-#   --mem SIZE           memory of every job (default 2G; a 100,000-building tile peaks near
+#   --time LIMIT         time limit of every job, in sbatch's form (default $SBATCH_TIMELIMIT,
+#                        else 1:00:00)
+#   --mem SIZE           memory of every job (default $SBATCH_MEM_PER_NODE, else 2G; a
+#                        100,000-building tile peaks near
 #                        0.5 GiB, the plan of a million buildings near 0.25 GiB)
 #   --account NAME       account to charge
 #   --sbatch-arg ARG     one more sbatch option for every job (repeatable, e.g. --sbatch-arg=--qos=low)
 #   --plan-job           run the plan as a Slurm job too (waits for it) instead of on this node
-#   --logs DIR           the jobs' logs and scripts (default OUT.slurm): plan.out/.err,
-#                        tile_I.out/.err per task, merge.out/.err
+#   --logs DIR           the jobs' batch scripts (with their #SBATCH options) and logs
+#                        (default OUT.slurm): plan.out/.err, tile_I.out/.err per task,
+#                        merge.out/.err
 #   --wait               wait for the merge and exit with its status; on a failure, list the
 #                        tasks that failed
 #   --poll SECONDS       how often the state of a job waited for is asked (default 5)
 #
 # The environment: BLOCKWALK (the binary; default `blockwalk` on PATH), and sbatch's own
-# SBATCH_* variables (SBATCH_PARTITION, SBATCH_TIMELIMIT, ...), which the options override.
+# SBATCH_* variables (SBATCH_PARTITION, SBATCH_ACCOUNT, ...), which the options override.
 #
-# A tile that failed can be run again alone, then the merge:
+# Prints the array's and the merge's job ids (without --wait) or the merge's summary (with it).
+# A tile that failed can be run again alone, with the same options, then the merge:
 #   sbatch --array=I OUT.slurm/tile.sbatch && sbatch OUT.slurm/merge.sbatch
 # An array has at most MaxArraySize - 1 as its last index (`scontrol show config`, 1001 by
 # default): choose --max-buildings so that the plan has fewer tiles.
@@ -37,7 +41,7 @@ set -euo pipefail
 die() { echo "slurm.sh: $*" >&2; exit 2; }
 usage() { sed -n '2,/^set /p' "$0" | sed '$d; s/^# \{0,1\}//' >&2; exit 2; }
 
-STREETS="" MAXB=50000 P=16 PARTITION="" TIME=1:00:00 MEM=2G ACCOUNT="" PLAN_JOB=0 LOGS="" WAIT=0 POLL=5
+STREETS="" MAXB=50000 P=16 PARTITION="" TIME=${SBATCH_TIMELIMIT:-1:00:00} MEM=${SBATCH_MEM_PER_NODE:-2G} ACCOUNT="" PLAN_JOB=0 LOGS="" WAIT=0 POLL=5
 EXTRA=() POS=() RUN_OPTS=()
 while [ $# -gt 0 ]; do
   case $1 in
@@ -76,19 +80,33 @@ PLAN_ARGS=(jobs plan "$CITY" -o "$OUT" --max-buildings "$MAXB")
 [ -n "$STREETS" ] && PLAN_ARGS+=(--streets "$(realpath "$STREETS")")
 
 # Options of every job.
-COMMON=(--parsable --time="$TIME" --mem="$MEM")
+COMMON=(--time="$TIME" --mem="$MEM")
 [ -n "$PARTITION" ] && COMMON+=(--partition="$PARTITION")
 [ -n "$ACCOUNT" ] && COMMON+=(--account="$ACCOUNT")
 COMMON+=("${EXTRA[@]}")
 
-# A batch script: the shebang, then one command line, every word quoted (`printf %q`); a word
-# given as @TILE@ becomes the array task's index.
+# A batch script FILE: the shebang, an #SBATCH line per option (the options before `--`; a value
+# with spaces in double quotes), then one command line with every word quoted (`printf %q`),
+# where a word @TILE@ becomes the array task's index and `>` FILE sends the output to FILE.
 script() {
   local file=$1 w; shift
   {
     echo '#!/bin/bash'
-    for w in "$@"; do
-      if [ "$w" = @TILE@ ]; then printf '"$SLURM_ARRAY_TASK_ID" '; else printf '%q ' "$w"; fi
+    while [ "$1" != -- ]; do
+      case $1 in
+        *=*\ *) echo "#SBATCH ${1%%=*}=\"${1#*=}\"" ;;
+        *) echo "#SBATCH $1" ;;
+      esac
+      shift
+    done
+    shift
+    while [ $# -gt 0 ]; do
+      case $1 in
+        @TILE@) printf '"$SLURM_ARRAY_TASK_ID" ' ;;
+        '>') printf '> %q' "$2"; shift ;;
+        *) printf '%q ' "$1" ;;
+      esac
+      shift
     done
     echo
   } > "$file"
@@ -111,11 +129,10 @@ wait_job() {
 # 1. The plan, which says how many tiles there are.
 if [ $PLAN_JOB = 1 ]; then
   # Its standard output is the list of the tiles' commands.
-  { echo '#!/bin/bash'; printf '%q ' "$B" "${PLAN_ARGS[@]}"; printf '> %q\n' "$LOGS/commands.txt"; } \
-    > "$LOGS/plan.sbatch"
+  script "$LOGS/plan.sbatch" "${COMMON[@]}" --job-name=blockwalk-plan --output="$LOGS/plan.out" \
+    --error="$LOGS/plan.err" -- "$B" "${PLAN_ARGS[@]}" '>' "$LOGS/commands.txt"
   echo "plan: a Slurm job (waiting for it)..." >&2
-  PLAN=$(sbatch "${COMMON[@]}" --job-name=blockwalk-plan \
-    --output="$LOGS/plan.out" --error="$LOGS/plan.err" "$LOGS/plan.sbatch")
+  PLAN=$(sbatch --parsable "$LOGS/plan.sbatch")
   STATE=$(wait_job "${PLAN%%;*}")
   [ "${STATE:-JobState=COMPLETED}" = JobState=COMPLETED ] \
     || die "plan job ${PLAN%%;*}: ${STATE#JobState=}: $(tail -n 5 "$LOGS/plan.err" 2>/dev/null)"
@@ -132,25 +149,23 @@ fi
 echo "plan: $N tiles in $OUT/plan.json" >&2
 
 # 2. The tiles: one array task each, at most P at once.
-script "$LOGS/tile.sbatch" "$B" jobs run "$OUT/plan.json" --tile @TILE@ "${RUN_OPTS[@]}"
-ARRAY=$(sbatch "${COMMON[@]}" --array="0-$((N - 1))%$P" --job-name=blockwalk-tiles \
-  --output="$LOGS/tile_%a.out" --error="$LOGS/tile_%a.err" "$LOGS/tile.sbatch")
+script "$LOGS/tile.sbatch" "${COMMON[@]}" --job-name=blockwalk-tiles --output="$LOGS/tile_%a.out" \
+  --error="$LOGS/tile_%a.err" -- "$B" jobs run "$OUT/plan.json" --tile @TILE@ "${RUN_OPTS[@]}"
+ARRAY=$(sbatch --parsable --array="0-$((N - 1))%$P" "$LOGS/tile.sbatch")
 ARRAY=${ARRAY%%;*}
 echo "tiles: array job $ARRAY, tasks 0-$((N - 1)), at most $P at once; logs $LOGS/tile_I.out, .err" >&2
 
 # 3. The merge, once every task has succeeded (cancelled if one fails).
-script "$LOGS/merge.sbatch" "$B" jobs merge "$OUT"
-MERGE_OPTS=("${COMMON[@]}" --dependency="afterok:$ARRAY" --kill-on-invalid-dep=yes
-  --job-name=blockwalk-merge --output="$LOGS/merge.out" --error="$LOGS/merge.err")
+script "$LOGS/merge.sbatch" "${COMMON[@]}" --job-name=blockwalk-merge --output="$LOGS/merge.out" \
+  --error="$LOGS/merge.err" -- "$B" jobs merge "$OUT"
+MERGE=$(sbatch --parsable --dependency="afterok:$ARRAY" --kill-on-invalid-dep=yes "$LOGS/merge.sbatch")
+MERGE=${MERGE%%;*}
 if [ $WAIT = 0 ]; then
-  MERGE=$(sbatch "${MERGE_OPTS[@]}" "$LOGS/merge.sbatch")
-  echo "merge: job ${MERGE%%;*} after array $ARRAY; its summary will be in $LOGS/merge.out" >&2
-  echo "$ARRAY ${MERGE%%;*}"
+  echo "merge: job $MERGE after array $ARRAY; its summary will be in $LOGS/merge.out" >&2
+  echo "$ARRAY $MERGE"
   exit 0
 fi
-echo "merge: a job after array $ARRAY (waiting for it, asking every $POLL s)..." >&2
-MERGE=$(sbatch "${MERGE_OPTS[@]}" "$LOGS/merge.sbatch")
-MERGE=${MERGE%%;*}
+echo "merge: job $MERGE after array $ARRAY (waiting for it, asking every $POLL s)..." >&2
 # A merge whose dependency failed is cancelled before it runs.
 STATE=$(wait_job "$MERGE")
 if [ "${STATE:-JobState=COMPLETED}" = JobState=COMPLETED ] && [ -s "$LOGS/merge.out" ]; then
