@@ -1,7 +1,8 @@
 //! Skips that everyone sees, and one switch that turns them into failures.
 //!
 //! A test that needs something the machine may lack (a GPU adapter, the Node validators and
-//! Chromium, the Astana data, the shared DEMs, the right to mount file systems, an X server) asks [`or_skip`];
+//! Chromium, the Astana data, the shared DEMs, the right to mount file systems, an X server, the
+//! batch engines' tools) asks [`or_skip`];
 //! `tests/fuzz/ci.sh` logs its own skip (no nightly toolchain or `cargo-fuzz`) the same way.
 //! Without it, the skip is written straight to the process's standard error, which the test
 //! harness does not capture (it captures only `print!` and `eprint!`), and appended to the skip
@@ -33,11 +34,18 @@ pub enum Need {
     /// The nightly toolchain and `cargo-fuzz`, for the brief fuzz runs of `tests/fuzz/ci.sh`
     /// (which `tests/run` starts after the tests).
     Fuzz,
+    /// Slurm and munge (Debian's `slurm-wlm`, `munge`) and root or `sudo -n`, for a single-node
+    /// cluster on the loopback.
+    Slurm,
+    /// A Python with PyYAML (`$BLOCKWALK_PYTHON`, else `python3`), to read Kubernetes manifests.
+    Pyyaml,
+    /// A Python with Dagster (`$BLOCKWALK_PYTHON`, else `python3`).
+    Dagster,
 }
 
 impl Need {
     /// Every need, in the order the summary lists them.
-    pub const ALL: [Need; 7] = [
+    pub const ALL: [Need; 10] = [
         Need::Gpu,
         Need::Validators,
         Need::Astana,
@@ -45,6 +53,9 @@ impl Need {
         Need::Mounts,
         Need::Display,
         Need::Fuzz,
+        Need::Slurm,
+        Need::Pyyaml,
+        Need::Dagster,
     ];
 
     /// Its name in `BLOCKWALK_REQUIRE` and in the skip log.
@@ -57,6 +68,9 @@ impl Need {
             Need::Mounts => "mounts",
             Need::Display => "display",
             Need::Fuzz => "fuzz",
+            Need::Slurm => "slurm",
+            Need::Pyyaml => "pyyaml",
+            Need::Dagster => "dagster",
         }
     }
 
