@@ -80,12 +80,25 @@ pub struct ErrorReport {
     pub thin: Vec<ThinFeature>,
 }
 
+/// What the original → map samples of one building found so far.
+struct BuildingError {
+    /// Largest distance of a surface sample, and where.
+    worst: f64,
+    worst_at: DVec2,
+    /// Largest distance of an underside (or ground below a raised part) sample.
+    raised: f64,
+    /// The largest roof distance that marks the building vanished, and where.
+    vanished: Option<(f64, DVec2)>,
+}
+
 /// Working memory of [`BuildingGrid`]'s queries: reuse one per thread.
 #[derive(Clone, Debug, Default)]
 pub struct Scratch {
     list: Vec<u32>,
     mark: Vec<u32>,
     gen: u32,
+    levels: Vec<f64>,
+    covering: Vec<u32>,
 }
 
 /// Buildings per texel of a map (by footprint box), to find the prisms near a point.
@@ -181,6 +194,14 @@ impl<'a> BuildingGrid<'a> {
 
     /// Exact distance from `p` to the surface of the original solid (ground ∪ prisms).
     pub fn surface_distance(&self, p: DVec3, scratch: &mut Scratch) -> f64 {
+        self.surface_distance_within(p, f64::NEG_INFINITY, scratch)
+    }
+
+    /// [`BuildingGrid::surface_distance`] where below the threshold `t` an upper bound will
+    /// do: the search stops as soon as it has a surface point within `t`. The value returned
+    /// is never below the exact distance, and it is the exact distance unless both are at most
+    /// `t` (`t = −∞`: always exact).
+    pub fn surface_distance_within(&self, p: DVec3, t: f64, scratch: &mut Scratch) -> f64 {
         let xy = p.truncate();
         // Upper bound: the ground, or the nearest way out of the prisms holding p.
         let mut inside_any = p.z < 0.0;
@@ -206,12 +227,21 @@ impl<'a> BuildingGrid<'a> {
                 let dh = horizontal_distance(b, xy);
                 (dh * dh + dv * dv).sqrt().min(bound)
             };
+            if bound <= t {
+                return bound;
+            }
             for &n in scratch.list.iter() {
                 bound = dist(self.all[n as usize], bound);
+                if bound <= t {
+                    return bound;
+                }
             }
             self.near(xy, bound, scratch);
             for &n in scratch.list.iter() {
                 bound = dist(self.all[n as usize], bound);
+                if bound <= t {
+                    return bound;
+                }
             }
             return bound;
         }
@@ -237,11 +267,20 @@ impl<'a> BuildingGrid<'a> {
             }
         }
         best = best.min(top - p.z);
+        if best <= t {
+            return best;
+        }
         self.near(xy, best, scratch);
-        let cands: Vec<&SourceBuilding> =
-            scratch.list.iter().map(|&n| self.all[n as usize]).collect();
-        let mut levels: Vec<f64> = vec![p.z];
-        for b in &cands {
+        let Scratch {
+            list: cands,
+            levels,
+            covering,
+            ..
+        } = scratch;
+        levels.clear();
+        levels.push(p.z);
+        for &n in cands.iter() {
+            let b = self.all[n as usize];
             if b.z1 > p.z && b.z1 - p.z < best {
                 levels.push(b.z1);
             }
@@ -251,32 +290,38 @@ impl<'a> BuildingGrid<'a> {
         }
         levels.sort_by(f64::total_cmp);
         levels.dedup();
-        for &l in &levels {
+        for &l in levels.iter() {
             let dz = (l - p.z).abs();
             if dz >= best {
                 continue;
             }
-            let covering: Vec<&SourceBuilding> = cands
-                .iter()
-                .copied()
-                .filter(|b| {
-                    if l == p.z {
-                        b.z0 <= l && l <= b.z1
-                    } else {
-                        b.z0 < l && l < b.z1
-                    }
-                })
-                .collect();
             if l <= 0.0 && l != p.z {
                 continue; // below the ground: never a way out
             }
+            covering.clear();
+            covering.extend(cands.iter().copied().filter(|&n| {
+                let b = self.all[n as usize];
+                if l == p.z {
+                    b.z0 <= l && l <= b.z1
+                } else {
+                    b.z0 < l && l < b.z1
+                }
+            }));
             let dh = if l == p.z && p.z < 0.0 {
                 f64::INFINITY // below the ground, only upwards
             } else {
                 // Only an exit nearer than √(best² − dz²) can improve on `best`.
-                horizontal_exit(&covering, xy, (best * best - dz * dz).max(0.0).sqrt())
+                horizontal_exit(
+                    &self.all,
+                    covering,
+                    xy,
+                    (best * best - dz * dz).max(0.0).sqrt(),
+                )
             };
             best = best.min((dh * dh + dz * dz).sqrt());
+            if best <= t {
+                return best;
+            }
         }
         best
     }
@@ -327,16 +372,17 @@ pub(crate) fn horizontal_distance(b: &SourceBuilding, p: DVec2) -> f64 {
     best
 }
 
-/// Horizontal distance from `p` to the complement of the union of `polys`' footprints (0 when
-/// `p` is outside them all), or `bound` when there is no way out nearer than `bound`. An edge
-/// point counts as a way out when a point just outside it lies in no footprint; the nearest such
-/// point of each edge is tried.
-fn horizontal_exit(polys: &[&SourceBuilding], p: DVec2, bound: f64) -> f64 {
-    if !polys.iter().any(|b| in_polygon(b, p)) {
+/// Horizontal distance from `p` to the complement of the union of the footprints of `polys`
+/// (indices into `all`; 0 when `p` is outside them all), or `bound` when there is no way out
+/// nearer than `bound`. An edge point counts as a way out when a point just outside it lies in
+/// no footprint; the nearest such point of each edge is tried.
+fn horizontal_exit(all: &[&SourceBuilding], polys: &[u32], p: DVec2, bound: f64) -> f64 {
+    let poly = |n: &u32| all[*n as usize];
+    if !polys.iter().any(|n| in_polygon(poly(n), p)) {
         return 0.0;
     }
     let mut best = bound;
-    for b in polys {
+    for b in polys.iter().map(poly) {
         for ring in &b.rings {
             let n = ring.len();
             for e in 0..n {
@@ -348,7 +394,7 @@ fn horizontal_exit(polys: &[&SourceBuilding], p: DVec2, bound: f64) -> f64 {
                 let dir = c - a;
                 let out = DVec2::new(dir.y, -dir.x).normalize_or_zero();
                 let probe = q + out * (1e-6 * (1.0 + q.abs().max_element()));
-                if !polys.iter().any(|o| in_polygon(o, probe)) {
+                if !polys.iter().any(|o| in_polygon(poly(o), probe)) {
                     best = d;
                 }
             }
@@ -458,77 +504,199 @@ fn cell_parts(map: &BlockMap, i: i64, j: i64) -> ([Part; 3], usize) {
     }
 }
 
-/// Height of the map's column over `xy` (0 over empty ground and outside the map).
-fn column_height_at(map: &BlockMap, xy: DVec2) -> f64 {
-    let s = map.texel_m();
-    let m = map.meta.min;
-    let (i, j) = (
-        ((xy.x - m[0]) / s).floor() as i64,
-        ((xy.y - m[1]) / s).floor() as i64,
-    );
-    let (parts, n) = cell_parts(map, i, j);
-    parts[..n]
-        .iter()
-        .find(|q| q.distance(xy) == 0.0)
-        .map_or(0.0, |q| q.h)
+/// The columns of every texel of a map, cut once ([`cell_parts`] of each texel), for the many
+/// distance queries of one measurement against the same map.
+pub struct MapColumns<'a> {
+    map: &'a BlockMap,
+    k: i64,
+    s: f64,
+    min: DVec2,
+    /// Height of each texel's column (0 for an empty texel), row-major.
+    h: Vec<f64>,
+    /// Index into `cuts` of a texel cut by footprint edges, `u32::MAX` for a whole texel.
+    cut: Vec<u32>,
+    /// The parts of the cut texels.
+    cuts: Vec<([Part; 3], usize)>,
 }
 
-/// Exact distance from `p` to the surface of the map's prisms (ground included): the boundary
-/// of the union of texel columns `footprint × (−∞, H]` (empty texels and the outside have
-/// H = 0; a texel with a footprint edge is two columns, the part inside its half-plane at the
-/// texel's height and the rest at 0).
-pub fn map_surface_distance(map: &BlockMap, p: DVec3) -> f64 {
-    let k = map.k() as i64;
-    let s = map.texel_m();
-    let m = map.meta.min;
-    let (fx, fy) = ((p.x - m[0]) / s, (p.y - m[1]) / s);
-    let (ci, cj) = (fx.floor() as i64, fy.floor() as i64);
-    let xy = p.truncate();
-    let (own, own_n) = cell_parts(map, ci, cj);
-    let own_h = own[..own_n]
-        .iter()
-        .find(|q| q.distance(xy) == 0.0)
-        .map_or(own[0].h, |q| q.h);
-    let inside = p.z <= own_h;
-    let mut best = f64::INFINITY;
-    let mut r = 0i64;
-    loop {
-        // Cells of ring r around (ci, cj); outside cells stand for the ground around the map.
-        let lower = (r as f64 - 1.0).max(0.0) * s;
-        if lower > best {
-            break;
-        }
-        for j in cj - r..=cj + r {
-            for i in ci - r..=ci + r {
-                if (i - ci).abs() != r && (j - cj).abs() != r {
-                    continue;
-                }
-                let (parts, np) = cell_parts(map, i, j);
-                for part in &parts[..np] {
-                    let h = part.h;
-                    let dz = if inside {
-                        (h - p.z).max(0.0)
-                    } else {
-                        (p.z - h).max(0.0)
-                    };
-                    // Inside: complement column above h; outside: solid column below h.
-                    let d = part.distance(xy);
-                    let v = (d * d + dz * dz).sqrt();
-                    if inside && h >= p.z && d == 0.0 {
-                        // The own column's way out is straight up.
-                        best = best.min(dz);
-                    } else {
-                        best = best.min(v);
-                    }
+impl<'a> MapColumns<'a> {
+    /// Cuts every texel of `map`.
+    pub fn new(map: &'a BlockMap) -> Self {
+        let k = map.k() as i64;
+        let n = (k * k) as usize;
+        let (mut h, mut cut, mut cuts) = (Vec::with_capacity(n), vec![u32::MAX; n], Vec::new());
+        for j in 0..k {
+            for i in 0..k {
+                let th = map.texel_height_m(i, j).unwrap_or(0.0);
+                h.push(th);
+                if th > 0.0 && map.edge(i as u32, j as u32).is_some() {
+                    cut[(j * k + i) as usize] = cuts.len() as u32;
+                    cuts.push(cell_parts(map, i, j));
                 }
             }
         }
-        r += 1;
-        if r > 2 * k + 4 {
-            break;
+        Self {
+            map,
+            k,
+            s: map.texel_m(),
+            min: DVec2::new(map.meta.min[0], map.meta.min[1]),
+            h,
+            cut,
+            cuts,
         }
     }
-    best
+
+    /// The map.
+    pub fn map(&self) -> &'a BlockMap {
+        self.map
+    }
+
+    /// Lower corner of texel `(i, j)`, as [`cell_parts`] places it.
+    #[inline]
+    fn lo(&self, i: i64, j: i64) -> DVec2 {
+        DVec2::new(
+            self.min.x + i as f64 * self.s,
+            self.min.y + j as f64 * self.s,
+        )
+    }
+
+    /// The column height of texel `(i, j)` (0 outside the map) and its cut parts, if any.
+    #[inline]
+    fn cell(&self, i: i64, j: i64) -> (f64, Option<&([Part; 3], usize)>) {
+        if i < 0 || j < 0 || i >= self.k || j >= self.k {
+            return (0.0, None);
+        }
+        let q = (j * self.k + i) as usize;
+        let c = self.cut[q];
+        (self.h[q], (c != u32::MAX).then(|| &self.cuts[c as usize]))
+    }
+
+    /// The parts of texel `(i, j)` as [`cell_parts`] gives them (`buf` holds a whole texel).
+    #[inline]
+    fn parts<'s>(&'s self, i: i64, j: i64, buf: &'s mut [Part; 1]) -> &'s [Part] {
+        match self.cell(i, j) {
+            (_, Some((parts, n))) => &parts[..*n],
+            (h, None) => {
+                let lo = self.lo(i, j);
+                let s = self.s;
+                let mut v = [DVec2::ZERO; 6];
+                v[..4].copy_from_slice(&[
+                    lo,
+                    lo + DVec2::new(s, 0.0),
+                    lo + DVec2::new(s, s),
+                    lo + DVec2::new(0.0, s),
+                ]);
+                buf[0] = Part { v, n: 4, h };
+                &buf[..]
+            }
+        }
+    }
+
+    /// Height of the map's column over `xy` (0 over empty ground and outside the map).
+    pub fn height_at(&self, xy: DVec2) -> f64 {
+        let (i, j) = (
+            ((xy.x - self.min.x) / self.s).floor() as i64,
+            ((xy.y - self.min.y) / self.s).floor() as i64,
+        );
+        let mut buf = [PART_NONE];
+        self.parts(i, j, &mut buf)
+            .iter()
+            .find(|q| q.distance(xy) == 0.0)
+            .map_or(0.0, |q| q.h)
+    }
+
+    /// Exact distance from `p` to the surface of the map's prisms (ground included): the
+    /// boundary of the union of texel columns `footprint × (−∞, H]` (empty texels and the
+    /// outside have H = 0; a texel with a footprint edge is two columns, the part inside its
+    /// half-plane at the texel's height and the rest at 0).
+    ///
+    /// Below the threshold `t` only an upper bound is needed: the search stops as soon as it
+    /// has found a surface point within `t`. The value returned is never below the exact
+    /// distance, and it is the exact distance unless both are at most `t`
+    /// (`t = −∞`: always exact).
+    pub fn distance(&self, p: DVec3, t: f64) -> f64 {
+        let s = self.s;
+        let (fx, fy) = ((p.x - self.min.x) / s, (p.y - self.min.y) / s);
+        let (ci, cj) = (fx.floor() as i64, fy.floor() as i64);
+        let xy = p.truncate();
+        let mut buf = [PART_NONE];
+        let own = self.parts(ci, cj, &mut buf);
+        let own_h = own
+            .iter()
+            .find(|q| q.distance(xy) == 0.0)
+            .map_or(own[0].h, |q| q.h);
+        let inside = p.z <= own_h;
+        // A texel whose square (and heights) put every one of its parts at least as far as
+        // the best found is skipped; the margin covers rounding, so the minimum taken is the
+        // same as over every part.
+        let margin = 1e-9 * (1.0 + xy.abs().max_element() + p.z.abs() + s);
+        let mut best = f64::INFINITY;
+        let mut r = 0i64;
+        loop {
+            // Cells of ring r around (ci, cj); outside cells stand for the ground around the map.
+            let lower = (r as f64 - 1.0).max(0.0) * s;
+            if lower > best {
+                break;
+            }
+            for j in cj - r..=cj + r {
+                let full_row = (j - cj).abs() == r;
+                let step = if full_row { 1 } else { (2 * r).max(1) as usize };
+                for i in (ci - r..=ci + r).step_by(step) {
+                    let (h, cut) = self.cell(i, j);
+                    let lo = self.lo(i, j);
+                    let hi = lo + DVec2::splat(s);
+                    let b = (lo - xy).max(xy - hi).max(DVec2::ZERO);
+                    let (hmin, hmax) = if cut.is_some() { (0.0, h) } else { (h, h) };
+                    let dz = if inside {
+                        (hmin - p.z).max(0.0)
+                    } else {
+                        (p.z - hmax).max(0.0)
+                    };
+                    if (b.length_squared() + dz * dz).sqrt() - margin >= best {
+                        continue;
+                    }
+                    for part in self.parts(i, j, &mut buf) {
+                        let h = part.h;
+                        let dz = if inside {
+                            (h - p.z).max(0.0)
+                        } else {
+                            (p.z - h).max(0.0)
+                        };
+                        // Inside: complement column above h; outside: solid column below h.
+                        let d = part.distance(xy);
+                        let v = (d * d + dz * dz).sqrt();
+                        if inside && h >= p.z && d == 0.0 {
+                            // The own column's way out is straight up.
+                            best = best.min(dz);
+                        } else {
+                            best = best.min(v);
+                        }
+                    }
+                    if best <= t {
+                        return best;
+                    }
+                }
+            }
+            r += 1;
+            if r > 2 * self.k + 4 {
+                break;
+            }
+        }
+        best
+    }
+}
+
+/// A placeholder part (no vertices).
+const PART_NONE: Part = Part {
+    v: [DVec2::ZERO; 6],
+    n: 0,
+    h: 0.0,
+};
+
+/// Exact distance from `p` to the surface of `map`'s prisms ([`MapColumns::distance`]); for
+/// many points of one map, make the [`MapColumns`] once.
+pub fn map_surface_distance(map: &BlockMap, p: DVec3) -> f64 {
+    MapColumns::new(map).distance(p, f64::NEG_INFINITY)
 }
 
 /// Measures the error of `map` against `buildings` (indices into `source.buildings`).
@@ -596,10 +764,15 @@ fn measure_flat(map: &BlockMap, source: &Source, buildings: &[u32]) -> ErrorRepo
             f.at = at.to_array();
         }
     };
+    let cols = MapColumns::new(map);
     let mut scratch = Scratch::default();
     let mut covers: Vec<(f64, f64)> = Vec::new();
+    let mut zs: Vec<f64> = Vec::new();
     let mut samples = 0usize;
-    // Original → map.
+    // Original → map. A sample's distance matters only where it can raise the map's maximum,
+    // its building's worst (past the ½ voxel diagonal) or mark the building vanished: below
+    // that threshold the distance search may stop at any surface point within it, which
+    // changes no result (see `MapColumns::distance`).
     let mut o2m: f64 = 0.0;
     for b in &grid.all {
         if b.z0 > 0.0 {
@@ -608,49 +781,55 @@ fn measure_flat(map: &BlockMap, source: &Source, buildings: &[u32]) -> ErrorRepo
         if b.bridge {
             rep.bridges += 1;
         }
-        let mut worst: f64 = 0.0;
-        let mut worst_at = b.min;
-        let mut raised_worst: f64 = 0.0;
-        let mut vanished: Option<(f64, DVec2)> = None;
-        // A roof point (at `z1`) with no prism over it whose nearest map surface is the
-        // ground: nothing of the map stands there (a roof inside a taller prism is covered,
-        // not gone).
-        let gone = |xy: DVec2, d: f64, v: &mut Option<(f64, DVec2)>| {
-            let (ti, tj) = (
-                ((xy.x - map.meta.min[0]) / s).floor() as i64,
-                ((xy.y - map.meta.min[1]) / s).floor() as i64,
-            );
-            if b.z1 > 0.0
-                && map.texel_height_m(ti, tj).is_none()
-                && d >= b.z1 * (1.0 - 1e-9)
-                && v.is_none_or(|v| d > v.0)
-            {
-                *v = Some((d, xy));
+        let mut e = BuildingError {
+            worst: 0.0,
+            worst_at: b.min,
+            raised: 0.0,
+            vanished: None,
+        };
+        // One sample at `p`: `raised` for the underside of a raised part and the ground below
+        // it; `top` for a point of the roof (at `z1`), which marks the building vanished when
+        // no prism stands over it and its nearest map surface is the ground (a roof inside a
+        // taller prism is covered, not gone).
+        let sample = |p: DVec3, raised: bool, top: bool, e: &mut BuildingError, o2m: &mut f64| {
+            let xy = p.truncate();
+            let gone_here = top && b.z1 > 0.0 && {
+                let (ti, tj) = (
+                    ((xy.x - map.meta.min[0]) / s).floor() as i64,
+                    ((xy.y - map.meta.min[1]) / s).floor() as i64,
+                );
+                map.texel_height_m(ti, tj).is_none()
+            };
+            let gone_at = b.z1 * (1.0 - 1e-9);
+            let mut t = o2m.min(if raised { e.raised } else { e.worst }.max(tol));
+            if gone_here {
+                // Strictly below `gone_at` when nothing is marked yet.
+                t = t.min(e.vanished.map_or(b.z1 * (1.0 - 2e-9), |v| v.0));
+            }
+            let d = cols.distance(p, t);
+            if raised {
+                e.raised = e.raised.max(d);
+            } else if d > e.worst {
+                e.worst = d;
+                e.worst_at = xy;
+            }
+            *o2m = o2m.max(d);
+            if gone_here && d >= gone_at && e.vanished.is_none_or(|v| d > v.0) {
+                e.vanished = Some((d, xy));
             }
         };
-        let check =
-            |p: DVec3, raised: bool, worst: &mut f64, worst_at: &mut DVec2, rw: &mut f64| {
-                let d = map_surface_distance(map, p);
-                if raised {
-                    *rw = rw.max(d);
-                } else if d > *worst {
-                    *worst = d;
-                    *worst_at = p.truncate();
-                }
-                d
-            };
         // Walls and roof outline.
-        let zs = heights(b.z0, b.z1, 2.0 * s);
+        heights_into(b.z0, b.z1, 2.0 * s, &mut zs);
         for ring in &b.rings {
             let n = ring.len();
-            for e in 0..n {
-                let (a, c) = (ring[e], ring[(e + 1) % n]);
+            for q in 0..n {
+                let (a, c) = (ring[q], ring[(q + 1) % n]);
                 let len = (c - a).length();
                 let steps = ((len / (0.5 * s)).ceil() as usize).max(1);
                 let dir = (c - a).normalize_or_zero();
                 let out = DVec2::new(dir.y, -dir.x);
-                for q in 0..steps {
-                    let xy = a + (c - a) * (q as f64 / steps as f64);
+                for step in 0..steps {
+                    let xy = a + (c - a) * (step as f64 / steps as f64);
                     let probe = xy + out * (1e-6 * (1.0 + xy.abs().max_element()));
                     // The neighbour prisms standing just outside this point of the wall: where
                     // one covers a height, the wall there is no surface.
@@ -665,17 +844,7 @@ fn measure_flat(map: &BlockMap, source: &Source, buildings: &[u32]) -> ErrorRepo
                             continue;
                         }
                         samples += 1;
-                        let d = check(
-                            xy.extend(z),
-                            false,
-                            &mut worst,
-                            &mut worst_at,
-                            &mut raised_worst,
-                        );
-                        o2m = o2m.max(d);
-                        if z == b.z1 {
-                            gone(xy, d, &mut vanished);
-                        }
+                        sample(xy.extend(z), false, z == b.z1, &mut e, &mut o2m);
                     }
                 }
             }
@@ -693,42 +862,21 @@ fn measure_flat(map: &BlockMap, source: &Source, buildings: &[u32]) -> ErrorRepo
                     continue;
                 }
                 samples += 1;
-                let d = check(
-                    xy.extend(b.z1),
-                    false,
-                    &mut worst,
-                    &mut worst_at,
-                    &mut raised_worst,
-                );
-                o2m = o2m.max(d);
-                gone(xy, d, &mut vanished);
+                sample(xy.extend(b.z1), false, true, &mut e, &mut o2m);
                 if b.z0 > 0.0 {
                     samples += 2;
-                    let d1 = check(
-                        xy.extend(b.z0),
-                        true,
-                        &mut worst,
-                        &mut worst_at,
-                        &mut raised_worst,
-                    );
-                    let d2 = check(
-                        xy.extend(0.0),
-                        true,
-                        &mut worst,
-                        &mut worst_at,
-                        &mut raised_worst,
-                    );
-                    o2m = o2m.max(d1).max(d2);
+                    sample(xy.extend(b.z0), true, false, &mut e, &mut o2m);
+                    sample(xy.extend(0.0), true, false, &mut e, &mut o2m);
                 }
             }
         }
-        if worst > tol {
-            note(ThinKind::NarrowBuilding, b, worst, worst_at);
+        if e.worst > tol {
+            note(ThinKind::NarrowBuilding, b, e.worst, e.worst_at);
         }
-        if raised_worst > tol {
-            note(ThinKind::RaisedPart, b, raised_worst, (b.min + b.max) * 0.5);
+        if e.raised > tol {
+            note(ThinKind::RaisedPart, b, e.raised, (b.min + b.max) * 0.5);
         }
-        if let Some((d, at)) = vanished {
+        if let Some((d, at)) = e.vanished {
             note(ThinKind::Vanished, b, d, at);
         }
     }
@@ -741,9 +889,15 @@ fn measure_flat(map: &BlockMap, source: &Source, buildings: &[u32]) -> ErrorRepo
         for i in 0..k {
             let h = hof(i, j);
             let c = DVec2::new(m[0] + (i as f64 + 0.5) * s, m[1] + (j as f64 + 0.5) * s);
+            // The texel's largest distance matters only past the map's maximum so far or past
+            // the ½ voxel diagonal (a filled gap); below both, any bound will do.
+            let floor = m2o.min(tol);
+            let mut sd = |p: DVec3, local: f64| {
+                grid.surface_distance_within(p, local.max(floor), &mut scratch)
+            };
             let mut local: f64;
             samples += 1;
-            local = grid.surface_distance(c.extend(h), &mut scratch);
+            local = sd(c.extend(h), 0.0);
             // A neighbour with a footprint edge may leave the shared side open: count it as
             // empty there (more samples, never fewer).
             let side_h = |i: i64, j: i64| -> f64 {
@@ -753,19 +907,14 @@ fn measure_flat(map: &BlockMap, source: &Source, buildings: &[u32]) -> ErrorRepo
                     hof(i, j)
                 }
             };
-            let edge = if h > 0.0 {
-                map.edge(i as u32, j as u32)
-            } else {
-                None
-            };
-            if let (Some(_), (parts, _)) = (edge, cell_parts(map, i, j)) {
+            let cut = if h > 0.0 { cols.cell(i, j).1 } else { None };
+            if let Some((parts, _)) = cut {
                 // The kept part: its roof (centroid and corners) and each side, from the
                 // neighbour's height (0 on the edge's side) to the roof.
-                let kept = parts[0];
-                let v = kept.verts();
+                let v = parts[0].verts();
                 let centroid = v.iter().copied().sum::<DVec2>() / v.len().max(1) as f64;
                 samples += 1;
-                local = grid.surface_distance(centroid.extend(h), &mut scratch);
+                local = sd(centroid.extend(h), 0.0);
                 for q in 0..v.len() {
                     let (a, b) = (v[q], v[(q + 1) % v.len()]);
                     let mid = (a + b) * 0.5;
@@ -779,28 +928,28 @@ fn measure_flat(map: &BlockMap, source: &Source, buildings: &[u32]) -> ErrorRepo
                         0.0
                     };
                     samples += 1;
-                    local = local.max(grid.surface_distance(a.extend(h), &mut scratch));
+                    local = local.max(sd(a.extend(h), local));
                     if hn >= h {
                         continue;
                     }
                     // Only points of the side that are on the map's surface: the column just
                     // across is lower.
                     let out = (b - a).perp().normalize_or_zero() * (-1e-6 * s);
-                    for z in heights(hn, h, 2.0 * s) {
-                        if column_height_at(map, mid + out) > z {
+                    heights_into(hn, h, 2.0 * s, &mut zs);
+                    for &z in &zs {
+                        if cols.height_at(mid + out) > z {
                             continue;
                         }
                         samples += 1;
-                        local = local.max(grid.surface_distance(mid.extend(z), &mut scratch));
+                        local = local.max(sd(mid.extend(z), local));
                     }
                     for end in [a, b] {
-                        let across = column_height_at(map, end + out + (mid - end) * 1e-6);
+                        let across = cols.height_at(end + out + (mid - end) * 1e-6);
                         if across >= h {
                             continue;
                         }
                         samples += 1;
-                        local = local
-                            .max(grid.surface_distance(end.extend(hn.max(across)), &mut scratch));
+                        local = local.max(sd(end.extend(hn.max(across)), local));
                     }
                 }
             } else if h > 0.0 {
@@ -814,24 +963,25 @@ fn measure_flat(map: &BlockMap, source: &Source, buildings: &[u32]) -> ErrorRepo
                     // Only points of the side on the map's surface (next to a neighbour with
                     // an edge, the part of the side its column does not cover).
                     let out = dir * (1e-6 * s);
-                    for z in heights(hn, h, 2.0 * s) {
-                        if column_height_at(map, mid + out) > z {
+                    heights_into(hn, h, 2.0 * s, &mut zs);
+                    for &z in &zs {
+                        if cols.height_at(mid + out) > z {
                             continue;
                         }
                         samples += 1;
-                        local = local.max(grid.surface_distance(mid.extend(z), &mut scratch));
+                        local = local.max(sd(mid.extend(z), local));
                     }
                     // The side's two ends (the staircase's corners, the points of a texel
                     // farthest from a footprint edge) at its bottom and top.
                     let along = DVec2::new(dir.y, dir.x) * (0.5 * s);
                     for end in [mid - along, mid + along] {
-                        let across = column_height_at(map, end + out + (mid - end) * 1e-6);
+                        let across = cols.height_at(end + out + (mid - end) * 1e-6);
                         if across >= h {
                             continue;
                         }
                         for z in [hn.max(across), h] {
                             samples += 1;
-                            local = local.max(grid.surface_distance(end.extend(z), &mut scratch));
+                            local = local.max(sd(end.extend(z), local));
                         }
                     }
                 }
@@ -839,7 +989,7 @@ fn measure_flat(map: &BlockMap, source: &Source, buildings: &[u32]) -> ErrorRepo
                 for (cx, cy) in [(-0.5, -0.5), (0.5, -0.5), (-0.5, 0.5), (0.5, 0.5)] {
                     samples += 1;
                     let q = c + DVec2::new(cx, cy) * s;
-                    local = local.max(grid.surface_distance(q.extend(h), &mut scratch));
+                    local = local.max(sd(q.extend(h), local));
                 }
             }
             m2o = m2o.max(local);
@@ -866,9 +1016,10 @@ fn measure_flat(map: &BlockMap, source: &Source, buildings: &[u32]) -> ErrorRepo
     rep
 }
 
-/// `a`, `b` and every `step` in between (at least the two ends).
-fn heights(a: f64, b: f64, step: f64) -> Vec<f64> {
-    let mut v = vec![a];
+/// `a`, `b` and every `step` in between (at least the two ends), into `v`.
+fn heights_into(a: f64, b: f64, step: f64, v: &mut Vec<f64>) {
+    v.clear();
+    v.push(a);
     if b > a {
         let n = ((b - a) / step).ceil() as usize;
         for q in 1..n {
@@ -876,7 +1027,6 @@ fn heights(a: f64, b: f64, step: f64) -> Vec<f64> {
         }
         v.push(b);
     }
-    v
 }
 
 /// Exact distance from a point (local frame) to the original surface of the map's buildings.
