@@ -704,7 +704,7 @@ pub fn measure(map: &BlockMap, source: &Source, buildings: &[u32]) -> ErrorRepor
     if map.meta.zmin != 0.0 {
         return measure_on_ground(map, source, buildings);
     }
-    measure_flat(map, source, buildings)
+    measure_flat(map, source, buildings, true)
 }
 
 /// [`measure`] of a map whose ground is not z = 0 (a city on terrain, where a node's heights
@@ -737,10 +737,13 @@ fn measure_on_ground(map: &BlockMap, source: &Source, buildings: &[u32]) -> Erro
             });
         }
     }
-    measure_flat(&flat_map, &flat, buildings)
+    measure_flat(&flat_map, &flat, buildings, true)
 }
 
-fn measure_flat(map: &BlockMap, source: &Source, buildings: &[u32]) -> ErrorReport {
+/// The measurement over a flat ground. With `prune`, each distance search stops below the
+/// threshold past which its value could change the report; without, every distance is exact
+/// (the same report, slower: the tests compare the two).
+fn measure_flat(map: &BlockMap, source: &Source, buildings: &[u32], prune: bool) -> ErrorReport {
     let grid = BuildingGrid::new(map, source, buildings);
     let s = map.texel_m();
     let half = map.half_voxel_diagonal();
@@ -802,7 +805,9 @@ fn measure_flat(map: &BlockMap, source: &Source, buildings: &[u32]) -> ErrorRepo
             };
             let gone_at = b.z1 * (1.0 - 1e-9);
             let mut t = o2m.min(if raised { e.raised } else { e.worst }.max(tol));
-            if gone_here {
+            if !prune {
+                t = f64::NEG_INFINITY;
+            } else if gone_here {
                 // Strictly below `gone_at` when nothing is marked yet.
                 t = t.min(e.vanished.map_or(b.z1 * (1.0 - 2e-9), |v| v.0));
             }
@@ -893,7 +898,12 @@ fn measure_flat(map: &BlockMap, source: &Source, buildings: &[u32]) -> ErrorRepo
             // the ½ voxel diagonal (a filled gap); below both, any bound will do.
             let floor = m2o.min(tol);
             let mut sd = |p: DVec3, local: f64| {
-                grid.surface_distance_within(p, local.max(floor), &mut scratch)
+                let t = if prune {
+                    local.max(floor)
+                } else {
+                    f64::NEG_INFINITY
+                };
+                grid.surface_distance_within(p, t, &mut scratch)
             };
             let mut local: f64;
             samples += 1;
@@ -1033,4 +1043,170 @@ fn heights_into(a: f64, b: f64, step: f64, v: &mut Vec<f64>) {
 pub fn original_surface_distance(grid: &BuildingGrid, p: DVec3) -> f64 {
     let mut scratch = Scratch::default();
     grid.surface_distance(p, &mut scratch)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::blockmap::{build_map, BuildOptions};
+    use crate::city::extrude::extrude_city;
+    use crate::visibility::synthetic::SyntheticCity;
+    use rand::{Rng, SeedableRng};
+
+    /// The distance to the map's surface by brute force: every part of every texel (and of the
+    /// ground cells around the map) that the ring search could reach, through [`cell_parts`].
+    fn brute_map_distance(map: &BlockMap, p: DVec3) -> f64 {
+        let k = map.k() as i64;
+        let s = map.texel_m();
+        let m = map.meta.min;
+        let (ci, cj) = (
+            ((p.x - m[0]) / s).floor() as i64,
+            ((p.y - m[1]) / s).floor() as i64,
+        );
+        let xy = p.truncate();
+        let (own, own_n) = cell_parts(map, ci, cj);
+        let own_h = own[..own_n]
+            .iter()
+            .find(|q| q.distance(xy) == 0.0)
+            .map_or(own[0].h, |q| q.h);
+        let inside = p.z <= own_h;
+        let r = 2 * k + 4;
+        let mut best = f64::INFINITY;
+        for j in cj - r..=cj + r {
+            for i in ci - r..=ci + r {
+                let (parts, n) = cell_parts(map, i, j);
+                for part in &parts[..n] {
+                    let dz = if inside {
+                        (part.h - p.z).max(0.0)
+                    } else {
+                        (p.z - part.h).max(0.0)
+                    };
+                    let d = part.distance(xy);
+                    best = best.min(if inside && part.h >= p.z && d == 0.0 {
+                        dz
+                    } else {
+                        (d * d + dz * dz).sqrt()
+                    });
+                }
+            }
+        }
+        best
+    }
+
+    fn synthetic_city() -> (SyntheticCity, Vec<crate::city::Mesh>) {
+        let sc = SyntheticCity::generate(2, 2, 11, DVec2::new(5.0e5, 6.0e6));
+        let meshes = extrude_city(&sc.city);
+        (sc, meshes)
+    }
+
+    /// Points over the map's square and around it: on texel tops and sides, inside columns,
+    /// high above and below the ground.
+    fn points(map: &BlockMap, n: usize, seed: u64) -> Vec<DVec3> {
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
+        let (m, side, zmax) = (map.meta.min, map.meta.side, map.meta.zmax);
+        (0..n)
+            .map(|q| {
+                let x = m[0] + rng.random_range(-0.2..1.2) * side;
+                let y = m[1] + rng.random_range(-0.2..1.2) * side;
+                let z = match q % 4 {
+                    0 => rng.random_range(0.0..zmax),
+                    1 => rng.random_range(-0.1..1.5) * zmax,
+                    // On a column's top.
+                    2 => MapColumns::new(map).height_at(DVec2::new(x, y)),
+                    _ => rng.random_range(0.0..0.2) * zmax,
+                };
+                DVec3::new(x, y, z)
+            })
+            .collect()
+    }
+
+    #[test]
+    fn map_distance_is_the_brute_force_minimum_and_the_threshold_only_cuts_below_it() {
+        let (sc, meshes) = synthetic_city();
+        let source = Source::new(&sc.city, &sc.layout, &meshes).unwrap();
+        let all = source.buildings_of(
+            &sc.layout,
+            &sc.layout.blocks.iter().map(|b| b.id).collect::<Vec<_>>(),
+        );
+        let opts = BuildOptions {
+            k: 32,
+            ..BuildOptions::default()
+        };
+        let (map, _, _) = build_map(&source, &all, &opts).unwrap();
+        assert!(map.edge_texels() > 0, "the map has cut texels");
+        let cols = MapColumns::new(&map);
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(3);
+        let mut cut_short = 0;
+        for p in points(&map, 400, 7) {
+            let exact = brute_map_distance(&map, p);
+            let d = cols.distance(p, f64::NEG_INFINITY);
+            assert_eq!(d.to_bits(), exact.to_bits(), "{p}: {d} vs {exact}");
+            assert_eq!(map_surface_distance(&map, p).to_bits(), exact.to_bits());
+            let t = rng.random_range(0.0..2.0) * exact;
+            let w = cols.distance(p, t);
+            assert!(w >= exact, "{p}: {w} < {exact}");
+            assert!(w == exact || w <= t, "{p}: {w} vs {exact}, t {t}");
+            cut_short += usize::from(w != exact);
+        }
+        assert!(cut_short > 0, "some searches stop early");
+    }
+
+    #[test]
+    fn original_distance_with_a_threshold_is_exact_above_it() {
+        let (sc, meshes) = synthetic_city();
+        let source = Source::new(&sc.city, &sc.layout, &meshes).unwrap();
+        let all = source.buildings_of(
+            &sc.layout,
+            &sc.layout.blocks.iter().map(|b| b.id).collect::<Vec<_>>(),
+        );
+        let (map, kept, _) = build_map(&source, &all, &BuildOptions::default()).unwrap();
+        let grid = BuildingGrid::new(&map, &source, &kept);
+        let mut scratch = Scratch::default();
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(5);
+        let (mut inside, mut cut_short) = (0, 0);
+        for p in points(&map, 400, 9) {
+            let exact = grid.surface_distance(p, &mut scratch);
+            inside += usize::from(
+                grid.all
+                    .iter()
+                    .any(|b| p.z > b.z0 && p.z < b.z1 && in_polygon(b, p.truncate())),
+            );
+            let t = rng.random_range(0.0..2.0) * exact;
+            let w = grid.surface_distance_within(p, t, &mut scratch);
+            assert!(w >= exact, "{p}: {w} < {exact}");
+            assert!(w == exact || w <= t, "{p}: {w} vs {exact}, t {t}");
+            cut_short += usize::from(w != exact);
+        }
+        assert!(
+            inside > 0 && cut_short > 0,
+            "{inside} inside, {cut_short} cut short"
+        );
+    }
+
+    #[test]
+    fn pruned_measurement_equals_the_exact_one() {
+        let (sc, meshes) = synthetic_city();
+        let source = Source::new(&sc.city, &sc.layout, &meshes).unwrap();
+        let ids: Vec<_> = sc.layout.blocks.iter().map(|b| b.id).collect();
+        let mut thin = 0;
+        // The whole city and each block alone, at every K.
+        let sets: Vec<Vec<u32>> = std::iter::once(source.buildings_of(&sc.layout, &ids))
+            .chain(ids.iter().map(|b| source.buildings_of(&sc.layout, &[*b])))
+            .collect();
+        for k in [32, 64, 128] {
+            for set in &sets {
+                let opts = BuildOptions {
+                    k,
+                    ..BuildOptions::default()
+                };
+                let (map, kept, _) = build_map(&source, set, &opts).unwrap();
+                let pruned = measure_flat(&map, &source, &kept, true);
+                let exact = measure_flat(&map, &source, &kept, false);
+                assert_eq!(pruned, exact, "K = {k}");
+                assert_eq!(pruned.measured_m.to_bits(), exact.measured_m.to_bits());
+                thin += pruned.thin.len();
+            }
+        }
+        assert!(thin > 0, "some maps report thin features");
+    }
 }
