@@ -106,7 +106,9 @@ pub struct BuildingGrid<'a> {
     k: usize,
     min: DVec2,
     s: f64,
-    cells: Vec<Vec<u32>>,
+    /// The buildings of cell `c` are `items[start[c]..start[c + 1]]` (in building order).
+    start: Vec<u32>,
+    items: Vec<u32>,
     all: Vec<&'a SourceBuilding>,
 }
 
@@ -135,8 +137,8 @@ impl<'a> BuildingGrid<'a> {
             .iter()
             .filter_map(|&i| source.buildings.get(i as usize).and_then(|b| b.as_ref()))
             .collect();
-        let mut cells = vec![Vec::new(); k * k];
-        for (n, b) in all.iter().enumerate() {
+        // The cells each building's box covers.
+        let span = |b: &SourceBuilding| {
             let c0 = ((b.min - min) / s).floor();
             let c1 = ((b.max - min) / s).floor();
             let (i0, j0) = (c0.x.max(0.0) as usize, c0.y.max(0.0) as usize);
@@ -144,19 +146,52 @@ impl<'a> BuildingGrid<'a> {
                 (c1.x.max(0.0) as usize).min(k - 1),
                 (c1.y.max(0.0) as usize).min(k - 1),
             );
-            for j in j0..=j1 {
-                for i in i0..=i1 {
-                    cells[j * k + i].push(n as u32);
-                }
+            (j0..=j1).flat_map(move |j| (i0..=i1).map(move |i| j * k + i))
+        };
+        // Counted, then filled: one array for all cells.
+        let mut start = vec![0u32; k * k + 1];
+        for b in &all {
+            for c in span(b) {
+                start[c + 1] += 1;
+            }
+        }
+        for c in 0..k * k {
+            start[c + 1] += start[c];
+        }
+        let mut fill: Vec<u32> = start[..k * k].to_vec();
+        let mut items = vec![0u32; start[k * k] as usize];
+        for (n, b) in all.iter().enumerate() {
+            for c in span(b) {
+                items[fill[c] as usize] = n as u32;
+                fill[c] += 1;
             }
         }
         Self {
             k,
             min,
             s,
-            cells,
+            start,
+            items,
             all,
         }
+    }
+
+    /// The buildings of cell `c`.
+    #[inline]
+    fn cell(&self, c: usize) -> &[u32] {
+        &self.items[self.start[c] as usize..self.start[c + 1] as usize]
+    }
+
+    /// The buildings whose box may hold `p`: those of its cell (what [`BuildingGrid::near`]
+    /// gives for `r = 0`, without copying).
+    #[inline]
+    fn at(&self, p: DVec2) -> &[u32] {
+        let c = ((p - self.min) / self.s).floor();
+        let k = self.k as f64;
+        if c.x < 0.0 || c.y < 0.0 || c.x >= k || c.y >= k {
+            return &[];
+        }
+        self.cell(c.y as usize * self.k + c.x as usize)
     }
 
     /// Buildings whose box may lie within `r` of `p` (horizontally), each once, into
@@ -182,7 +217,7 @@ impl<'a> BuildingGrid<'a> {
         let (i1, j1) = (hi.x.min(k - 1.0) as usize, hi.y.min(k - 1.0) as usize);
         for j in j0..=j1 {
             for i in i0..=i1 {
-                for &n in &self.cells[j * self.k + i] {
+                for &n in self.cell(j * self.k + i) {
                     if out.mark[n as usize] != out.gen {
                         out.mark[n as usize] = out.gen;
                         out.list.push(n);
@@ -206,8 +241,8 @@ impl<'a> BuildingGrid<'a> {
         // Upper bound: the ground, or the nearest way out of the prisms holding p.
         let mut inside_any = p.z < 0.0;
         let mut bound = p.z.abs();
-        self.near(xy, 0.0, scratch);
-        for &n in scratch.list.iter() {
+        let own = self.at(xy);
+        for &n in own {
             let b = self.all[n as usize];
             if p.z >= b.z0 && p.z <= b.z1 && in_polygon(b, xy) {
                 inside_any = true;
@@ -230,7 +265,7 @@ impl<'a> BuildingGrid<'a> {
             if bound <= t {
                 return bound;
             }
-            for &n in scratch.list.iter() {
+            for &n in own {
                 bound = dist(self.all[n as usize], bound);
                 if bound <= t {
                     return bound;
@@ -255,7 +290,7 @@ impl<'a> BuildingGrid<'a> {
         let mut top = p.z.max(0.0);
         loop {
             let mut raised = false;
-            for &n in scratch.list.iter() {
+            for &n in own {
                 let b = self.all[n as usize];
                 if top >= b.z0 && top < b.z1 && in_polygon(b, xy) {
                     top = b.z1;
@@ -346,6 +381,19 @@ pub(crate) fn in_polygon(b: &SourceBuilding, p: DVec2) -> bool {
     inside
 }
 
+/// Squared distance from `p` to the segment `ac` (as [`seg_dist`] finds the nearest point).
+#[inline]
+fn seg_dist2(a: DVec2, c: DVec2, p: DVec2) -> f64 {
+    let d = c - a;
+    let l2 = d.length_squared();
+    let t = if l2 > 0.0 {
+        ((p - a).dot(d) / l2).clamp(0.0, 1.0)
+    } else {
+        0.0
+    };
+    (a + d * t - p).length_squared()
+}
+
 fn seg_dist(a: DVec2, c: DVec2, p: DVec2) -> (f64, DVec2) {
     let d = c - a;
     let l2 = d.length_squared();
@@ -362,14 +410,16 @@ pub(crate) fn horizontal_distance(b: &SourceBuilding, p: DVec2) -> f64 {
     if in_polygon(b, p) {
         return 0.0;
     }
+    // The nearest edge by squared distance, one square root (the same value: the root is
+    // monotone and correctly rounded).
     let mut best = f64::INFINITY;
     for ring in &b.rings {
         let n = ring.len();
         for e in 0..n {
-            best = best.min(seg_dist(ring[e], ring[(e + 1) % n], p).0);
+            best = best.min(seg_dist2(ring[e], ring[(e + 1) % n], p));
         }
     }
-    best
+    best.sqrt()
 }
 
 /// Horizontal distance from `p` to the complement of the union of the footprints of `polys`
@@ -838,9 +888,8 @@ fn measure_flat(map: &BlockMap, source: &Source, buildings: &[u32], prune: bool)
                     let probe = xy + out * (1e-6 * (1.0 + xy.abs().max_element()));
                     // The neighbour prisms standing just outside this point of the wall: where
                     // one covers a height, the wall there is no surface.
-                    grid.near(probe, 0.0, &mut scratch);
                     covers.clear();
-                    covers.extend(scratch.list.iter().filter_map(|&m| {
+                    covers.extend(grid.at(probe).iter().filter_map(|&m| {
                         let o = grid.all[m as usize];
                         (o.id != b.id && in_polygon(o, probe)).then_some((o.z0, o.z1))
                     }));
