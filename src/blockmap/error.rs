@@ -110,6 +110,9 @@ pub struct BuildingGrid<'a> {
     start: Vec<u32>,
     items: Vec<u32>,
     all: Vec<&'a SourceBuilding>,
+    /// Each building's box, `[min.x, min.y, max.x, max.y, z0, z1]`, side by side: the tests
+    /// that reject most candidates read only these.
+    boxes: Vec<[f64; 6]>,
 }
 
 impl<'a> BuildingGrid<'a> {
@@ -166,6 +169,10 @@ impl<'a> BuildingGrid<'a> {
                 fill[c] += 1;
             }
         }
+        let boxes = all
+            .iter()
+            .map(|b| [b.min.x, b.min.y, b.max.x, b.max.y, b.z0, b.z1])
+            .collect();
         Self {
             k,
             min,
@@ -173,6 +180,7 @@ impl<'a> BuildingGrid<'a> {
             start,
             items,
             all,
+            boxes,
         }
     }
 
@@ -242,38 +250,45 @@ impl<'a> BuildingGrid<'a> {
         let mut inside_any = p.z < 0.0;
         let mut bound = p.z.abs();
         let own = self.at(xy);
+        // Whether the box of building `n` holds `xy` (the first test of `in_polygon`).
+        let holds = |n: u32| {
+            let [x0, y0, x1, y1, _, _] = self.boxes[n as usize];
+            !(xy.x < x0 || xy.x > x1 || xy.y < y0 || xy.y > y1)
+        };
         for &n in own {
-            let b = self.all[n as usize];
-            if p.z >= b.z0 && p.z <= b.z1 && in_polygon(b, xy) {
+            let [.., z0, z1] = self.boxes[n as usize];
+            if p.z >= z0 && p.z <= z1 && holds(n) && in_polygon(self.all[n as usize], xy) {
                 inside_any = true;
+                break;
             }
         }
         if !inside_any {
             // Outside the solid: distance to the solid, the nearest of ground and prisms. The
             // prisms of the point's own cell first, then those of the cells within that bound.
             // A prism whose box is already no nearer than the bound is skipped.
-            let dist = |b: &SourceBuilding, bound: f64| {
-                let dv = (b.z0 - p.z).max(p.z - b.z1).max(0.0);
-                let bx = (b.min.x - xy.x).max(xy.x - b.max.x).max(0.0);
-                let by = (b.min.y - xy.y).max(xy.y - b.max.y).max(0.0);
+            let dist = |n: u32, bound: f64| {
+                let [x0, y0, x1, y1, z0, z1] = self.boxes[n as usize];
+                let dv = (z0 - p.z).max(p.z - z1).max(0.0);
+                let bx = (x0 - xy.x).max(xy.x - x1).max(0.0);
+                let by = (y0 - xy.y).max(xy.y - y1).max(0.0);
                 if bx * bx + by * by + dv * dv >= bound * bound {
                     return bound;
                 }
-                let dh = horizontal_distance(b, xy);
+                let dh = horizontal_distance(self.all[n as usize], xy);
                 (dh * dh + dv * dv).sqrt().min(bound)
             };
             if bound <= t {
                 return bound;
             }
             for &n in own {
-                bound = dist(self.all[n as usize], bound);
+                bound = dist(n, bound);
                 if bound <= t {
                     return bound;
                 }
             }
             self.near(xy, bound, scratch);
             for &n in scratch.list.iter() {
-                bound = dist(self.all[n as usize], bound);
+                bound = dist(n, bound);
                 if bound <= t {
                     return bound;
                 }
@@ -291,9 +306,9 @@ impl<'a> BuildingGrid<'a> {
         loop {
             let mut raised = false;
             for &n in own {
-                let b = self.all[n as usize];
-                if top >= b.z0 && top < b.z1 && in_polygon(b, xy) {
-                    top = b.z1;
+                let [.., z0, z1] = self.boxes[n as usize];
+                if top >= z0 && top < z1 && holds(n) && in_polygon(self.all[n as usize], xy) {
+                    top = z1;
                     raised = true;
                 }
             }
@@ -890,8 +905,12 @@ fn measure_flat(map: &BlockMap, source: &Source, buildings: &[u32], prune: bool)
                     // one covers a height, the wall there is no surface.
                     covers.clear();
                     covers.extend(grid.at(probe).iter().filter_map(|&m| {
+                        let [x0, y0, x1, y1, z0, z1] = grid.boxes[m as usize];
+                        if probe.x < x0 || probe.x > x1 || probe.y < y0 || probe.y > y1 {
+                            return None;
+                        }
                         let o = grid.all[m as usize];
-                        (o.id != b.id && in_polygon(o, probe)).then_some((o.z0, o.z1))
+                        (o.id != b.id && in_polygon(o, probe)).then_some((z0, z1))
                     }));
                     for &z in &zs {
                         if covers.iter().any(|&(z0, z1)| z >= z0 && z <= z1) {
