@@ -602,8 +602,14 @@ fn footprint_edges(
                 for j in j0..=j1 {
                     for i in i0..=i1 {
                         let blo = min + DVec2::new(i as f64, j as f64) * s;
-                        clip_to_box_into(&[a, c], blo, blo + DVec2::splat(s), &mut clip, &mut tmp);
-                        if !clip.is_empty() {
+                        let bhi = blo + DVec2::splat(s);
+                        // An end inside the closed box survives every clip; otherwise clip.
+                        let holds = |q: DVec2| q.cmpge(blo).all() && q.cmple(bhi).all();
+                        let touches = holds(a) || holds(c) || {
+                            clip_to_box_into(&[a, c], blo, bhi, &mut clip, &mut tmp);
+                            !clip.is_empty()
+                        };
+                        if touches {
                             cross[j * k + i].push((p as u32, r as u32, e as u32));
                         }
                     }

@@ -194,12 +194,13 @@ impl<'a> BuildingGrid<'a> {
     /// gives for `r = 0`, without copying).
     #[inline]
     fn at(&self, p: DVec2) -> &[u32] {
-        let c = ((p - self.min) / self.s).floor();
-        let k = self.k as f64;
-        if c.x < 0.0 || c.y < 0.0 || c.x >= k || c.y >= k {
+        let c = (p - self.min) / self.s;
+        let (i, j) = (floor_i64(c.x), floor_i64(c.y));
+        let k = self.k as i64;
+        if i < 0 || j < 0 || i >= k || j >= k {
             return &[];
         }
-        self.cell(c.y as usize * self.k + c.x as usize)
+        self.cell(j as usize * self.k + i as usize)
     }
 
     /// Buildings whose box may lie within `r` of `p` (horizontally), each once, into
@@ -374,6 +375,18 @@ impl<'a> BuildingGrid<'a> {
             }
         }
         best
+    }
+}
+
+/// `x.floor() as i64` (saturating, NaN → 0) without the library call: the integer part
+/// rounds toward zero, one less for a negative non-integer.
+#[inline]
+fn floor_i64(x: f64) -> i64 {
+    let i = x as i64;
+    if (i as f64) > x {
+        i.saturating_sub(1)
+    } else {
+        i
     }
 }
 
@@ -660,8 +673,8 @@ impl<'a> MapColumns<'a> {
     /// Height of the map's column over `xy` (0 over empty ground and outside the map).
     pub fn height_at(&self, xy: DVec2) -> f64 {
         let (i, j) = (
-            ((xy.x - self.min.x) / self.s).floor() as i64,
-            ((xy.y - self.min.y) / self.s).floor() as i64,
+            floor_i64((xy.x - self.min.x) / self.s),
+            floor_i64((xy.y - self.min.y) / self.s),
         );
         let mut buf = [PART_NONE];
         self.parts(i, j, &mut buf)
@@ -682,7 +695,7 @@ impl<'a> MapColumns<'a> {
     pub fn distance(&self, p: DVec3, t: f64) -> f64 {
         let s = self.s;
         let (fx, fy) = ((p.x - self.min.x) / s, (p.y - self.min.y) / s);
-        let (ci, cj) = (fx.floor() as i64, fy.floor() as i64);
+        let (ci, cj) = (floor_i64(fx), floor_i64(fy));
         let xy = p.truncate();
         let mut buf = [PART_NONE];
         let own = self.parts(ci, cj, &mut buf);
@@ -863,8 +876,8 @@ fn measure_flat(map: &BlockMap, source: &Source, buildings: &[u32], prune: bool)
             let xy = p.truncate();
             let gone_here = top && b.z1 > 0.0 && {
                 let (ti, tj) = (
-                    ((xy.x - map.meta.min[0]) / s).floor() as i64,
-                    ((xy.y - map.meta.min[1]) / s).floor() as i64,
+                    floor_i64((xy.x - map.meta.min[0]) / s),
+                    floor_i64((xy.y - map.meta.min[1]) / s),
                 );
                 map.texel_height_m(ti, tj).is_none()
             };
@@ -1186,6 +1199,40 @@ mod tests {
                 DVec3::new(x, y, z)
             })
             .collect()
+    }
+
+    #[test]
+    fn floor_without_the_library_call_is_floor() {
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(1);
+        let special = [
+            0.0,
+            -0.0,
+            0.5,
+            -0.5,
+            -1.0,
+            1.0,
+            -1e-300,
+            1e300,
+            -1e300,
+            f64::NAN,
+            f64::INFINITY,
+            f64::NEG_INFINITY,
+            9.2e18,
+            -9.3e18,
+            4503599627370497.0,
+            -4503599627370497.5,
+        ];
+        let random = (0..10_000).map(|q| {
+            let x: f64 = rng.random_range(-300.0..300.0);
+            if q % 3 == 0 {
+                x.round()
+            } else {
+                x
+            }
+        });
+        for x in special.into_iter().chain(random) {
+            assert_eq!(floor_i64(x), x.floor() as i64, "{x}");
+        }
     }
 
     #[test]
