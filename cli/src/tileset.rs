@@ -52,7 +52,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     }
     .validate()?;
     let t0 = std::time::Instant::now();
-    let scene = load_scene(
+    let mut scene = load_scene(
         &args.city,
         0,
         &SceneOptions {
@@ -60,6 +60,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             ..SceneOptions::default()
         },
     )?;
+    // The tileset reads the buildings' own meshes, never the merged block meshes.
+    scene.release_block_meshes();
     let bar = if args.json || !std::io::stderr().is_terminal() {
         ProgressBar::hidden()
     } else {

@@ -68,7 +68,7 @@ use super::layout::{encode_unit, BlockMap};
 pub use super::source::{Source, SourceBuilding};
 use super::BlockMapError;
 use crate::city::BuildingId;
-use crate::geom::clip::clip_to_box;
+use crate::geom::clip::clip_to_box_into;
 use crate::geom::predicates::shoelace;
 use glam::{DVec2, DVec3};
 use serde::Serialize;
@@ -587,6 +587,7 @@ fn footprint_edges(
     use super::layout::{decode_offset, decode_unit, encode_offset_up};
     // Per texel, the (building, ring, edge) crossing it.
     let mut cross: Vec<Vec<(u32, u32, u32)>> = vec![Vec::new(); k * k];
+    let (mut clip, mut tmp) = (Vec::new(), Vec::new());
     for (p, b) in bs.iter().enumerate() {
         for (r, ring) in b.rings.iter().enumerate() {
             let n = ring.len();
@@ -601,7 +602,14 @@ fn footprint_edges(
                 for j in j0..=j1 {
                     for i in i0..=i1 {
                         let blo = min + DVec2::new(i as f64, j as f64) * s;
-                        if !clip_to_box(&[a, c], blo, blo + DVec2::splat(s)).is_empty() {
+                        let bhi = blo + DVec2::splat(s);
+                        // An end inside the closed box survives every clip; otherwise clip.
+                        let holds = |q: DVec2| q.cmpge(blo).all() && q.cmple(bhi).all();
+                        let touches = holds(a) || holds(c) || {
+                            clip_to_box_into(&[a, c], blo, bhi, &mut clip, &mut tmp);
+                            !clip.is_empty()
+                        };
+                        if touches {
                             cross[j * k + i].push((p as u32, r as u32, e as u32));
                         }
                     }
@@ -642,6 +650,7 @@ fn footprint_edges(
     let mut bytes2 = vec![None; k * k];
     let mut filled = 0usize;
     let mut pts: Vec<DVec2> = Vec::new();
+    let mut ext: Vec<DVec2> = Vec::new();
     let mut crossing: Vec<u32> = Vec::new();
     for t in 0..k * k {
         if cross[t].is_empty() {
@@ -663,10 +672,11 @@ fn footprint_edges(
         let mut total = 0.0;
         for &p in &crossing {
             let b = bs[p as usize];
-            let ext = clip_to_box(&b.rings[0], lo, hi);
+            clip_to_box_into(&b.rings[0], lo, hi, &mut ext, &mut tmp);
             let mut area = shoelace(&ext).abs();
             for hole in &b.rings[1..] {
-                area -= shoelace(&clip_to_box(hole, lo, hi)).abs();
+                clip_to_box_into(hole, lo, hi, &mut clip, &mut tmp);
+                area -= shoelace(&clip).abs();
             }
             let area = area.max(0.0) / (s * s);
             total += area;

@@ -44,7 +44,7 @@
 //! - `∂U → ∂P` has no such bound: where a gap narrower than a parent texel between two children's
 //!   buildings is filled, the children's ground there lies up to the buildings' height below the
 //!   parent's roof. So both are sampled (texel tops, corners, exposed sides, empty ground) with
-//!   the exact point-to-map distance of [`super::error::map_surface_distance`].
+//!   the exact point-to-map distance of [`super::error::MapColumns::distance`].
 //!
 //! The parent declares `ε = max(½ voxel diagonal, max_c ε_c + r)` ([`ResampleStats`]); each map
 //! is then measured against the source polygons with the measuring twin
@@ -58,7 +58,7 @@ use super::build::{
     exposed_sides, kept_area, wall_column, wall_slices, BuildOptions, BuildStats, ColumnSums, SIDES,
 };
 pub use super::build::{Parents, ResampleStats};
-use super::error::map_surface_distance;
+use super::error::MapColumns;
 use super::layout::{decode_offset, decode_unit, encode_offset_up, BlockMap};
 use super::source::Source;
 use super::BlockMapError;
@@ -415,6 +415,8 @@ pub fn resample_distances(parent: &BlockMap, children: &[&BlockMap]) -> (f64, f6
     // Parent → union: the parent holds the union, so its surface points are on or outside it
     // and the distance to the union is the least distance to any child's solid (≤ z: below the
     // ground everything is solid).
+    let parent_cols = MapColumns::new(parent);
+    let child_cols: Vec<MapColumns> = children.iter().map(|c| MapColumns::new(c)).collect();
     let to = max_pruned(
         surface_samples(parent, lo, hi)
             .into_iter()
@@ -422,12 +424,12 @@ pub fn resample_distances(parent: &BlockMap, children: &[&BlockMap]) -> (f64, f6
             .collect(),
         &|p| {
             let mut d = p.z.max(0.0);
-            for c in children {
+            for (c, cols) in children.iter().zip(&child_cols) {
                 let cl = DVec2::new(c.meta.min[0], c.meta.min[1]);
                 let ch = cl + DVec2::splat(c.meta.side);
                 let gap = (cl - p.truncate()).max(p.truncate() - ch).max(DVec2::ZERO);
                 if gap.length() < d {
-                    d = d.min(map_surface_distance(c, p));
+                    d = d.min(cols.distance(p, f64::NEG_INFINITY));
                 }
             }
             d
@@ -447,7 +449,7 @@ pub fn resample_distances(parent: &BlockMap, children: &[&BlockMap]) -> (f64, f6
                 .map(|p| (p, (column_height(parent, p.truncate()) - p.z).abs())),
         );
     }
-    let from = max_pruned(samples, &|p| map_surface_distance(parent, p));
+    let from = max_pruned(samples, &|p| parent_cols.distance(p, f64::NEG_INFINITY));
     (to, from)
 }
 
@@ -475,17 +477,18 @@ fn max_pruned(mut points: Vec<(DVec3, f64)>, exact: &(dyn Fn(DVec3) -> f64 + Syn
 
 /// The sampled directed distance from `a`'s surface to `b`'s (both with the ground), metres,
 /// over `a`'s square: the largest exact point-to-surface distance
-/// ([`super::error::map_surface_distance`]) from the points of every texel's top, corners and
+/// ([`super::error::MapColumns::distance`]) from the points of every texel's top, corners and
 /// exposed sides and every empty texel's ground.
 pub fn directed_distance(a: &BlockMap, b: &BlockMap) -> f64 {
     let lo = DVec2::new(a.meta.min[0], a.meta.min[1]);
     let hi = lo + DVec2::splat(a.meta.side);
+    let cols = MapColumns::new(b);
     max_pruned(
         surface_samples(a, lo, hi)
             .into_iter()
             .map(|p| (p, (column_height(b, p.truncate()) - p.z).abs()))
             .collect(),
-        &|p| map_surface_distance(b, p),
+        &|p| cols.distance(p, f64::NEG_INFINITY),
     )
 }
 

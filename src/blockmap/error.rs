@@ -80,12 +80,25 @@ pub struct ErrorReport {
     pub thin: Vec<ThinFeature>,
 }
 
+/// What the original → map samples of one building found so far.
+struct BuildingError {
+    /// Largest distance of a surface sample, and where.
+    worst: f64,
+    worst_at: DVec2,
+    /// Largest distance of an underside (or ground below a raised part) sample.
+    raised: f64,
+    /// The largest roof distance that marks the building vanished, and where.
+    vanished: Option<(f64, DVec2)>,
+}
+
 /// Working memory of [`BuildingGrid`]'s queries: reuse one per thread.
 #[derive(Clone, Debug, Default)]
 pub struct Scratch {
     list: Vec<u32>,
     mark: Vec<u32>,
     gen: u32,
+    levels: Vec<f64>,
+    covering: Vec<u32>,
 }
 
 /// Buildings per texel of a map (by footprint box), to find the prisms near a point.
@@ -93,8 +106,13 @@ pub struct BuildingGrid<'a> {
     k: usize,
     min: DVec2,
     s: f64,
-    cells: Vec<Vec<u32>>,
+    /// The buildings of cell `c` are `items[start[c]..start[c + 1]]` (in building order).
+    start: Vec<u32>,
+    items: Vec<u32>,
     all: Vec<&'a SourceBuilding>,
+    /// Each building's box, `[min.x, min.y, max.x, max.y, z0, z1]`, side by side: the tests
+    /// that reject most candidates read only these.
+    boxes: Vec<[f64; 6]>,
 }
 
 impl<'a> BuildingGrid<'a> {
@@ -122,8 +140,8 @@ impl<'a> BuildingGrid<'a> {
             .iter()
             .filter_map(|&i| source.buildings.get(i as usize).and_then(|b| b.as_ref()))
             .collect();
-        let mut cells = vec![Vec::new(); k * k];
-        for (n, b) in all.iter().enumerate() {
+        // The cells each building's box covers.
+        let span = |b: &SourceBuilding| {
             let c0 = ((b.min - min) / s).floor();
             let c1 = ((b.max - min) / s).floor();
             let (i0, j0) = (c0.x.max(0.0) as usize, c0.y.max(0.0) as usize);
@@ -131,19 +149,58 @@ impl<'a> BuildingGrid<'a> {
                 (c1.x.max(0.0) as usize).min(k - 1),
                 (c1.y.max(0.0) as usize).min(k - 1),
             );
-            for j in j0..=j1 {
-                for i in i0..=i1 {
-                    cells[j * k + i].push(n as u32);
-                }
+            (j0..=j1).flat_map(move |j| (i0..=i1).map(move |i| j * k + i))
+        };
+        // Counted, then filled: one array for all cells.
+        let mut start = vec![0u32; k * k + 1];
+        for b in &all {
+            for c in span(b) {
+                start[c + 1] += 1;
             }
         }
+        for c in 0..k * k {
+            start[c + 1] += start[c];
+        }
+        let mut fill: Vec<u32> = start[..k * k].to_vec();
+        let mut items = vec![0u32; start[k * k] as usize];
+        for (n, b) in all.iter().enumerate() {
+            for c in span(b) {
+                items[fill[c] as usize] = n as u32;
+                fill[c] += 1;
+            }
+        }
+        let boxes = all
+            .iter()
+            .map(|b| [b.min.x, b.min.y, b.max.x, b.max.y, b.z0, b.z1])
+            .collect();
         Self {
             k,
             min,
             s,
-            cells,
+            start,
+            items,
             all,
+            boxes,
         }
+    }
+
+    /// The buildings of cell `c`.
+    #[inline]
+    fn cell(&self, c: usize) -> &[u32] {
+        &self.items[self.start[c] as usize..self.start[c + 1] as usize]
+    }
+
+    /// The buildings whose box may hold `p`: those of its cell (what [`BuildingGrid::near`]
+    /// gives for `r = 0`, without copying).
+    #[inline]
+    fn at(&self, p: DVec2) -> &[u32] {
+        let c = (p - self.min) / self.s;
+        let (i, j) = (floor_i64(c.x), floor_i64(c.y));
+        let k = self.k as i64;
+        if i < 0 || j < 0 || i >= k || j >= k {
+            return &[];
+        }
+        self.cell(j as usize * self.k + i as usize)
     }
 
     /// Buildings whose box may lie within `r` of `p` (horizontally), each once, into
@@ -169,7 +226,7 @@ impl<'a> BuildingGrid<'a> {
         let (i1, j1) = (hi.x.min(k - 1.0) as usize, hi.y.min(k - 1.0) as usize);
         for j in j0..=j1 {
             for i in i0..=i1 {
-                for &n in &self.cells[j * self.k + i] {
+                for &n in self.cell(j * self.k + i) {
                     if out.mark[n as usize] != out.gen {
                         out.mark[n as usize] = out.gen;
                         out.list.push(n);
@@ -181,37 +238,61 @@ impl<'a> BuildingGrid<'a> {
 
     /// Exact distance from `p` to the surface of the original solid (ground ∪ prisms).
     pub fn surface_distance(&self, p: DVec3, scratch: &mut Scratch) -> f64 {
+        self.surface_distance_within(p, f64::NEG_INFINITY, scratch)
+    }
+
+    /// [`BuildingGrid::surface_distance`] where below the threshold `t` an upper bound will
+    /// do: the search stops as soon as it has a surface point within `t`. The value returned
+    /// is never below the exact distance, and it is the exact distance unless both are at most
+    /// `t` (`t = −∞`: always exact).
+    pub fn surface_distance_within(&self, p: DVec3, t: f64, scratch: &mut Scratch) -> f64 {
         let xy = p.truncate();
         // Upper bound: the ground, or the nearest way out of the prisms holding p.
         let mut inside_any = p.z < 0.0;
         let mut bound = p.z.abs();
-        self.near(xy, 0.0, scratch);
-        for &n in scratch.list.iter() {
-            let b = self.all[n as usize];
-            if p.z >= b.z0 && p.z <= b.z1 && in_polygon(b, xy) {
+        let own = self.at(xy);
+        // Whether the box of building `n` holds `xy` (the first test of `in_polygon`).
+        let holds = |n: u32| {
+            let [x0, y0, x1, y1, _, _] = self.boxes[n as usize];
+            !(xy.x < x0 || xy.x > x1 || xy.y < y0 || xy.y > y1)
+        };
+        for &n in own {
+            let [.., z0, z1] = self.boxes[n as usize];
+            if p.z >= z0 && p.z <= z1 && holds(n) && in_polygon(self.all[n as usize], xy) {
                 inside_any = true;
+                break;
             }
         }
         if !inside_any {
             // Outside the solid: distance to the solid, the nearest of ground and prisms. The
             // prisms of the point's own cell first, then those of the cells within that bound.
             // A prism whose box is already no nearer than the bound is skipped.
-            let dist = |b: &SourceBuilding, bound: f64| {
-                let dv = (b.z0 - p.z).max(p.z - b.z1).max(0.0);
-                let bx = (b.min.x - xy.x).max(xy.x - b.max.x).max(0.0);
-                let by = (b.min.y - xy.y).max(xy.y - b.max.y).max(0.0);
+            let dist = |n: u32, bound: f64| {
+                let [x0, y0, x1, y1, z0, z1] = self.boxes[n as usize];
+                let dv = (z0 - p.z).max(p.z - z1).max(0.0);
+                let bx = (x0 - xy.x).max(xy.x - x1).max(0.0);
+                let by = (y0 - xy.y).max(xy.y - y1).max(0.0);
                 if bx * bx + by * by + dv * dv >= bound * bound {
                     return bound;
                 }
-                let dh = horizontal_distance(b, xy);
+                let dh = horizontal_distance(self.all[n as usize], xy);
                 (dh * dh + dv * dv).sqrt().min(bound)
             };
-            for &n in scratch.list.iter() {
-                bound = dist(self.all[n as usize], bound);
+            if bound <= t {
+                return bound;
+            }
+            for &n in own {
+                bound = dist(n, bound);
+                if bound <= t {
+                    return bound;
+                }
             }
             self.near(xy, bound, scratch);
             for &n in scratch.list.iter() {
-                bound = dist(self.all[n as usize], bound);
+                bound = dist(n, bound);
+                if bound <= t {
+                    return bound;
+                }
             }
             return bound;
         }
@@ -225,10 +306,10 @@ impl<'a> BuildingGrid<'a> {
         let mut top = p.z.max(0.0);
         loop {
             let mut raised = false;
-            for &n in scratch.list.iter() {
-                let b = self.all[n as usize];
-                if top >= b.z0 && top < b.z1 && in_polygon(b, xy) {
-                    top = b.z1;
+            for &n in own {
+                let [.., z0, z1] = self.boxes[n as usize];
+                if top >= z0 && top < z1 && holds(n) && in_polygon(self.all[n as usize], xy) {
+                    top = z1;
                     raised = true;
                 }
             }
@@ -237,11 +318,20 @@ impl<'a> BuildingGrid<'a> {
             }
         }
         best = best.min(top - p.z);
+        if best <= t {
+            return best;
+        }
         self.near(xy, best, scratch);
-        let cands: Vec<&SourceBuilding> =
-            scratch.list.iter().map(|&n| self.all[n as usize]).collect();
-        let mut levels: Vec<f64> = vec![p.z];
-        for b in &cands {
+        let Scratch {
+            list: cands,
+            levels,
+            covering,
+            ..
+        } = scratch;
+        levels.clear();
+        levels.push(p.z);
+        for &n in cands.iter() {
+            let b = self.all[n as usize];
             if b.z1 > p.z && b.z1 - p.z < best {
                 levels.push(b.z1);
             }
@@ -251,34 +341,52 @@ impl<'a> BuildingGrid<'a> {
         }
         levels.sort_by(f64::total_cmp);
         levels.dedup();
-        for &l in &levels {
+        for &l in levels.iter() {
             let dz = (l - p.z).abs();
             if dz >= best {
                 continue;
             }
-            let covering: Vec<&SourceBuilding> = cands
-                .iter()
-                .copied()
-                .filter(|b| {
-                    if l == p.z {
-                        b.z0 <= l && l <= b.z1
-                    } else {
-                        b.z0 < l && l < b.z1
-                    }
-                })
-                .collect();
             if l <= 0.0 && l != p.z {
                 continue; // below the ground: never a way out
             }
+            covering.clear();
+            covering.extend(cands.iter().copied().filter(|&n| {
+                let b = self.all[n as usize];
+                if l == p.z {
+                    b.z0 <= l && l <= b.z1
+                } else {
+                    b.z0 < l && l < b.z1
+                }
+            }));
             let dh = if l == p.z && p.z < 0.0 {
                 f64::INFINITY // below the ground, only upwards
             } else {
                 // Only an exit nearer than √(best² − dz²) can improve on `best`.
-                horizontal_exit(&covering, xy, (best * best - dz * dz).max(0.0).sqrt())
+                horizontal_exit(
+                    &self.all,
+                    covering,
+                    xy,
+                    (best * best - dz * dz).max(0.0).sqrt(),
+                )
             };
             best = best.min((dh * dh + dz * dz).sqrt());
+            if best <= t {
+                return best;
+            }
         }
         best
+    }
+}
+
+/// `x.floor() as i64` (saturating, NaN → 0) without the library call: the integer part
+/// rounds toward zero, one less for a negative non-integer.
+#[inline]
+fn floor_i64(x: f64) -> i64 {
+    let i = x as i64;
+    if (i as f64) > x {
+        i.saturating_sub(1)
+    } else {
+        i
     }
 }
 
@@ -301,6 +409,19 @@ pub(crate) fn in_polygon(b: &SourceBuilding, p: DVec2) -> bool {
     inside
 }
 
+/// Squared distance from `p` to the segment `ac` (as [`seg_dist`] finds the nearest point).
+#[inline]
+fn seg_dist2(a: DVec2, c: DVec2, p: DVec2) -> f64 {
+    let d = c - a;
+    let l2 = d.length_squared();
+    let t = if l2 > 0.0 {
+        ((p - a).dot(d) / l2).clamp(0.0, 1.0)
+    } else {
+        0.0
+    };
+    (a + d * t - p).length_squared()
+}
+
 fn seg_dist(a: DVec2, c: DVec2, p: DVec2) -> (f64, DVec2) {
     let d = c - a;
     let l2 = d.length_squared();
@@ -317,26 +438,29 @@ pub(crate) fn horizontal_distance(b: &SourceBuilding, p: DVec2) -> f64 {
     if in_polygon(b, p) {
         return 0.0;
     }
+    // The nearest edge by squared distance, one square root (the same value: the root is
+    // monotone and correctly rounded).
     let mut best = f64::INFINITY;
     for ring in &b.rings {
         let n = ring.len();
         for e in 0..n {
-            best = best.min(seg_dist(ring[e], ring[(e + 1) % n], p).0);
+            best = best.min(seg_dist2(ring[e], ring[(e + 1) % n], p));
         }
     }
-    best
+    best.sqrt()
 }
 
-/// Horizontal distance from `p` to the complement of the union of `polys`' footprints (0 when
-/// `p` is outside them all), or `bound` when there is no way out nearer than `bound`. An edge
-/// point counts as a way out when a point just outside it lies in no footprint; the nearest such
-/// point of each edge is tried.
-fn horizontal_exit(polys: &[&SourceBuilding], p: DVec2, bound: f64) -> f64 {
-    if !polys.iter().any(|b| in_polygon(b, p)) {
+/// Horizontal distance from `p` to the complement of the union of the footprints of `polys`
+/// (indices into `all`; 0 when `p` is outside them all), or `bound` when there is no way out
+/// nearer than `bound`. An edge point counts as a way out when a point just outside it lies in
+/// no footprint; the nearest such point of each edge is tried.
+fn horizontal_exit(all: &[&SourceBuilding], polys: &[u32], p: DVec2, bound: f64) -> f64 {
+    let poly = |n: &u32| all[*n as usize];
+    if !polys.iter().any(|n| in_polygon(poly(n), p)) {
         return 0.0;
     }
     let mut best = bound;
-    for b in polys {
+    for b in polys.iter().map(poly) {
         for ring in &b.rings {
             let n = ring.len();
             for e in 0..n {
@@ -348,7 +472,7 @@ fn horizontal_exit(polys: &[&SourceBuilding], p: DVec2, bound: f64) -> f64 {
                 let dir = c - a;
                 let out = DVec2::new(dir.y, -dir.x).normalize_or_zero();
                 let probe = q + out * (1e-6 * (1.0 + q.abs().max_element()));
-                if !polys.iter().any(|o| in_polygon(o, probe)) {
+                if !polys.iter().any(|o| in_polygon(poly(o), probe)) {
                     best = d;
                 }
             }
@@ -458,77 +582,199 @@ fn cell_parts(map: &BlockMap, i: i64, j: i64) -> ([Part; 3], usize) {
     }
 }
 
-/// Height of the map's column over `xy` (0 over empty ground and outside the map).
-fn column_height_at(map: &BlockMap, xy: DVec2) -> f64 {
-    let s = map.texel_m();
-    let m = map.meta.min;
-    let (i, j) = (
-        ((xy.x - m[0]) / s).floor() as i64,
-        ((xy.y - m[1]) / s).floor() as i64,
-    );
-    let (parts, n) = cell_parts(map, i, j);
-    parts[..n]
-        .iter()
-        .find(|q| q.distance(xy) == 0.0)
-        .map_or(0.0, |q| q.h)
+/// The columns of every texel of a map, cut once ([`cell_parts`] of each texel), for the many
+/// distance queries of one measurement against the same map.
+pub struct MapColumns<'a> {
+    map: &'a BlockMap,
+    k: i64,
+    s: f64,
+    min: DVec2,
+    /// Height of each texel's column (0 for an empty texel), row-major.
+    h: Vec<f64>,
+    /// Index into `cuts` of a texel cut by footprint edges, `u32::MAX` for a whole texel.
+    cut: Vec<u32>,
+    /// The parts of the cut texels.
+    cuts: Vec<([Part; 3], usize)>,
 }
 
-/// Exact distance from `p` to the surface of the map's prisms (ground included): the boundary
-/// of the union of texel columns `footprint × (−∞, H]` (empty texels and the outside have
-/// H = 0; a texel with a footprint edge is two columns, the part inside its half-plane at the
-/// texel's height and the rest at 0).
-pub fn map_surface_distance(map: &BlockMap, p: DVec3) -> f64 {
-    let k = map.k() as i64;
-    let s = map.texel_m();
-    let m = map.meta.min;
-    let (fx, fy) = ((p.x - m[0]) / s, (p.y - m[1]) / s);
-    let (ci, cj) = (fx.floor() as i64, fy.floor() as i64);
-    let xy = p.truncate();
-    let (own, own_n) = cell_parts(map, ci, cj);
-    let own_h = own[..own_n]
-        .iter()
-        .find(|q| q.distance(xy) == 0.0)
-        .map_or(own[0].h, |q| q.h);
-    let inside = p.z <= own_h;
-    let mut best = f64::INFINITY;
-    let mut r = 0i64;
-    loop {
-        // Cells of ring r around (ci, cj); outside cells stand for the ground around the map.
-        let lower = (r as f64 - 1.0).max(0.0) * s;
-        if lower > best {
-            break;
-        }
-        for j in cj - r..=cj + r {
-            for i in ci - r..=ci + r {
-                if (i - ci).abs() != r && (j - cj).abs() != r {
-                    continue;
-                }
-                let (parts, np) = cell_parts(map, i, j);
-                for part in &parts[..np] {
-                    let h = part.h;
-                    let dz = if inside {
-                        (h - p.z).max(0.0)
-                    } else {
-                        (p.z - h).max(0.0)
-                    };
-                    // Inside: complement column above h; outside: solid column below h.
-                    let d = part.distance(xy);
-                    let v = (d * d + dz * dz).sqrt();
-                    if inside && h >= p.z && d == 0.0 {
-                        // The own column's way out is straight up.
-                        best = best.min(dz);
-                    } else {
-                        best = best.min(v);
-                    }
+impl<'a> MapColumns<'a> {
+    /// Cuts every texel of `map`.
+    pub fn new(map: &'a BlockMap) -> Self {
+        let k = map.k() as i64;
+        let n = (k * k) as usize;
+        let (mut h, mut cut, mut cuts) = (Vec::with_capacity(n), vec![u32::MAX; n], Vec::new());
+        for j in 0..k {
+            for i in 0..k {
+                let th = map.texel_height_m(i, j).unwrap_or(0.0);
+                h.push(th);
+                if th > 0.0 && map.edge(i as u32, j as u32).is_some() {
+                    cut[(j * k + i) as usize] = cuts.len() as u32;
+                    cuts.push(cell_parts(map, i, j));
                 }
             }
         }
-        r += 1;
-        if r > 2 * k + 4 {
-            break;
+        Self {
+            map,
+            k,
+            s: map.texel_m(),
+            min: DVec2::new(map.meta.min[0], map.meta.min[1]),
+            h,
+            cut,
+            cuts,
         }
     }
-    best
+
+    /// The map.
+    pub fn map(&self) -> &'a BlockMap {
+        self.map
+    }
+
+    /// Lower corner of texel `(i, j)`, as [`cell_parts`] places it.
+    #[inline]
+    fn lo(&self, i: i64, j: i64) -> DVec2 {
+        DVec2::new(
+            self.min.x + i as f64 * self.s,
+            self.min.y + j as f64 * self.s,
+        )
+    }
+
+    /// The column height of texel `(i, j)` (0 outside the map) and its cut parts, if any.
+    #[inline]
+    fn cell(&self, i: i64, j: i64) -> (f64, Option<&([Part; 3], usize)>) {
+        if i < 0 || j < 0 || i >= self.k || j >= self.k {
+            return (0.0, None);
+        }
+        let q = (j * self.k + i) as usize;
+        let c = self.cut[q];
+        (self.h[q], (c != u32::MAX).then(|| &self.cuts[c as usize]))
+    }
+
+    /// The parts of texel `(i, j)` as [`cell_parts`] gives them (`buf` holds a whole texel).
+    #[inline]
+    fn parts<'s>(&'s self, i: i64, j: i64, buf: &'s mut [Part; 1]) -> &'s [Part] {
+        match self.cell(i, j) {
+            (_, Some((parts, n))) => &parts[..*n],
+            (h, None) => {
+                let lo = self.lo(i, j);
+                let s = self.s;
+                let mut v = [DVec2::ZERO; 6];
+                v[..4].copy_from_slice(&[
+                    lo,
+                    lo + DVec2::new(s, 0.0),
+                    lo + DVec2::new(s, s),
+                    lo + DVec2::new(0.0, s),
+                ]);
+                buf[0] = Part { v, n: 4, h };
+                &buf[..]
+            }
+        }
+    }
+
+    /// Height of the map's column over `xy` (0 over empty ground and outside the map).
+    pub fn height_at(&self, xy: DVec2) -> f64 {
+        let (i, j) = (
+            floor_i64((xy.x - self.min.x) / self.s),
+            floor_i64((xy.y - self.min.y) / self.s),
+        );
+        let mut buf = [PART_NONE];
+        self.parts(i, j, &mut buf)
+            .iter()
+            .find(|q| q.distance(xy) == 0.0)
+            .map_or(0.0, |q| q.h)
+    }
+
+    /// Exact distance from `p` to the surface of the map's prisms (ground included): the
+    /// boundary of the union of texel columns `footprint × (−∞, H]` (empty texels and the
+    /// outside have H = 0; a texel with a footprint edge is two columns, the part inside its
+    /// half-plane at the texel's height and the rest at 0).
+    ///
+    /// Below the threshold `t` only an upper bound is needed: the search stops as soon as it
+    /// has found a surface point within `t`. The value returned is never below the exact
+    /// distance, and it is the exact distance unless both are at most `t`
+    /// (`t = −∞`: always exact).
+    pub fn distance(&self, p: DVec3, t: f64) -> f64 {
+        let s = self.s;
+        let (fx, fy) = ((p.x - self.min.x) / s, (p.y - self.min.y) / s);
+        let (ci, cj) = (floor_i64(fx), floor_i64(fy));
+        let xy = p.truncate();
+        let mut buf = [PART_NONE];
+        let own = self.parts(ci, cj, &mut buf);
+        let own_h = own
+            .iter()
+            .find(|q| q.distance(xy) == 0.0)
+            .map_or(own[0].h, |q| q.h);
+        let inside = p.z <= own_h;
+        // A texel whose square (and heights) put every one of its parts at least as far as
+        // the best found is skipped; the margin covers rounding, so the minimum taken is the
+        // same as over every part.
+        let margin = 1e-9 * (1.0 + xy.abs().max_element() + p.z.abs() + s);
+        let mut best = f64::INFINITY;
+        let mut r = 0i64;
+        loop {
+            // Cells of ring r around (ci, cj); outside cells stand for the ground around the map.
+            let lower = (r as f64 - 1.0).max(0.0) * s;
+            if lower > best {
+                break;
+            }
+            for j in cj - r..=cj + r {
+                let full_row = (j - cj).abs() == r;
+                let step = if full_row { 1 } else { (2 * r).max(1) as usize };
+                for i in (ci - r..=ci + r).step_by(step) {
+                    let (h, cut) = self.cell(i, j);
+                    let lo = self.lo(i, j);
+                    let hi = lo + DVec2::splat(s);
+                    let b = (lo - xy).max(xy - hi).max(DVec2::ZERO);
+                    let (hmin, hmax) = if cut.is_some() { (0.0, h) } else { (h, h) };
+                    let dz = if inside {
+                        (hmin - p.z).max(0.0)
+                    } else {
+                        (p.z - hmax).max(0.0)
+                    };
+                    if (b.length_squared() + dz * dz).sqrt() - margin >= best {
+                        continue;
+                    }
+                    for part in self.parts(i, j, &mut buf) {
+                        let h = part.h;
+                        let dz = if inside {
+                            (h - p.z).max(0.0)
+                        } else {
+                            (p.z - h).max(0.0)
+                        };
+                        // Inside: complement column above h; outside: solid column below h.
+                        let d = part.distance(xy);
+                        let v = (d * d + dz * dz).sqrt();
+                        if inside && h >= p.z && d == 0.0 {
+                            // The own column's way out is straight up.
+                            best = best.min(dz);
+                        } else {
+                            best = best.min(v);
+                        }
+                    }
+                    if best <= t {
+                        return best;
+                    }
+                }
+            }
+            r += 1;
+            if r > 2 * self.k + 4 {
+                break;
+            }
+        }
+        best
+    }
+}
+
+/// A placeholder part (no vertices).
+const PART_NONE: Part = Part {
+    v: [DVec2::ZERO; 6],
+    n: 0,
+    h: 0.0,
+};
+
+/// Exact distance from `p` to the surface of `map`'s prisms ([`MapColumns::distance`]); for
+/// many points of one map, make the [`MapColumns`] once.
+pub fn map_surface_distance(map: &BlockMap, p: DVec3) -> f64 {
+    MapColumns::new(map).distance(p, f64::NEG_INFINITY)
 }
 
 /// Measures the error of `map` against `buildings` (indices into `source.buildings`).
@@ -536,7 +782,7 @@ pub fn measure(map: &BlockMap, source: &Source, buildings: &[u32]) -> ErrorRepor
     if map.meta.zmin != 0.0 {
         return measure_on_ground(map, source, buildings);
     }
-    measure_flat(map, source, buildings)
+    measure_flat(map, source, buildings, true)
 }
 
 /// [`measure`] of a map whose ground is not z = 0 (a city on terrain, where a node's heights
@@ -569,10 +815,13 @@ fn measure_on_ground(map: &BlockMap, source: &Source, buildings: &[u32]) -> Erro
             });
         }
     }
-    measure_flat(&flat_map, &flat, buildings)
+    measure_flat(&flat_map, &flat, buildings, true)
 }
 
-fn measure_flat(map: &BlockMap, source: &Source, buildings: &[u32]) -> ErrorReport {
+/// The measurement over a flat ground. With `prune`, each distance search stops below the
+/// threshold past which its value could change the report; without, every distance is exact
+/// (the same report, slower: the tests compare the two).
+fn measure_flat(map: &BlockMap, source: &Source, buildings: &[u32], prune: bool) -> ErrorReport {
     let grid = BuildingGrid::new(map, source, buildings);
     let s = map.texel_m();
     let half = map.half_voxel_diagonal();
@@ -596,10 +845,15 @@ fn measure_flat(map: &BlockMap, source: &Source, buildings: &[u32]) -> ErrorRepo
             f.at = at.to_array();
         }
     };
+    let cols = MapColumns::new(map);
     let mut scratch = Scratch::default();
     let mut covers: Vec<(f64, f64)> = Vec::new();
+    let mut zs: Vec<f64> = Vec::new();
     let mut samples = 0usize;
-    // Original → map.
+    // Original → map. A sample's distance matters only where it can raise the map's maximum,
+    // its building's worst (past the ½ voxel diagonal) or mark the building vanished: below
+    // that threshold the distance search may stop at any surface point within it, which
+    // changes no result (see `MapColumns::distance`).
     let mut o2m: f64 = 0.0;
     for b in &grid.all {
         if b.z0 > 0.0 {
@@ -608,74 +862,75 @@ fn measure_flat(map: &BlockMap, source: &Source, buildings: &[u32]) -> ErrorRepo
         if b.bridge {
             rep.bridges += 1;
         }
-        let mut worst: f64 = 0.0;
-        let mut worst_at = b.min;
-        let mut raised_worst: f64 = 0.0;
-        let mut vanished: Option<(f64, DVec2)> = None;
-        // A roof point (at `z1`) with no prism over it whose nearest map surface is the
-        // ground: nothing of the map stands there (a roof inside a taller prism is covered,
-        // not gone).
-        let gone = |xy: DVec2, d: f64, v: &mut Option<(f64, DVec2)>| {
-            let (ti, tj) = (
-                ((xy.x - map.meta.min[0]) / s).floor() as i64,
-                ((xy.y - map.meta.min[1]) / s).floor() as i64,
-            );
-            if b.z1 > 0.0
-                && map.texel_height_m(ti, tj).is_none()
-                && d >= b.z1 * (1.0 - 1e-9)
-                && v.is_none_or(|v| d > v.0)
-            {
-                *v = Some((d, xy));
+        let mut e = BuildingError {
+            worst: 0.0,
+            worst_at: b.min,
+            raised: 0.0,
+            vanished: None,
+        };
+        // One sample at `p`: `raised` for the underside of a raised part and the ground below
+        // it; `top` for a point of the roof (at `z1`), which marks the building vanished when
+        // no prism stands over it and its nearest map surface is the ground (a roof inside a
+        // taller prism is covered, not gone).
+        let sample = |p: DVec3, raised: bool, top: bool, e: &mut BuildingError, o2m: &mut f64| {
+            let xy = p.truncate();
+            let gone_here = top && b.z1 > 0.0 && {
+                let (ti, tj) = (
+                    floor_i64((xy.x - map.meta.min[0]) / s),
+                    floor_i64((xy.y - map.meta.min[1]) / s),
+                );
+                map.texel_height_m(ti, tj).is_none()
+            };
+            let gone_at = b.z1 * (1.0 - 1e-9);
+            let mut t = o2m.min(if raised { e.raised } else { e.worst }.max(tol));
+            if !prune {
+                t = f64::NEG_INFINITY;
+            } else if gone_here {
+                // Strictly below `gone_at` when nothing is marked yet.
+                t = t.min(e.vanished.map_or(b.z1 * (1.0 - 2e-9), |v| v.0));
+            }
+            let d = cols.distance(p, t);
+            if raised {
+                e.raised = e.raised.max(d);
+            } else if d > e.worst {
+                e.worst = d;
+                e.worst_at = xy;
+            }
+            *o2m = o2m.max(d);
+            if gone_here && d >= gone_at && e.vanished.is_none_or(|v| d > v.0) {
+                e.vanished = Some((d, xy));
             }
         };
-        let check =
-            |p: DVec3, raised: bool, worst: &mut f64, worst_at: &mut DVec2, rw: &mut f64| {
-                let d = map_surface_distance(map, p);
-                if raised {
-                    *rw = rw.max(d);
-                } else if d > *worst {
-                    *worst = d;
-                    *worst_at = p.truncate();
-                }
-                d
-            };
         // Walls and roof outline.
-        let zs = heights(b.z0, b.z1, 2.0 * s);
+        heights_into(b.z0, b.z1, 2.0 * s, &mut zs);
         for ring in &b.rings {
             let n = ring.len();
-            for e in 0..n {
-                let (a, c) = (ring[e], ring[(e + 1) % n]);
+            for q in 0..n {
+                let (a, c) = (ring[q], ring[(q + 1) % n]);
                 let len = (c - a).length();
                 let steps = ((len / (0.5 * s)).ceil() as usize).max(1);
                 let dir = (c - a).normalize_or_zero();
                 let out = DVec2::new(dir.y, -dir.x);
-                for q in 0..steps {
-                    let xy = a + (c - a) * (q as f64 / steps as f64);
+                for step in 0..steps {
+                    let xy = a + (c - a) * (step as f64 / steps as f64);
                     let probe = xy + out * (1e-6 * (1.0 + xy.abs().max_element()));
                     // The neighbour prisms standing just outside this point of the wall: where
                     // one covers a height, the wall there is no surface.
-                    grid.near(probe, 0.0, &mut scratch);
                     covers.clear();
-                    covers.extend(scratch.list.iter().filter_map(|&m| {
+                    covers.extend(grid.at(probe).iter().filter_map(|&m| {
+                        let [x0, y0, x1, y1, z0, z1] = grid.boxes[m as usize];
+                        if probe.x < x0 || probe.x > x1 || probe.y < y0 || probe.y > y1 {
+                            return None;
+                        }
                         let o = grid.all[m as usize];
-                        (o.id != b.id && in_polygon(o, probe)).then_some((o.z0, o.z1))
+                        (o.id != b.id && in_polygon(o, probe)).then_some((z0, z1))
                     }));
                     for &z in &zs {
                         if covers.iter().any(|&(z0, z1)| z >= z0 && z <= z1) {
                             continue;
                         }
                         samples += 1;
-                        let d = check(
-                            xy.extend(z),
-                            false,
-                            &mut worst,
-                            &mut worst_at,
-                            &mut raised_worst,
-                        );
-                        o2m = o2m.max(d);
-                        if z == b.z1 {
-                            gone(xy, d, &mut vanished);
-                        }
+                        sample(xy.extend(z), false, z == b.z1, &mut e, &mut o2m);
                     }
                 }
             }
@@ -693,42 +948,21 @@ fn measure_flat(map: &BlockMap, source: &Source, buildings: &[u32]) -> ErrorRepo
                     continue;
                 }
                 samples += 1;
-                let d = check(
-                    xy.extend(b.z1),
-                    false,
-                    &mut worst,
-                    &mut worst_at,
-                    &mut raised_worst,
-                );
-                o2m = o2m.max(d);
-                gone(xy, d, &mut vanished);
+                sample(xy.extend(b.z1), false, true, &mut e, &mut o2m);
                 if b.z0 > 0.0 {
                     samples += 2;
-                    let d1 = check(
-                        xy.extend(b.z0),
-                        true,
-                        &mut worst,
-                        &mut worst_at,
-                        &mut raised_worst,
-                    );
-                    let d2 = check(
-                        xy.extend(0.0),
-                        true,
-                        &mut worst,
-                        &mut worst_at,
-                        &mut raised_worst,
-                    );
-                    o2m = o2m.max(d1).max(d2);
+                    sample(xy.extend(b.z0), true, false, &mut e, &mut o2m);
+                    sample(xy.extend(0.0), true, false, &mut e, &mut o2m);
                 }
             }
         }
-        if worst > tol {
-            note(ThinKind::NarrowBuilding, b, worst, worst_at);
+        if e.worst > tol {
+            note(ThinKind::NarrowBuilding, b, e.worst, e.worst_at);
         }
-        if raised_worst > tol {
-            note(ThinKind::RaisedPart, b, raised_worst, (b.min + b.max) * 0.5);
+        if e.raised > tol {
+            note(ThinKind::RaisedPart, b, e.raised, (b.min + b.max) * 0.5);
         }
-        if let Some((d, at)) = vanished {
+        if let Some((d, at)) = e.vanished {
             note(ThinKind::Vanished, b, d, at);
         }
     }
@@ -741,9 +975,20 @@ fn measure_flat(map: &BlockMap, source: &Source, buildings: &[u32]) -> ErrorRepo
         for i in 0..k {
             let h = hof(i, j);
             let c = DVec2::new(m[0] + (i as f64 + 0.5) * s, m[1] + (j as f64 + 0.5) * s);
+            // The texel's largest distance matters only past the map's maximum so far or past
+            // the ½ voxel diagonal (a filled gap); below both, any bound will do.
+            let floor = m2o.min(tol);
+            let mut sd = |p: DVec3, local: f64| {
+                let t = if prune {
+                    local.max(floor)
+                } else {
+                    f64::NEG_INFINITY
+                };
+                grid.surface_distance_within(p, t, &mut scratch)
+            };
             let mut local: f64;
             samples += 1;
-            local = grid.surface_distance(c.extend(h), &mut scratch);
+            local = sd(c.extend(h), 0.0);
             // A neighbour with a footprint edge may leave the shared side open: count it as
             // empty there (more samples, never fewer).
             let side_h = |i: i64, j: i64| -> f64 {
@@ -753,19 +998,14 @@ fn measure_flat(map: &BlockMap, source: &Source, buildings: &[u32]) -> ErrorRepo
                     hof(i, j)
                 }
             };
-            let edge = if h > 0.0 {
-                map.edge(i as u32, j as u32)
-            } else {
-                None
-            };
-            if let (Some(_), (parts, _)) = (edge, cell_parts(map, i, j)) {
+            let cut = if h > 0.0 { cols.cell(i, j).1 } else { None };
+            if let Some((parts, _)) = cut {
                 // The kept part: its roof (centroid and corners) and each side, from the
                 // neighbour's height (0 on the edge's side) to the roof.
-                let kept = parts[0];
-                let v = kept.verts();
+                let v = parts[0].verts();
                 let centroid = v.iter().copied().sum::<DVec2>() / v.len().max(1) as f64;
                 samples += 1;
-                local = grid.surface_distance(centroid.extend(h), &mut scratch);
+                local = sd(centroid.extend(h), 0.0);
                 for q in 0..v.len() {
                     let (a, b) = (v[q], v[(q + 1) % v.len()]);
                     let mid = (a + b) * 0.5;
@@ -779,28 +1019,28 @@ fn measure_flat(map: &BlockMap, source: &Source, buildings: &[u32]) -> ErrorRepo
                         0.0
                     };
                     samples += 1;
-                    local = local.max(grid.surface_distance(a.extend(h), &mut scratch));
+                    local = local.max(sd(a.extend(h), local));
                     if hn >= h {
                         continue;
                     }
                     // Only points of the side that are on the map's surface: the column just
                     // across is lower.
                     let out = (b - a).perp().normalize_or_zero() * (-1e-6 * s);
-                    for z in heights(hn, h, 2.0 * s) {
-                        if column_height_at(map, mid + out) > z {
+                    heights_into(hn, h, 2.0 * s, &mut zs);
+                    for &z in &zs {
+                        if cols.height_at(mid + out) > z {
                             continue;
                         }
                         samples += 1;
-                        local = local.max(grid.surface_distance(mid.extend(z), &mut scratch));
+                        local = local.max(sd(mid.extend(z), local));
                     }
                     for end in [a, b] {
-                        let across = column_height_at(map, end + out + (mid - end) * 1e-6);
+                        let across = cols.height_at(end + out + (mid - end) * 1e-6);
                         if across >= h {
                             continue;
                         }
                         samples += 1;
-                        local = local
-                            .max(grid.surface_distance(end.extend(hn.max(across)), &mut scratch));
+                        local = local.max(sd(end.extend(hn.max(across)), local));
                     }
                 }
             } else if h > 0.0 {
@@ -814,24 +1054,25 @@ fn measure_flat(map: &BlockMap, source: &Source, buildings: &[u32]) -> ErrorRepo
                     // Only points of the side on the map's surface (next to a neighbour with
                     // an edge, the part of the side its column does not cover).
                     let out = dir * (1e-6 * s);
-                    for z in heights(hn, h, 2.0 * s) {
-                        if column_height_at(map, mid + out) > z {
+                    heights_into(hn, h, 2.0 * s, &mut zs);
+                    for &z in &zs {
+                        if cols.height_at(mid + out) > z {
                             continue;
                         }
                         samples += 1;
-                        local = local.max(grid.surface_distance(mid.extend(z), &mut scratch));
+                        local = local.max(sd(mid.extend(z), local));
                     }
                     // The side's two ends (the staircase's corners, the points of a texel
                     // farthest from a footprint edge) at its bottom and top.
                     let along = DVec2::new(dir.y, dir.x) * (0.5 * s);
                     for end in [mid - along, mid + along] {
-                        let across = column_height_at(map, end + out + (mid - end) * 1e-6);
+                        let across = cols.height_at(end + out + (mid - end) * 1e-6);
                         if across >= h {
                             continue;
                         }
                         for z in [hn.max(across), h] {
                             samples += 1;
-                            local = local.max(grid.surface_distance(end.extend(z), &mut scratch));
+                            local = local.max(sd(end.extend(z), local));
                         }
                     }
                 }
@@ -839,7 +1080,7 @@ fn measure_flat(map: &BlockMap, source: &Source, buildings: &[u32]) -> ErrorRepo
                 for (cx, cy) in [(-0.5, -0.5), (0.5, -0.5), (-0.5, 0.5), (0.5, 0.5)] {
                     samples += 1;
                     let q = c + DVec2::new(cx, cy) * s;
-                    local = local.max(grid.surface_distance(q.extend(h), &mut scratch));
+                    local = local.max(sd(q.extend(h), local));
                 }
             }
             m2o = m2o.max(local);
@@ -866,9 +1107,10 @@ fn measure_flat(map: &BlockMap, source: &Source, buildings: &[u32]) -> ErrorRepo
     rep
 }
 
-/// `a`, `b` and every `step` in between (at least the two ends).
-fn heights(a: f64, b: f64, step: f64) -> Vec<f64> {
-    let mut v = vec![a];
+/// `a`, `b` and every `step` in between (at least the two ends), into `v`.
+fn heights_into(a: f64, b: f64, step: f64, v: &mut Vec<f64>) {
+    v.clear();
+    v.push(a);
     if b > a {
         let n = ((b - a) / step).ceil() as usize;
         for q in 1..n {
@@ -876,11 +1118,210 @@ fn heights(a: f64, b: f64, step: f64) -> Vec<f64> {
         }
         v.push(b);
     }
-    v
 }
 
 /// Exact distance from a point (local frame) to the original surface of the map's buildings.
 pub fn original_surface_distance(grid: &BuildingGrid, p: DVec3) -> f64 {
     let mut scratch = Scratch::default();
     grid.surface_distance(p, &mut scratch)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::blockmap::{build_map, BuildOptions};
+    use crate::city::extrude::extrude_city;
+    use crate::visibility::synthetic::SyntheticCity;
+    use rand::{Rng, SeedableRng};
+
+    /// The distance to the map's surface by brute force: every part of every texel (and of the
+    /// ground cells around the map) that the ring search could reach, through [`cell_parts`].
+    fn brute_map_distance(map: &BlockMap, p: DVec3) -> f64 {
+        let k = map.k() as i64;
+        let s = map.texel_m();
+        let m = map.meta.min;
+        let (ci, cj) = (
+            ((p.x - m[0]) / s).floor() as i64,
+            ((p.y - m[1]) / s).floor() as i64,
+        );
+        let xy = p.truncate();
+        let (own, own_n) = cell_parts(map, ci, cj);
+        let own_h = own[..own_n]
+            .iter()
+            .find(|q| q.distance(xy) == 0.0)
+            .map_or(own[0].h, |q| q.h);
+        let inside = p.z <= own_h;
+        let r = 2 * k + 4;
+        let mut best = f64::INFINITY;
+        for j in cj - r..=cj + r {
+            for i in ci - r..=ci + r {
+                let (parts, n) = cell_parts(map, i, j);
+                for part in &parts[..n] {
+                    let dz = if inside {
+                        (part.h - p.z).max(0.0)
+                    } else {
+                        (p.z - part.h).max(0.0)
+                    };
+                    let d = part.distance(xy);
+                    best = best.min(if inside && part.h >= p.z && d == 0.0 {
+                        dz
+                    } else {
+                        (d * d + dz * dz).sqrt()
+                    });
+                }
+            }
+        }
+        best
+    }
+
+    fn synthetic_city() -> (SyntheticCity, Vec<crate::city::Mesh>) {
+        let sc = SyntheticCity::generate(2, 2, 11, DVec2::new(5.0e5, 6.0e6));
+        let meshes = extrude_city(&sc.city);
+        (sc, meshes)
+    }
+
+    /// Points over the map's square and around it: on texel tops and sides, inside columns,
+    /// high above and below the ground.
+    fn points(map: &BlockMap, n: usize, seed: u64) -> Vec<DVec3> {
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
+        let (m, side, zmax) = (map.meta.min, map.meta.side, map.meta.zmax);
+        (0..n)
+            .map(|q| {
+                let x = m[0] + rng.random_range(-0.2..1.2) * side;
+                let y = m[1] + rng.random_range(-0.2..1.2) * side;
+                let z = match q % 4 {
+                    0 => rng.random_range(0.0..zmax),
+                    1 => rng.random_range(-0.1..1.5) * zmax,
+                    // On a column's top.
+                    2 => MapColumns::new(map).height_at(DVec2::new(x, y)),
+                    _ => rng.random_range(0.0..0.2) * zmax,
+                };
+                DVec3::new(x, y, z)
+            })
+            .collect()
+    }
+
+    #[test]
+    fn floor_without_the_library_call_is_floor() {
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(1);
+        let special = [
+            0.0,
+            -0.0,
+            0.5,
+            -0.5,
+            -1.0,
+            1.0,
+            -1e-300,
+            1e300,
+            -1e300,
+            f64::NAN,
+            f64::INFINITY,
+            f64::NEG_INFINITY,
+            9.2e18,
+            -9.3e18,
+            4503599627370497.0,
+            -4503599627370497.5,
+        ];
+        let random = (0..10_000).map(|q| {
+            let x: f64 = rng.random_range(-300.0..300.0);
+            if q % 3 == 0 {
+                x.round()
+            } else {
+                x
+            }
+        });
+        for x in special.into_iter().chain(random) {
+            assert_eq!(floor_i64(x), x.floor() as i64, "{x}");
+        }
+    }
+
+    #[test]
+    fn map_distance_is_the_brute_force_minimum_and_the_threshold_only_cuts_below_it() {
+        let (sc, meshes) = synthetic_city();
+        let source = Source::new(&sc.city, &sc.layout, &meshes).unwrap();
+        let all = source.buildings_of(
+            &sc.layout,
+            &sc.layout.blocks.iter().map(|b| b.id).collect::<Vec<_>>(),
+        );
+        let opts = BuildOptions {
+            k: 32,
+            ..BuildOptions::default()
+        };
+        let (map, _, _) = build_map(&source, &all, &opts).unwrap();
+        assert!(map.edge_texels() > 0, "the map has cut texels");
+        let cols = MapColumns::new(&map);
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(3);
+        let mut cut_short = 0;
+        for p in points(&map, 400, 7) {
+            let exact = brute_map_distance(&map, p);
+            let d = cols.distance(p, f64::NEG_INFINITY);
+            assert_eq!(d.to_bits(), exact.to_bits(), "{p}: {d} vs {exact}");
+            assert_eq!(map_surface_distance(&map, p).to_bits(), exact.to_bits());
+            let t = rng.random_range(0.0..2.0) * exact;
+            let w = cols.distance(p, t);
+            assert!(w >= exact, "{p}: {w} < {exact}");
+            assert!(w == exact || w <= t, "{p}: {w} vs {exact}, t {t}");
+            cut_short += usize::from(w != exact);
+        }
+        assert!(cut_short > 0, "some searches stop early");
+    }
+
+    #[test]
+    fn original_distance_with_a_threshold_is_exact_above_it() {
+        let (sc, meshes) = synthetic_city();
+        let source = Source::new(&sc.city, &sc.layout, &meshes).unwrap();
+        let all = source.buildings_of(
+            &sc.layout,
+            &sc.layout.blocks.iter().map(|b| b.id).collect::<Vec<_>>(),
+        );
+        let (map, kept, _) = build_map(&source, &all, &BuildOptions::default()).unwrap();
+        let grid = BuildingGrid::new(&map, &source, &kept);
+        let mut scratch = Scratch::default();
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(5);
+        let (mut inside, mut cut_short) = (0, 0);
+        for p in points(&map, 400, 9) {
+            let exact = grid.surface_distance(p, &mut scratch);
+            inside += usize::from(
+                grid.all
+                    .iter()
+                    .any(|b| p.z > b.z0 && p.z < b.z1 && in_polygon(b, p.truncate())),
+            );
+            let t = rng.random_range(0.0..2.0) * exact;
+            let w = grid.surface_distance_within(p, t, &mut scratch);
+            assert!(w >= exact, "{p}: {w} < {exact}");
+            assert!(w == exact || w <= t, "{p}: {w} vs {exact}, t {t}");
+            cut_short += usize::from(w != exact);
+        }
+        assert!(
+            inside > 0 && cut_short > 0,
+            "{inside} inside, {cut_short} cut short"
+        );
+    }
+
+    #[test]
+    fn pruned_measurement_equals_the_exact_one() {
+        let (sc, meshes) = synthetic_city();
+        let source = Source::new(&sc.city, &sc.layout, &meshes).unwrap();
+        let ids: Vec<_> = sc.layout.blocks.iter().map(|b| b.id).collect();
+        let mut thin = 0;
+        // The whole city and each block alone, at every K.
+        let sets: Vec<Vec<u32>> = std::iter::once(source.buildings_of(&sc.layout, &ids))
+            .chain(ids.iter().map(|b| source.buildings_of(&sc.layout, &[*b])))
+            .collect();
+        for k in [32, 64, 128] {
+            for set in &sets {
+                let opts = BuildOptions {
+                    k,
+                    ..BuildOptions::default()
+                };
+                let (map, kept, _) = build_map(&source, set, &opts).unwrap();
+                let pruned = measure_flat(&map, &source, &kept, true);
+                let exact = measure_flat(&map, &source, &kept, false);
+                assert_eq!(pruned, exact, "K = {k}");
+                assert_eq!(pruned.measured_m.to_bits(), exact.measured_m.to_bits());
+                thin += pruned.thin.len();
+            }
+        }
+        assert!(thin > 0, "some maps report thin features");
+    }
 }

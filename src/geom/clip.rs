@@ -44,7 +44,22 @@ where
 /// bit for bit. A convex polygon stays convex; a non-convex one may come back with degenerate
 /// edges along the box, whose shoelace area is still exact.
 pub fn clip_to_box(poly: &[DVec2], lo: DVec2, hi: DVec2) -> Vec<DVec2> {
-    let mut p: Vec<DVec2> = poly.to_vec();
+    let (mut out, mut tmp) = (Vec::new(), Vec::new());
+    clip_to_box_into(poly, lo, hi, &mut out, &mut tmp);
+    out
+}
+
+/// [`clip_to_box`] into `out`, with `tmp` as working memory: the same points, and no
+/// allocation once both have grown (for loops that clip many small polygons).
+pub fn clip_to_box_into(
+    poly: &[DVec2],
+    lo: DVec2,
+    hi: DVec2,
+    out: &mut Vec<DVec2>,
+    tmp: &mut Vec<DVec2>,
+) {
+    out.clear();
+    out.extend_from_slice(poly);
     // (axis, bound, keep below)
     for (axis, bound, below) in [
         (0usize, lo.x, false),
@@ -52,17 +67,17 @@ pub fn clip_to_box(poly: &[DVec2], lo: DVec2, hi: DVec2) -> Vec<DVec2> {
         (1, lo.y, false),
         (1, hi.y, true),
     ] {
-        if p.is_empty() {
+        if out.is_empty() {
             break;
         }
         let v = |q: DVec2| if axis == 0 { q.x } else { q.y };
         let inside = |q: DVec2| if below { v(q) <= bound } else { v(q) >= bound };
-        let mut out = Vec::with_capacity(p.len() + 4);
-        for q in 0..p.len() {
-            let (a, b) = (p[q], p[(q + 1) % p.len()]);
+        tmp.clear();
+        for q in 0..out.len() {
+            let (a, b) = (out[q], out[(q + 1) % out.len()]);
             let (ia, ib) = (inside(a), inside(b));
             if ia {
-                out.push(a);
+                tmp.push(a);
             }
             if ia != ib {
                 let t = (bound - v(a)) / (v(b) - v(a));
@@ -72,12 +87,11 @@ pub fn clip_to_box(poly: &[DVec2], lo: DVec2, hi: DVec2) -> Vec<DVec2> {
                 } else {
                     x.y = bound;
                 }
-                out.push(x);
+                tmp.push(x);
             }
         }
-        p = out;
+        std::mem::swap(out, tmp);
     }
-    p
 }
 
 #[cfg(test)]

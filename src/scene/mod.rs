@@ -366,6 +366,15 @@ impl Scene {
         Ok(())
     }
 
+    /// Releases the per-block meshes and the ground layers, for a caller that reads only
+    /// [`Scene::building_meshes`] (an exporter): they are a second copy of every building's
+    /// geometry. [`Scene::block_meshes`] is empty afterwards, and so is [`Scene::ground`]; draw
+    /// units already built keep theirs.
+    pub fn release_block_meshes(&mut self) {
+        self.meshes = Vec::new();
+        self.ground = Mesh::default();
+    }
+
     /// One mesh per block (local frame, in the layout's order): the block's buildings' meshes
     /// merged once, or the exact meshes a synthetic grid brings.
     pub fn block_meshes(&self) -> &[(BlockId, Mesh)] {

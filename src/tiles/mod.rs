@@ -564,6 +564,8 @@ pub fn build_tileset(
         progress,
     )
     .map_err(maps_err)?;
+    // The maps are built: their source's copies of the footprints are not needed again.
+    drop(source);
     let mut tiles = plan(&tree, &maps, layout, meshes);
     if tiles
         .iter()
