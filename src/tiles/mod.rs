@@ -43,10 +43,11 @@ use crate::blockmap::{
 use crate::blocks::{BlockId, BlockLayout};
 use crate::city::appearance::{surface_color, to_rgb8, BuildingStyle};
 use crate::city::export::{
-    tile_glb_bytes, ExportError, TerrainError, TerrainTin, TileFeature, TileMesh,
+    tile_glb, ContentEncoding, ExportError, TerrainError, TerrainTin, TileFeature, TileMesh,
 };
 use crate::city::{City, Mesh};
 use crate::geom::Aabb3;
+pub use crate::city::export::ContentEncoding;
 use crate::index::{BlockBounds, BqrParams, BqrTree};
 use glam::{DMat4, DVec3, Vec3};
 use rayon::prelude::*;
@@ -124,6 +125,10 @@ pub struct TilesetOptions<'a> {
     pub terrain: Option<&'a TerrainTin>,
     /// Most triangles in one terrain leaf (a cell with more is cut in four); 16 384 by default.
     pub terrain_leaf_triangles: usize,
+    /// How every content `.glb` (building leaves, BlockMap height fields, terrain) is stored:
+    /// [`ContentEncoding::Compact`] by default (quantised, `EXT_meshopt_compression` required),
+    /// [`ContentEncoding::Plain`] for viewers without that extension.
+    pub content: ContentEncoding,
 }
 
 impl Default for TilesetOptions<'_> {
@@ -133,6 +138,7 @@ impl Default for TilesetOptions<'_> {
             stop: Stop::Competitive,
             terrain: None,
             terrain_leaf_triangles: 16_384,
+            content: ContentEncoding::Compact,
         }
     }
 }
@@ -235,6 +241,12 @@ pub struct TilesetSummary {
     pub crs: String,
     /// The `tileset.json` file.
     pub tileset_json: PathBuf,
+    /// How the contents are stored.
+    pub content: ContentEncoding,
+    /// The largest distance between a content position as written (decoded, dequantised) and
+    /// its f32 position, metres, over every content (0 for plain contents; below
+    /// [`crate::city::export::POSITION_TOLERANCE_M`] for compact ones).
+    pub position_error_m: f64,
 }
 
 /// The root transform of a city: `None` when its CRS has no geodetic meaning.
@@ -551,8 +563,8 @@ pub fn build_tileset(
     // Contents, in parallel; each tile's bytes depend only on the tile.
     let total = tiles.len();
     let done = std::sync::atomic::AtomicUsize::new(0);
-    // (content uri, bytes, box) of each tile.
-    type Written = (Option<String>, usize, Aabb3);
+    // (content uri, bytes, box, position error) of each tile.
+    type Written = (Option<String>, usize, Aabb3, f64);
     let written: Vec<Result<Written, TilesError>> = tiles
         .par_iter()
         .map(|t| {
@@ -580,21 +592,29 @@ pub fn build_tileset(
             let d = done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
             progress(d, total);
             if mesh.indices.is_empty() {
-                return Ok((None, 0, aabb));
+                return Ok((None, 0, aabb, 0.0));
             }
             aabb = aabb.union(mesh_aabb(&mesh));
             let path = dir.join("tiles").join(&name);
-            let bytes =
-                tile_glb_bytes(&name, &mesh, extras).map_err(|source| TilesError::Content {
+            let c = tile_glb(&name, &mesh, extras, opts.content).map_err(|source| {
+                TilesError::Content {
                     path: path.clone(),
                     source,
-                })?;
-            std::fs::write(tiles_dir.join(&name), &bytes).map_err(io(&path))?;
-            Ok((Some(format!("tiles/{name}")), bytes.len(), aabb))
+                }
+            })?;
+            std::fs::write(tiles_dir.join(&name), &c.bytes).map_err(io(&path))?;
+            Ok((
+                Some(format!("tiles/{name}")),
+                c.bytes.len(),
+                aabb,
+                c.position_error_m,
+            ))
         })
         .collect();
+    let mut position_error_m = 0.0f64;
     for (t, w) in tiles.iter_mut().zip(written) {
-        let (content, bytes, aabb) = w?;
+        let (content, bytes, aabb, err) = w?;
+        position_error_m = position_error_m.max(err);
         t.content = content;
         t.content_bytes = bytes;
         // No flat box: a side of at least 2 cm (a leaf of blocks without buildings is flat).
@@ -622,6 +642,7 @@ pub fn build_tileset(
             &crs,
             &staged.path().join("terrain"),
             &dir.join("terrain"),
+            opts.content,
         )?),
         None => None,
     };
@@ -681,6 +702,12 @@ pub fn build_tileset(
         georef: set.georef,
         crs: set.crs.clone(),
         tileset_json: path,
+        content: opts.content,
+        position_error_m: position_error_m.max(
+            set.terrain
+                .as_ref()
+                .map_or(0.0, |t| t.position_error_m),
+        ),
     };
     Ok((set, summary))
 }

@@ -28,7 +28,7 @@ use serde_json::{json, Value};
 
 use super::{box_json, Georef, TilesError};
 use crate::city::export::terrain::{TerrainTin, TERRAIN_COLOR};
-use crate::city::export::{tile_glb_bytes, TileMesh};
+use crate::city::export::{tile_glb, ContentEncoding, TileMesh};
 use crate::city::{LocalFrame, Mesh};
 use crate::geom::Aabb3;
 
@@ -67,6 +67,9 @@ pub struct TerrainTiles {
     pub geometric_error: f64,
     /// Bytes of `terrain/tileset.json`.
     pub json_bytes: usize,
+    /// The largest position error of the contents, metres (see
+    /// [`super::TilesetSummary::position_error_m`]).
+    pub position_error_m: f64,
 }
 
 /// Plans the quadtree (no content yet): cells and triangles, preorder.
@@ -157,7 +160,8 @@ fn leaf_mesh(tin: &TerrainTin, mesh: &Mesh, tris: &[u32]) -> TileMesh {
 
 /// Builds the terrain's tiles and writes them into `dir` (the staged `terrain` folder;
 /// `final_dir` is where it will be, for error messages): `tiles/t_<key>.glb` and
-/// `tileset.json`. `georef` is the buildings' root transform, written on the terrain's root.
+/// `tileset.json`. `georef` is the buildings' root transform, written on the terrain's root;
+/// `content` how the `.glb` files are stored.
 pub(super) fn write_terrain(
     tin: &TerrainTin,
     frame: &LocalFrame,
@@ -166,6 +170,7 @@ pub(super) fn write_terrain(
     crs: &str,
     dir: &Path,
     final_dir: &Path,
+    content: ContentEncoding,
 ) -> Result<TerrainTiles, TilesError> {
     tin.check()
         .map_err(|source| TilesError::Terrain { source })?;
@@ -176,12 +181,12 @@ pub(super) fn write_terrain(
         move |source| TilesError::Io { path, source }
     };
     std::fs::create_dir_all(dir.join("tiles")).map_err(io(&final_dir.join("tiles")))?;
-    type Written = (Option<String>, usize, Aabb3);
+    type Written = (Option<String>, usize, Aabb3, f64);
     let written: Vec<Result<Written, TilesError>> = tiles
         .par_iter()
         .map(|t| {
             if t.triangles.is_empty() {
-                return Ok((None, 0, Aabb3::EMPTY));
+                return Ok((None, 0, Aabb3::EMPTY, 0.0));
             }
             let m = leaf_mesh(tin, &mesh, &t.triangles);
             let aabb = m.positions.iter().fold(Aabb3::EMPTY, |a, p| {
@@ -192,17 +197,24 @@ pub(super) fn write_terrain(
             let path = final_dir.join("tiles").join(&name);
             let extras =
                 json!({"kind": "terrain", "node_key": t.key, "triangles": t.triangles.len()});
-            let bytes =
-                tile_glb_bytes(&name, &m, extras).map_err(|source| TilesError::Content {
+            let c =
+                tile_glb(&name, &m, extras, content).map_err(|source| TilesError::Content {
                     path: path.clone(),
                     source,
                 })?;
-            std::fs::write(dir.join("tiles").join(&name), &bytes).map_err(io(&path))?;
-            Ok((Some(format!("tiles/{name}")), bytes.len(), aabb))
+            std::fs::write(dir.join("tiles").join(&name), &c.bytes).map_err(io(&path))?;
+            Ok((
+                Some(format!("tiles/{name}")),
+                c.bytes.len(),
+                aabb,
+                c.position_error_m,
+            ))
         })
         .collect();
+    let mut position_error_m = 0.0f64;
     for (t, w) in tiles.iter_mut().zip(written) {
-        let (content, bytes, aabb) = w?;
+        let (content, bytes, aabb, err) = w?;
+        position_error_m = position_error_m.max(err);
         t.content = content;
         t.content_bytes = bytes;
         t.aabb = aabb;
@@ -234,6 +246,7 @@ pub(super) fn write_terrain(
         geometric_error: tiles.first().map_or(0.0, |t| t.geometric_error),
         tiles,
         json_bytes: 0,
+        position_error_m,
     };
     let text = serde_json::to_vec_pretty(&set.to_json(georef, crs)).expect("JSON serialises");
     std::fs::write(dir.join("tileset.json"), &text).map_err(io(&final_dir.join("tileset.json")))?;
