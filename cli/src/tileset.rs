@@ -4,7 +4,7 @@
 use super::common::{load_scene, CityArgs};
 use blockwalk::blockmap::Stop;
 use blockwalk::scene::SceneOptions;
-use blockwalk::tiles::{build_tileset, TilesetOptions};
+use blockwalk::tiles::{build_tileset, ContentEncoding, TilesetOptions};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use std::io::IsTerminal;
 use std::path::PathBuf;
@@ -27,6 +27,11 @@ pub struct Args {
     /// Print one JSON object instead of the human summary.
     #[arg(long)]
     pub json: bool,
+    /// Write plain glTF contents (f32 positions and normals, no compression) instead of compact
+    /// ones (positions within 1 mm, KHR_mesh_quantization, EXT_meshopt_compression): for viewers
+    /// without EXT_meshopt_compression.
+    #[arg(long)]
+    pub plain: bool,
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
@@ -57,6 +62,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let opts = TilesetOptions {
         k: args.k,
         stop: args.levels.map_or(Stop::Competitive, Stop::Levels),
+        content: if args.plain {
+            ContentEncoding::Plain
+        } else {
+            ContentEncoding::Compact
+        },
         ..TilesetOptions::default()
     };
     let (_, summary) = build_tileset(
@@ -95,6 +105,13 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             total_s
         );
         outln!("root geometric error {:.2} m", summary.root_geometric_error);
+        match summary.content {
+            ContentEncoding::Compact => outln!(
+                "contents compact (KHR_mesh_quantization, EXT_meshopt_compression): positions within {:.2} mm of f32",
+                summary.position_error_m * 1e3
+            ),
+            ContentEncoding::Plain => outln!("contents plain glTF (f32, uncompressed)"),
+        }
         outln!("{}", summary.placement());
         outln!("wrote {}", summary.tileset_json.display());
     }

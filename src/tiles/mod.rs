@@ -42,12 +42,10 @@ use crate::blockmap::{
 };
 use crate::blocks::{BlockId, BlockLayout};
 use crate::city::appearance::{surface_color, to_rgb8, BuildingStyle};
-use crate::city::export::{
-    tile_glb, ContentEncoding, ExportError, TerrainError, TerrainTin, TileFeature, TileMesh,
-};
+pub use crate::city::export::ContentEncoding;
+use crate::city::export::{tile_glb, ExportError, TerrainError, TerrainTin, TileFeature, TileMesh};
 use crate::city::{City, Mesh};
 use crate::geom::Aabb3;
-pub use crate::city::export::ContentEncoding;
 use crate::index::{BlockBounds, BqrParams, BqrTree};
 use glam::{DMat4, DVec3, Vec3};
 use rayon::prelude::*;
@@ -703,11 +701,8 @@ pub fn build_tileset(
         crs: set.crs.clone(),
         tileset_json: path,
         content: opts.content,
-        position_error_m: position_error_m.max(
-            set.terrain
-                .as_ref()
-                .map_or(0.0, |t| t.position_error_m),
-        ),
+        position_error_m: position_error_m
+            .max(set.terrain.as_ref().map_or(0.0, |t| t.position_error_m)),
     };
     Ok((set, summary))
 }

@@ -197,11 +197,10 @@ pub(super) fn write_terrain(
             let path = final_dir.join("tiles").join(&name);
             let extras =
                 json!({"kind": "terrain", "node_key": t.key, "triangles": t.triangles.len()});
-            let c =
-                tile_glb(&name, &m, extras, content).map_err(|source| TilesError::Content {
-                    path: path.clone(),
-                    source,
-                })?;
+            let c = tile_glb(&name, &m, extras, content).map_err(|source| TilesError::Content {
+                path: path.clone(),
+                source,
+            })?;
             std::fs::write(dir.join("tiles").join(&name), &c.bytes).map_err(io(&path))?;
             Ok((
                 Some(format!("tiles/{name}")),

@@ -16,8 +16,8 @@ use std::path::PathBuf;
 pub use self::geojson::{geojson_value, write_geojson};
 pub use self::gltf::{
     glb_bytes, glb_bytes_with_terrain, tile_glb, tile_glb_bytes, write_glb, write_glb_to,
-    write_glb_to_with_terrain, write_glb_with_terrain, ContentEncoding, GlbStats, TileContent, TileFeature, TileMesh,
-    GLB_MAX_BYTES, POSITION_TOLERANCE_M,
+    write_glb_to_with_terrain, write_glb_with_terrain, ContentEncoding, GlbStats, TileContent,
+    TileFeature, TileMesh, GLB_MAX_BYTES, POSITION_TOLERANCE_M,
 };
 pub use self::terrain::{TerrainError, TerrainTin};
 

@@ -303,8 +303,12 @@ pub(super) fn compact_glb(
         } => {
             node["translation"] = json!(centre);
             let dlo = [0, 1, 2].map(|k| decoded.iter().map(|d| d[k]).fold(f32::INFINITY, f32::min));
-            let dhi =
-                [0, 1, 2].map(|k| decoded.iter().map(|d| d[k]).fold(f32::NEG_INFINITY, f32::max));
+            let dhi = [0, 1, 2].map(|k| {
+                decoded
+                    .iter()
+                    .map(|d| d[k])
+                    .fold(f32::NEG_INFINITY, f32::max)
+            });
             let v = s.push(
                 &position_bytes,
                 used,

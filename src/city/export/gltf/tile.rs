@@ -224,7 +224,12 @@ pub(super) struct Parts {
 
 /// The whole `.glb` of a tile: the document around `parts` (one scene, one node, one mesh, the
 /// tile material) and the binary chunk `bin`.
-pub(super) fn assemble(name: &str, extras: Value, parts: Parts, bin: &[u8]) -> Result<Vec<u8>, ExportError> {
+pub(super) fn assemble(
+    name: &str,
+    extras: Value,
+    parts: Parts,
+    bin: &[u8],
+) -> Result<Vec<u8>, ExportError> {
     let Parts {
         mut node,
         primitive,
