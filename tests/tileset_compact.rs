@@ -306,7 +306,7 @@ fn plain_against_compact(
     scene: &Scene,
     city: &City,
     opts: &TilesetOptions<'_>,
-) -> (u64, u64) {
+) -> (u64, u64, Vec<String>) {
     let plain = export(
         scene,
         city,
@@ -386,7 +386,11 @@ fn plain_against_compact(
         stated * 1e3,
         normal
     );
-    (bytes[0], bytes[1])
+    (
+        bytes[0],
+        bytes[1],
+        enc.into_iter().map(|(e, _)| e).collect(),
+    )
 }
 
 #[test]
@@ -395,7 +399,7 @@ fn compact_helsinki_decodes_to_the_plain_contents() {
         Path::new("data/helsinki/buildings.shp"),
         Some("data/helsinki/streets_blockclass.shp".into()),
     );
-    let (plain, compact) =
+    let (plain, compact, _) =
         plain_against_compact("helsinki", &scene, &scene.city, &TilesetOptions::default());
     // The point of the encoding: at most half the bytes.
     assert!(
@@ -415,7 +419,7 @@ fn compact_generated_city_decodes_to_the_plain_contents() {
     .unwrap();
     write_city(&g, dir.path()).unwrap();
     let scene = load(dir.path(), None);
-    let (plain, compact) = plain_against_compact(
+    let (plain, compact, _) = plain_against_compact(
         "generated 3k",
         &scene,
         &scene.city,
@@ -432,7 +436,7 @@ fn compact_generated_city_decodes_to_the_plain_contents() {
 fn compact_terrain_decodes_to_the_plain_contents_without_cracks() {
     let scene = load(Path::new("data/helsinki/buildings.shp"), None);
     let (city, tin) = support::terrain::terrain_city(&scene.city, 20.0);
-    plain_against_compact(
+    let (_, _, encodings) = plain_against_compact(
         "helsinki on terrain",
         &scene,
         &city,
@@ -441,6 +445,13 @@ fn compact_terrain_decodes_to_the_plain_contents_without_cracks() {
             terrain_leaf_triangles: 1000,
             ..TilesetOptions::default()
         },
+    );
+    // Both quantised forms were read back: small tiles on the u16 grid, wider ones through the
+    // exponential filter.
+    assert!(encodings.iter().any(|e| e == "u16"), "{encodings:?}");
+    assert!(
+        encodings.iter().any(|e| e.starts_with("exp")),
+        "{encodings:?}"
     );
 }
 
