@@ -635,12 +635,11 @@ pub fn build_tileset(
         Some(tin) => Some(terrain::write_terrain(
             tin,
             &city.frame,
-            opts.terrain_leaf_triangles,
+            opts,
             georef.as_ref(),
             &crs,
             &staged.path().join("terrain"),
             &dir.join("terrain"),
-            opts.content,
         )?),
         None => None,
     };

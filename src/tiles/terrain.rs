@@ -26,9 +26,9 @@ use glam::{DVec2, DVec3};
 use rayon::prelude::*;
 use serde_json::{json, Value};
 
-use super::{box_json, Georef, TilesError};
+use super::{box_json, Georef, TilesError, TilesetOptions};
 use crate::city::export::terrain::{TerrainTin, TERRAIN_COLOR};
-use crate::city::export::{tile_glb, ContentEncoding, TileMesh};
+use crate::city::export::{tile_glb, TileMesh};
 use crate::city::{LocalFrame, Mesh};
 use crate::geom::Aabb3;
 
@@ -161,17 +161,17 @@ fn leaf_mesh(tin: &TerrainTin, mesh: &Mesh, tris: &[u32]) -> TileMesh {
 /// Builds the terrain's tiles and writes them into `dir` (the staged `terrain` folder;
 /// `final_dir` is where it will be, for error messages): `tiles/t_<key>.glb` and
 /// `tileset.json`. `georef` is the buildings' root transform, written on the terrain's root;
-/// `content` how the `.glb` files are stored.
+/// `opts` gives the leaves' size and the contents' encoding.
 pub(super) fn write_terrain(
     tin: &TerrainTin,
     frame: &LocalFrame,
-    leaf_max: usize,
+    opts: &TilesetOptions<'_>,
     georef: Option<&Georef>,
     crs: &str,
     dir: &Path,
     final_dir: &Path,
-    content: ContentEncoding,
 ) -> Result<TerrainTiles, TilesError> {
+    let (leaf_max, content) = (opts.terrain_leaf_triangles, opts.content);
     tin.check()
         .map_err(|source| TilesError::Terrain { source })?;
     let mesh = tin.local_mesh(frame);

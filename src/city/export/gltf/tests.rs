@@ -394,7 +394,7 @@ fn sizes_are_checked_not_wrapped() {
 fn compact_tile_decodes_within_the_tolerance_and_requires_its_extensions() {
     let mut m = two_triangles();
     // Spread over 3 km: neither u16 nor a few mantissa bits resolve a millimetre there.
-    m.positions[4] = Vec3::new(3000.123_4, -25.5, 40.25);
+    m.positions[4] = Vec3::new(3_000.123_4, -25.5, 40.25);
     let c = tile_glb("t", &m, json!({"k": 1}), ContentEncoding::Compact).unwrap();
     assert_eq!(
         c,
