@@ -12,7 +12,12 @@
 //! - Leaves are glTF with one feature per building: a per-vertex `_FEATURE_ID_0`
 //!   (`EXT_mesh_features`) indexing a property table (`EXT_structural_metadata`, class
 //!   `building`: `source_id`, `height_m`, `min_height_m`, `base_m`); see
-//!   [`crate::city::export::tile_glb_bytes`].
+//!   [`crate::city::export::tile_glb`].
+//! - Contents are compact by default ([`TilesetOptions::content`]): positions within 1 mm
+//!   (`KHR_mesh_quantization`), octahedral normals, every stream compressed with
+//!   `EXT_meshopt_compression` (required); [`ContentEncoding::Plain`] writes core glTF for
+//!   viewers without that extension. See the `compact` module of [`crate::city::export`]'s glTF
+//!   writer.
 //! - Bounding volumes are `box`es in the local frame (x east, y north, z up, metres from the
 //!   city's origin). The root's `transform` places that frame on the WGS84 ellipsoid
 //!   ([`geodesy`]): the east-north-up frame at the origin's longitude/latitude (ellipsoidal

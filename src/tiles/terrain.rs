@@ -10,7 +10,8 @@
 //! - A leaf's content holds its triangles with their vertices shared between them; a vertex
 //!   that two leaves share is written in both with the same f32 position and the same normal
 //!   (area-weighted over all its triangles, not only the leaf's), so neighbouring leaves meet
-//!   without a crack or a shading seam. Colour: [`TERRAIN_COLOR`] as `COLOR_0`.
+//!   without a crack or a shading seam (compact contents snap positions to one grid for every
+//!   tile, so a shared vertex still decodes to the same point in both). Colour: [`TERRAIN_COLOR`] as `COLOR_0`.
 //! - Leaves are the full resolution: `geometricError` 0. Inner tiles have no content (no
 //!   coarser terrain is made): drawing one draws nothing of its box, so its `geometricError` is
 //!   its box's half diagonal, and viewers refine into the leaves wherever the terrain is more
