@@ -16,8 +16,8 @@ use blockwalk::city::Mesh;
 use blockwalk::scene::{CitySource, Scene, SceneOptions};
 use blockwalk::tiles::geodesy::{ecef_from_geodetic, geodetic_from_ecef};
 use blockwalk::tiles::{
-    build_tileset, local_from_gltf, local_to_ecef, TileKind, Tileset, TilesetOptions,
-    TilesetSummary,
+    build_tileset, local_from_gltf, local_to_ecef, ContentEncoding, TileKind, Tileset,
+    TilesetOptions, TilesetSummary,
 };
 use glam::{DVec3, Vec3};
 use serde_json::Value;
@@ -89,98 +89,14 @@ fn bubenec() -> Built {
     )
 }
 
-/// A `.glb` read back: its JSON and its binary chunk.
-struct Glb {
-    doc: Value,
-    bin: Vec<u8>,
+/// A content `.glb` read back (plain or compact) by the tests' own reader.
+fn read_glb(path: &Path) -> support::glb::Glb {
+    support::glb::Glb::read(path)
 }
 
-fn read_glb(path: &Path) -> Glb {
-    let b = std::fs::read(path).unwrap();
-    let u32_at = |o: usize| u32::from_le_bytes(b[o..o + 4].try_into().unwrap()) as usize;
-    assert_eq!(&b[0..4], b"glTF");
-    assert_eq!(u32_at(8), b.len(), "{}: header length", path.display());
-    let jl = u32_at(12);
-    assert_eq!(&b[16..20], b"JSON");
-    let doc: Value = serde_json::from_slice(&b[20..20 + jl]).unwrap();
-    let bl = u32_at(20 + jl);
-    assert_eq!(&b[24 + jl..28 + jl], b"BIN\0");
-    Glb {
-        doc,
-        bin: b[28 + jl..28 + jl + bl].to_vec(),
-    }
-}
-
-impl Glb {
-    fn view(&self, v: usize) -> &[u8] {
-        let bv = &self.doc["bufferViews"][v];
-        let o = bv["byteOffset"].as_u64().unwrap_or(0) as usize;
-        &self.bin[o..o + bv["byteLength"].as_u64().unwrap() as usize]
-    }
-    /// A FLOAT accessor's components.
-    fn floats(&self, a: usize) -> Vec<f32> {
-        let acc = &self.doc["accessors"][a];
-        assert_eq!(acc["componentType"], 5126);
-        let n = acc["count"].as_u64().unwrap() as usize
-            * match acc["type"].as_str().unwrap() {
-                "SCALAR" => 1,
-                "VEC3" => 3,
-                t => panic!("{t}"),
-            };
-        let d = self.view(acc["bufferView"].as_u64().unwrap() as usize);
-        (0..n)
-            .map(|k| f32::from_le_bytes(d[4 * k..4 * k + 4].try_into().unwrap()))
-            .collect()
-    }
-    fn primitive(&self) -> &Value {
-        &self.doc["meshes"][0]["primitives"][0]
-    }
-    fn positions(&self) -> Vec<Vec3> {
-        let a = self.primitive()["attributes"]["POSITION"].as_u64().unwrap() as usize;
-        self.floats(a)
-            .chunks(3)
-            .map(|c| Vec3::new(c[0], c[1], c[2]))
-            .collect()
-    }
-    /// `_FEATURE_ID_0` per vertex.
-    fn feature_ids(&self) -> Vec<u32> {
-        let a = self.primitive()["attributes"]["_FEATURE_ID_0"]
-            .as_u64()
-            .expect("_FEATURE_ID_0") as usize;
-        self.floats(a)
-            .into_iter()
-            .map(|f| {
-                assert_eq!(f, f.trunc(), "feature ids are whole numbers");
-                f as u32
-            })
-            .collect()
-    }
-    /// Property table 0's `source_id` strings and `height_m` values.
-    fn properties(&self) -> (Vec<String>, Vec<f64>) {
-        let ext = &self.doc["extensions"]["EXT_structural_metadata"];
-        let t = &ext["propertyTables"][0];
-        assert_eq!(t["class"], "building");
-        let n = t["count"].as_u64().unwrap() as usize;
-        let p = &t["properties"];
-        let vals = self.view(p["source_id"]["values"].as_u64().unwrap() as usize);
-        let offs = self.view(p["source_id"]["stringOffsets"].as_u64().unwrap() as usize);
-        let off =
-            |k: usize| u32::from_le_bytes(offs[4 * k..4 * k + 4].try_into().unwrap()) as usize;
-        let ids = (0..n)
-            .map(|k| String::from_utf8(vals[off(k)..off(k + 1)].to_vec()).unwrap())
-            .collect();
-        let h = self.view(p["height_m"]["values"].as_u64().unwrap() as usize);
-        let heights = (0..n)
-            .map(|k| f64::from_le_bytes(h[8 * k..8 * k + 8].try_into().unwrap()))
-            .collect();
-        // Property buffer views are 8-byte aligned (EXT_structural_metadata).
-        for key in ["source_id", "height_m", "min_height_m"] {
-            let v = p[key]["values"].as_u64().unwrap() as usize;
-            let o = self.doc["bufferViews"][v]["byteOffset"].as_u64().unwrap();
-            assert_eq!(o % 8, 0, "{key}");
-        }
-        (ids, heights)
-    }
+/// glTF content position (Y-up, dequantised) → local frame (3D Tiles' Y-up → Z-up rotation).
+fn local_of(p: [f64; 3]) -> DVec3 {
+    DVec3::new(p[0], -p[2], p[1])
 }
 
 /// Every tile of the JSON tree with its parent (index in preorder).
@@ -272,7 +188,7 @@ fn check_structure(name: &str, b: &Built) {
         let glb = read_glb(&b.dir.path().join(uri));
         let (lo, hi) = box_of(t);
         for p in glb.positions() {
-            let q = local_from_gltf(p);
+            let q = local_of(p);
             assert!(
                 q.cmpge(lo - 1e-3).all() && q.cmple(hi + 1e-3).all(),
                 "{name}: {uri}: vertex {q:?} outside its box"
@@ -282,8 +198,9 @@ fn check_structure(name: &str, b: &Built) {
             assert!(glb.primitive()["attributes"]["COLOR_0"].is_number());
             continue;
         }
-        let fids = glb.feature_ids();
-        let (ids, heights) = glb.properties();
+        let fids = glb.feature_ids().expect("_FEATURE_ID_0");
+        let props = glb.properties().expect("a property table");
+        let (ids, heights) = (props.source_id, props.height_m);
         assert_eq!(ids.len(), rust.buildings.len(), "{name}: {uri}");
         let mut per_feature = vec![0usize; ids.len()];
         for f in &fids {
@@ -391,10 +308,28 @@ fn our_ecef_matches_proj4rs_and_round_trips_within_a_millimetre() {
 /// The root transform puts the origin and every building corner where the CRS says they are:
 /// the origin's ECEF round-trips to the CRS's longitude/latitude within 1 mm, and the roof
 /// vertices read back from the leaf `.glb` files (glTF Y-up, turned Z-up as 3D Tiles does, then
-/// the root transform) land on their footprint corners projected through the CRS.
+/// the root transform) land on their footprint corners projected through the CRS. Plain contents:
+/// their f32 positions are the extruded ones, so this measures the transform alone (compact ones
+/// add their stated error, under 1 mm: `tests/tileset_compact.rs`).
 #[test]
 fn root_transform_places_the_buildings_where_the_crs_says() {
-    for (name, b) in [("helsinki", helsinki()), ("bubenec", bubenec())] {
+    let plain = TilesetOptions {
+        content: ContentEncoding::Plain,
+        ..TilesetOptions::default()
+    };
+    let helsinki = build_with(
+        "data/helsinki/buildings.shp",
+        Some("data/helsinki/streets_blockclass.shp"),
+        &plain,
+        |c| c,
+    );
+    let bubenec = build_with(
+        "data/bubenec/buildings.shp",
+        Some("data/bubenec/streets.shp"),
+        &plain,
+        |c| c,
+    );
+    for (name, b) in [("helsinki", helsinki), ("bubenec", bubenec)] {
         let g = b.set.georef.expect("a projected CRS is georeferenced");
         let city = &b.scene.city;
         let o = city.frame.origin;
@@ -418,11 +353,12 @@ fn root_transform_places_the_buildings_where_the_crs_says() {
         for t in b.set.tiles.iter().filter(|t| t.kind == TileKind::Buildings) {
             let Some(uri) = &t.content else { continue };
             let glb = read_glb(&b.dir.path().join(uri));
+            assert!(!glb.compressed);
             let pos = glb.positions();
-            let fids = glb.feature_ids();
+            let fids = glb.feature_ids().expect("_FEATURE_ID_0");
             for (p, f) in pos.iter().zip(&fids) {
                 let bd = &city.buildings[t.buildings[*f as usize] as usize];
-                let local = local_from_gltf(*p);
+                let local = local_from_gltf(Vec3::new(p[0] as f32, p[1] as f32, p[2] as f32));
                 if (local.z - bd.height_m).abs() > 1e-3 {
                     continue; // roof vertices only
                 }
@@ -533,9 +469,11 @@ fn every_tile_is_valid_gltf() {
 fn terrain_tileset_holds_every_triangle_once_beside_the_buildings() {
     let base = support::data::load_city(Path::new("data/helsinki/buildings.shp"), None);
     let (_, tin) = support::terrain::terrain_city(&base, 20.0);
+    // Plain contents: the triangles are matched by their exact f32 vertices.
     let opts = TilesetOptions {
         terrain: Some(&tin),
         terrain_leaf_triangles: 1000,
+        content: ContentEncoding::Plain,
         ..TilesetOptions::default()
     };
     let b = build_with(

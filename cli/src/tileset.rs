@@ -4,7 +4,7 @@
 use super::common::{load_scene, CityArgs};
 use blockwalk::blockmap::Stop;
 use blockwalk::scene::SceneOptions;
-use blockwalk::tiles::{build_tileset, TilesetOptions};
+use blockwalk::tiles::{build_tileset, ContentEncoding, TilesetOptions};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use std::io::IsTerminal;
 use std::path::PathBuf;
@@ -43,6 +43,11 @@ pub struct Args {
     /// Print one JSON object instead of the human summary.
     #[arg(long)]
     pub json: bool,
+    /// Write plain glTF contents (f32 positions and normals, no compression) instead of compact
+    /// ones (positions within 1 mm, KHR_mesh_quantization, EXT_meshopt_compression): for viewers
+    /// without EXT_meshopt_compression.
+    #[arg(long)]
+    pub plain: bool,
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
@@ -82,6 +87,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 .out
                 .extension()
                 .is_some_and(|e| e.eq_ignore_ascii_case("3tz")),
+        content: if args.plain {
+            ContentEncoding::Plain
+        } else {
+            ContentEncoding::Compact
+        },
         ..TilesetOptions::default()
     };
     let (_, summary) = build_tileset(
@@ -138,6 +148,13 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 ""
             }
         );
+        match summary.content {
+            ContentEncoding::Compact => outln!(
+                "contents compact (KHR_mesh_quantization, EXT_meshopt_compression): positions within {:.2} mm of f32",
+                summary.position_error_m * 1e3
+            ),
+            ContentEncoding::Plain => outln!("contents plain glTF (f32, uncompressed)"),
+        }
         outln!("{}", summary.placement());
         outln!("wrote {}", summary.tileset_json.display());
     }

@@ -12,7 +12,12 @@
 //! - Leaves are glTF with one feature per building: a per-vertex `_FEATURE_ID_0`
 //!   (`EXT_mesh_features`) indexing a property table (`EXT_structural_metadata`, class
 //!   `building`: `source_id`, `height_m`, `min_height_m`, `base_m`); see
-//!   [`crate::city::export::tile_glb_bytes`].
+//!   [`crate::city::export::tile_glb`].
+//! - Contents are compact by default ([`TilesetOptions::content`]): positions within 1 mm
+//!   (`KHR_mesh_quantization`), octahedral normals, every stream compressed with
+//!   `EXT_meshopt_compression` (required); [`ContentEncoding::Plain`] writes core glTF for
+//!   viewers without that extension. See the `compact` module of [`crate::city::export`]'s glTF
+//!   writer.
 //! - Bounding volumes are `box`es in the local frame (x east, y north, z up, metres from the
 //!   city's origin). The root's `transform` places that frame on the WGS84 ellipsoid
 //!   ([`geodesy`]): the east-north-up frame at the origin's longitude/latitude (ellipsoidal
@@ -50,9 +55,8 @@ use crate::blockmap::{
 };
 use crate::blocks::{BlockId, BlockLayout};
 use crate::city::appearance::{surface_color, to_rgb8, BuildingStyle};
-use crate::city::export::{
-    tile_glb_bytes, ExportError, TerrainError, TerrainTin, TileFeature, TileMesh,
-};
+pub use crate::city::export::ContentEncoding;
+use crate::city::export::{tile_glb, ExportError, TerrainError, TerrainTin, TileFeature, TileMesh};
 use crate::city::{City, Mesh};
 use crate::geom::Aabb3;
 use crate::index::{BlockBounds, BqrParams, BqrTree};
@@ -152,6 +156,10 @@ pub struct TilesetOptions<'a> {
     pub terrain: Option<&'a TerrainTin>,
     /// Most triangles in one terrain leaf (a cell with more is cut in four); 16 384 by default.
     pub terrain_leaf_triangles: usize,
+    /// How every content `.glb` (building leaves, BlockMap height fields, terrain) is stored:
+    /// [`ContentEncoding::Compact`] by default (quantised, `EXT_meshopt_compression` required),
+    /// [`ContentEncoding::Plain`] for viewers without that extension.
+    pub content: ContentEncoding,
 }
 
 impl Default for TilesetOptions<'_> {
@@ -164,6 +172,7 @@ impl Default for TilesetOptions<'_> {
             archive: false,
             terrain: None,
             terrain_leaf_triangles: 16_384,
+            content: ContentEncoding::Compact,
         }
     }
 }
@@ -275,6 +284,12 @@ pub struct TilesetSummary {
     pub crs: String,
     /// The `tileset.json` file (the archive for a `.3tz`).
     pub tileset_json: PathBuf,
+    /// How the contents are stored.
+    pub content: ContentEncoding,
+    /// The largest distance between a content position as written (decoded, dequantised) and
+    /// its f32 position, metres, over every content (0 for plain contents; below
+    /// [`crate::city::export::POSITION_TOLERANCE_M`] for compact ones).
+    pub position_error_m: f64,
 }
 
 /// The root transform of a city: `None` when its CRS has no geodetic meaning.
@@ -589,8 +604,8 @@ pub fn build_tileset(
     // Contents, in parallel; each tile's bytes depend only on the tile.
     let total = tiles.len();
     let done = std::sync::atomic::AtomicUsize::new(0);
-    // (content uri, bytes, box) of each tile.
-    type Written = (Option<String>, usize, Aabb3);
+    // (content uri, bytes, box, position error) of each tile.
+    type Written = (Option<String>, usize, Aabb3, f64);
     let written: Vec<Result<Written, TilesError>> = tiles
         .par_iter()
         .map(|t| {
@@ -618,21 +633,29 @@ pub fn build_tileset(
             let d = done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
             progress(d, total);
             if mesh.indices.is_empty() {
-                return Ok((None, 0, aabb));
+                return Ok((None, 0, aabb, 0.0));
             }
             aabb = aabb.union(mesh_aabb(&mesh));
             let path = dir.join("tiles").join(&name);
-            let bytes =
-                tile_glb_bytes(&name, &mesh, extras).map_err(|source| TilesError::Content {
+            let c = tile_glb(&name, &mesh, extras, opts.content).map_err(|source| {
+                TilesError::Content {
                     path: path.clone(),
                     source,
-                })?;
-            std::fs::write(tiles_dir.join(&name), &bytes).map_err(io(&path))?;
-            Ok((Some(format!("tiles/{name}")), bytes.len(), aabb))
+                }
+            })?;
+            std::fs::write(tiles_dir.join(&name), &c.bytes).map_err(io(&path))?;
+            Ok((
+                Some(format!("tiles/{name}")),
+                c.bytes.len(),
+                aabb,
+                c.position_error_m,
+            ))
         })
         .collect();
+    let mut position_error_m = 0.0f64;
     for (t, w) in tiles.iter_mut().zip(written) {
-        let (content, bytes, aabb) = w?;
+        let (content, bytes, aabb, err) = w?;
+        position_error_m = position_error_m.max(err);
         t.content = content;
         t.content_bytes = bytes;
         // No flat box: a side of at least 2 cm (a leaf of blocks without buildings is flat).
@@ -655,7 +678,7 @@ pub fn build_tileset(
         Some(tin) => Some(terrain::write_terrain(
             tin,
             &city.frame,
-            opts.terrain_leaf_triangles,
+            opts,
             georef.as_ref(),
             &crs,
             &staged.path().join("terrain"),
@@ -740,6 +763,9 @@ pub fn build_tileset(
         } else {
             path
         },
+        content: opts.content,
+        position_error_m: position_error_m
+            .max(set.terrain.as_ref().map_or(0.0, |t| t.position_error_m)),
     };
     Ok((set, summary))
 }

@@ -10,7 +10,8 @@
 //! - A leaf's content holds its triangles with their vertices shared between them; a vertex
 //!   that two leaves share is written in both with the same f32 position and the same normal
 //!   (area-weighted over all its triangles, not only the leaf's), so neighbouring leaves meet
-//!   without a crack or a shading seam. Colour: [`TERRAIN_COLOR`] as `COLOR_0`.
+//!   without a crack or a shading seam (compact contents snap positions to one grid for every
+//!   tile, so a shared vertex still decodes to the same point in both). Colour: [`TERRAIN_COLOR`] as `COLOR_0`.
 //! - Leaves are the full resolution: `geometricError` 0. Inner tiles have no content (no
 //!   coarser terrain is made): drawing one draws nothing of its box, so its `geometricError` is
 //!   its box's half diagonal, and viewers refine into the leaves wherever the terrain is more
@@ -26,9 +27,9 @@ use glam::{DVec2, DVec3};
 use rayon::prelude::*;
 use serde_json::{json, Value};
 
-use super::{box_json, Georef, TilesError};
+use super::{box_json, Georef, TilesError, TilesetOptions};
 use crate::city::export::terrain::{TerrainTin, TERRAIN_COLOR};
-use crate::city::export::{tile_glb_bytes, TileMesh};
+use crate::city::export::{tile_glb, TileMesh};
 use crate::city::{LocalFrame, Mesh};
 use crate::geom::Aabb3;
 
@@ -67,6 +68,9 @@ pub struct TerrainTiles {
     pub geometric_error: f64,
     /// Bytes of `terrain/tileset.json`.
     pub json_bytes: usize,
+    /// The largest position error of the contents, metres (see
+    /// [`super::TilesetSummary::position_error_m`]).
+    pub position_error_m: f64,
 }
 
 /// Plans the quadtree (no content yet): cells and triangles, preorder.
@@ -157,16 +161,18 @@ fn leaf_mesh(tin: &TerrainTin, mesh: &Mesh, tris: &[u32]) -> TileMesh {
 
 /// Builds the terrain's tiles and writes them into `dir` (the staged `terrain` folder;
 /// `final_dir` is where it will be, for error messages): `tiles/t_<key>.glb` and
-/// `tileset.json`. `georef` is the buildings' root transform, written on the terrain's root.
+/// `tileset.json`. `georef` is the buildings' root transform, written on the terrain's root;
+/// `opts` gives the leaves' size and the contents' encoding.
 pub(super) fn write_terrain(
     tin: &TerrainTin,
     frame: &LocalFrame,
-    leaf_max: usize,
+    opts: &TilesetOptions<'_>,
     georef: Option<&Georef>,
     crs: &str,
     dir: &Path,
     final_dir: &Path,
 ) -> Result<TerrainTiles, TilesError> {
+    let (leaf_max, content) = (opts.terrain_leaf_triangles, opts.content);
     tin.check()
         .map_err(|source| TilesError::Terrain { source })?;
     let mesh = tin.local_mesh(frame);
@@ -176,12 +182,12 @@ pub(super) fn write_terrain(
         move |source| TilesError::Io { path, source }
     };
     std::fs::create_dir_all(dir.join("tiles")).map_err(io(&final_dir.join("tiles")))?;
-    type Written = (Option<String>, usize, Aabb3);
+    type Written = (Option<String>, usize, Aabb3, f64);
     let written: Vec<Result<Written, TilesError>> = tiles
         .par_iter()
         .map(|t| {
             if t.triangles.is_empty() {
-                return Ok((None, 0, Aabb3::EMPTY));
+                return Ok((None, 0, Aabb3::EMPTY, 0.0));
             }
             let m = leaf_mesh(tin, &mesh, &t.triangles);
             let aabb = m.positions.iter().fold(Aabb3::EMPTY, |a, p| {
@@ -192,17 +198,23 @@ pub(super) fn write_terrain(
             let path = final_dir.join("tiles").join(&name);
             let extras =
                 json!({"kind": "terrain", "node_key": t.key, "triangles": t.triangles.len()});
-            let bytes =
-                tile_glb_bytes(&name, &m, extras).map_err(|source| TilesError::Content {
-                    path: path.clone(),
-                    source,
-                })?;
-            std::fs::write(dir.join("tiles").join(&name), &bytes).map_err(io(&path))?;
-            Ok((Some(format!("tiles/{name}")), bytes.len(), aabb))
+            let c = tile_glb(&name, &m, extras, content).map_err(|source| TilesError::Content {
+                path: path.clone(),
+                source,
+            })?;
+            std::fs::write(dir.join("tiles").join(&name), &c.bytes).map_err(io(&path))?;
+            Ok((
+                Some(format!("tiles/{name}")),
+                c.bytes.len(),
+                aabb,
+                c.position_error_m,
+            ))
         })
         .collect();
+    let mut position_error_m = 0.0f64;
     for (t, w) in tiles.iter_mut().zip(written) {
-        let (content, bytes, aabb) = w?;
+        let (content, bytes, aabb, err) = w?;
+        position_error_m = position_error_m.max(err);
         t.content = content;
         t.content_bytes = bytes;
         t.aabb = aabb;
@@ -234,6 +246,7 @@ pub(super) fn write_terrain(
         geometric_error: tiles.first().map_or(0.0, |t| t.geometric_error),
         tiles,
         json_bytes: 0,
+        position_error_m,
     };
     let text = serde_json::to_vec_pretty(&set.to_json(georef, crs)).expect("JSON serialises");
     std::fs::write(dir.join("tileset.json"), &text).map_err(io(&final_dir.join("tileset.json")))?;

@@ -2,6 +2,8 @@
 //! ([`data`]), a headless GPU or a skip ([`gpu`], with the `render` feature) and the Node tools of
 //! `tests/tools` ([`node`]), and the loud skips of tests whose needs are missing ([`skip`]).
 //!
+//! Tile contents (`.glb`, plain or compressed) are read back by [`glb`].
+//!
 //! A test file of the library includes it as `mod support;`, one of the command line (`cli/tests`)
 //! as `#[path = "../../tests/support/mod.rs"] mod support;`.
 
@@ -9,6 +11,7 @@
 #![allow(dead_code)]
 
 pub mod data;
+pub mod glb;
 #[cfg(feature = "render")]
 pub mod gpu;
 pub mod node;

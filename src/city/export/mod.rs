@@ -15,9 +15,9 @@ use std::path::PathBuf;
 
 pub use self::geojson::{geojson_value, write_geojson};
 pub use self::gltf::{
-    glb_bytes, glb_bytes_with_terrain, tile_glb_bytes, write_glb, write_glb_to,
-    write_glb_to_with_terrain, write_glb_with_terrain, GlbStats, TileFeature, TileMesh,
-    GLB_MAX_BYTES,
+    glb_bytes, glb_bytes_with_terrain, tile_glb, tile_glb_bytes, write_glb, write_glb_to,
+    write_glb_to_with_terrain, write_glb_with_terrain, ContentEncoding, GlbStats, TileContent,
+    TileFeature, TileMesh, GLB_MAX_BYTES, POSITION_TOLERANCE_M,
 };
 pub use self::terrain::{TerrainError, TerrainTin};
 
@@ -57,6 +57,14 @@ pub enum ExportError {
         count: usize,
         /// Positions.
         vertices: usize,
+    },
+    /// A tile mesh's indices are not whole triangles of its vertices.
+    #[error("{file}: {what}")]
+    Indices {
+        /// The file (`<glb>` when no file is written).
+        file: PathBuf,
+        /// What is wrong: the count, or the first index past the vertices.
+        what: String,
     },
     /// The `.glb` would be larger than the format allows ([`GLB_MAX_BYTES`]: its header stores
     /// the length in 32 bits). Nothing was written.
@@ -101,6 +109,10 @@ impl ExportError {
             ExportError::Io { source, .. } => ExportError::Io {
                 file: file.to_path_buf(),
                 source,
+            },
+            ExportError::Indices { what, .. } => ExportError::Indices {
+                file: file.to_path_buf(),
+                what,
             },
             ExportError::MeshCount {
                 meshes, buildings, ..

@@ -26,10 +26,12 @@
 //! area; splitting one city into several files is not done).
 //!
 //! The city's file is [`write_glb`] and its siblings (file `city.rs`); the content `.glb` of one
-//! 3D Tiles tile is [`tile_glb_bytes`] (file `tile.rs`). Both share this module's glTF pieces: the Y-up axes,
-//! chunk padding and the header and chunk writers.
+//! 3D Tiles tile is [`tile_glb`] (file `tile.rs`: plain, [`tile_glb_bytes`]; file `compact.rs`:
+//! quantised and compressed). They share this module's glTF pieces: the Y-up axes, chunk padding
+//! and the header and chunk writers.
 
 mod city;
+mod compact;
 #[cfg(test)]
 mod tests;
 mod tile;
@@ -38,7 +40,10 @@ pub use city::{
     glb_bytes, glb_bytes_with_terrain, write_glb, write_glb_to, write_glb_to_with_terrain,
     write_glb_with_terrain, GlbStats,
 };
-pub use tile::{tile_glb_bytes, TileFeature, TileMesh};
+pub use tile::{
+    tile_glb, tile_glb_bytes, ContentEncoding, TileContent, TileFeature, TileMesh,
+    POSITION_TOLERANCE_M,
+};
 
 use std::io::Write;
 
@@ -56,6 +61,8 @@ const ELEMENT_ARRAY_BUFFER: u32 = 34963;
 const FLOAT: u32 = 5126;
 const UNSIGNED_INT: u32 = 5125;
 const UNSIGNED_BYTE: u32 = 5121;
+const BYTE: u32 = 5120;
+const UNSIGNED_SHORT: u32 = 5123;
 
 /// The terrain's material (the city's `.glb` and the terrain tiles): a green grey, unlike the
 /// buildings' warm grey.

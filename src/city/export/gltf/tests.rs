@@ -386,3 +386,80 @@ fn sizes_are_checked_not_wrapped() {
     assert_eq!(padded(u64::MAX), None);
     assert_eq!(GLB_MAX_BYTES, 4_294_967_295);
 }
+
+/// A compact tile of a mesh wider than any single grid: every vertex decodes (meshoptimizer's
+/// decoder, the exponential filter, the node's translation) to within the tolerance, and the
+/// document requires both extensions and states its error.
+#[test]
+fn compact_tile_decodes_within_the_tolerance_and_requires_its_extensions() {
+    let mut m = two_triangles();
+    // Spread over 3 km: neither u16 nor a few mantissa bits resolve a millimetre there.
+    m.positions[4] = Vec3::new(3_000.123_4, -25.5, 40.25);
+    let c = tile_glb("t", &m, json!({"k": 1}), ContentEncoding::Compact).unwrap();
+    assert_eq!(
+        c,
+        tile_glb("t", &m, json!({"k": 1}), ContentEncoding::Compact).unwrap(),
+        "deterministic"
+    );
+    let doc = json_of(&c.bytes);
+    assert_eq!(
+        doc["extensionsRequired"],
+        json!(["EXT_meshopt_compression", "KHR_mesh_quantization"])
+    );
+    let extras = &doc["nodes"][0]["extras"];
+    assert_eq!(extras["k"], 1);
+    assert_eq!(extras["position_error_m"], json!(c.position_error_m));
+    assert!(c.position_error_m < POSITION_TOLERANCE_M);
+    assert!(extras["position_encoding"]
+        .as_str()
+        .unwrap()
+        .starts_with("exp"));
+    // Decode the positions by hand: the POSITION view's stream, the filter, the translation.
+    let jl = u32::from_le_bytes(c.bytes[12..16].try_into().unwrap()) as usize;
+    let bin = &c.bytes[28 + jl..];
+    let acc = &doc["accessors"][0];
+    let ext = &doc["bufferViews"][acc["bufferView"].as_u64().unwrap() as usize]["extensions"]
+        ["EXT_meshopt_compression"];
+    assert_eq!(ext["filter"], "EXPONENTIAL");
+    let o = ext["byteOffset"].as_u64().unwrap() as usize;
+    let data = &bin[o..o + ext["byteLength"].as_u64().unwrap() as usize];
+    assert_eq!(data[0], 0xa0, "vertex codec version 0");
+    let mut v: Vec<[u32; 3]> = meshopt::decode_vertex_buffer(data, 6).unwrap();
+    meshopt::decode_filter_exp(&mut v);
+    let t: Vec<f64> = doc["nodes"][0]["translation"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|x| x.as_f64().unwrap())
+        .collect();
+    let mut decoded: Vec<[f64; 3]> = v
+        .iter()
+        .map(|e| [0, 1, 2].map(|k| t[k] + f32::from_bits(e[k]) as f64))
+        .collect();
+    // Vertices are renumbered: compare the sets.
+    let mut want: Vec<[f64; 3]> = m
+        .positions
+        .iter()
+        .map(|p| y_up(*p).map(f64::from))
+        .collect();
+    let by = |a: &[f64; 3], b: &[f64; 3]| a.partial_cmp(b).unwrap();
+    decoded.sort_by(by);
+    want.sort_by(by);
+    let worst = decoded
+        .iter()
+        .zip(&want)
+        .map(|(d, w)| (0..3).map(|k| (d[k] - w[k]).powi(2)).sum::<f64>().sqrt())
+        .fold(0.0, f64::max);
+    assert!(worst < 1e-3 && worst <= c.position_error_m, "{worst}");
+    // Plain through the same entry point is the plain writer's file.
+    let p = tile_glb("t", &m, json!({"k": 1}), ContentEncoding::Plain).unwrap();
+    assert_eq!(p.bytes, tile_glb_bytes("t", &m, json!({"k": 1})).unwrap());
+    assert_eq!(p.position_error_m, 0.0);
+    // Indices past the vertices are refused, not handed to the optimiser.
+    let mut bad = two_triangles();
+    bad.indices[2] = 6;
+    assert!(matches!(
+        tile_glb("t", &bad, Value::Null, ContentEncoding::Compact).unwrap_err(),
+        ExportError::Indices { .. }
+    ));
+}
