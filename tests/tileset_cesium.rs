@@ -26,6 +26,7 @@ use std::path::Path;
 use blockwalk::city::appearance;
 use blockwalk::city::extrude::extrude_city;
 use blockwalk::geom::Camera;
+use blockwalk::jobs::{merge, plan, run_tile, write_plan, PlanOptions, TileOptions};
 use blockwalk::scene::{CitySource, Scene, SceneOptions};
 use blockwalk::tiles::{build_tileset, Georef, TilesetOptions};
 use blockwalk::visibility::oracle::shade;
@@ -308,5 +309,168 @@ fn check_report(
         // a band of a few rows that the far view allows for.
         let need = if *name == "far" { 0.9 } else { 0.98 };
         assert!(agree > need, "{form} {name}: sky agreement {agree}");
+    }
+}
+
+/// A city built in tiles by `jobs` (`run --tileset`, then `merge`): CesiumJS opens the root
+/// `tileset.json`, follows it into the tiles' own tilesets (external tilesets, each placed by its
+/// own transform), and draws the city near and far with no failed tile and the skyline of our
+/// rendering.
+#[test]
+fn cesium_loads_a_city_built_in_tiles_through_its_root_tileset() {
+    let Some((node, chromium)) = support::node::or_skip(
+        "cesium_loads_a_city_built_in_tiles_through_its_root_tileset",
+        support::node::node_with(&["cesium", "puppeteer-core"])
+            .and_then(|n| Ok((n, support::node::chromium()?))),
+    ) else {
+        return;
+    };
+    let (fp, st) = (
+        Path::new("data/helsinki/buildings.shp"),
+        Path::new("data/helsinki/streets_blockclass.shp"),
+    );
+    let work = tempfile::tempdir().unwrap();
+    let jobs = work.path().join("jobs");
+    let p = plan(
+        fp,
+        st,
+        &PlanOptions {
+            max_buildings: 100,
+            ..Default::default()
+        },
+        &mut |_| {},
+    )
+    .unwrap();
+    let plan_path = write_plan(&p, &jobs).unwrap();
+    assert!(p.tiles.len() >= 4, "{} tiles", p.tiles.len());
+    let opts = TileOptions {
+        tileset: Some(TilesetOptions::default()),
+        ..TileOptions::default()
+    };
+    for t in 0..p.tiles.len() {
+        run_tile(&plan_path, t, &opts).unwrap();
+    }
+    let (index, _) = merge(&jobs).unwrap();
+    let transform = index.tiles[0]
+        .tileset
+        .as_ref()
+        .and_then(|t| t.transform)
+        .expect("Helsinki is georeferenced");
+
+    // Our rendering of the same cameras, from the whole city in one process.
+    let source = CitySource::parse(fp, Some(st.into()), None, &[], 0).unwrap();
+    let scene = Scene::load(
+        &source,
+        &SceneOptions {
+            structures: Vec::new(),
+            ..SceneOptions::default()
+        },
+        &mut |_| {},
+    )
+    .unwrap();
+    let c = scene.city_bounds().center();
+    let centre = DVec3::new(c.x, c.y, 0.0);
+    let views = [
+        ("far", centre + DVec3::new(0.0, -2600.0, 1500.0)),
+        ("near", centre + DVec3::new(0.0, -220.0, 80.0)),
+    ];
+    let out = support::node::screenshot_dir("tileset-cesium");
+    let blocks: Vec<_> = scene
+        .block_meshes()
+        .iter()
+        .map(|(id, m)| (*id, m))
+        .collect();
+    let spec = json!({
+        "chromium": chromium,
+        "tileset_dir": jobs,
+        "tileset_url": null,
+        "local_to_ecef": transform,
+        "prefix": "jobs_",
+        "out_dir": out,
+        "width": W,
+        "height": H,
+        "maximum_screen_space_error": 16,
+        "sky": appearance::SKY,
+        "ground": appearance::GROUND,
+        "sun_local": appearance::sun_direction().to_array(),
+        "views": views.iter().map(|(name, eye)| json!({
+            "name": name, "eye": eye.to_array(), "target": centre.to_array(), "fov_y_deg": 60.0,
+        })).collect::<Vec<_>>(),
+    });
+    let spec_path = work.path().join("spec_jobs.json");
+    std::fs::write(&spec_path, serde_json::to_vec_pretty(&spec).unwrap()).unwrap();
+    let report = support::node::run_json(&node, "cesium_tileset.mjs", &spec_path);
+    std::fs::write(
+        out.join("jobs_cesium_report.json"),
+        serde_json::to_vec_pretty(&report).unwrap(),
+    )
+    .unwrap();
+    let errors = report["page_errors"].as_array().unwrap();
+    assert!(errors.is_empty(), "page errors: {errors:#?}");
+    let files: Vec<&str> = report["requests"]["tileset_files"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|f| f.as_str().unwrap())
+        .collect();
+    // The root, and through it tiles' own tilesets and their contents.
+    assert!(files.contains(&"tileset.json"), "{files:?}");
+    let tile_sets = files
+        .iter()
+        .filter(|f| f.starts_with("tiles/tile_") && f.ends_with("_tileset/tileset.json"))
+        .count();
+    assert!(
+        tile_sets >= 2,
+        "{tile_sets} tiles' tilesets requested: {files:?}"
+    );
+    assert!(
+        files
+            .iter()
+            .any(|f| f.starts_with("tiles/tile_") && f.contains("_tileset/tiles/")),
+        "no tile content requested: {files:?}"
+    );
+    let missing = report["requests"]["missing"].as_array().unwrap();
+    assert!(
+        missing
+            .iter()
+            .all(|m| !files.contains(&m.as_str().unwrap())),
+        "tileset files missing: {missing:?}"
+    );
+    for (k, (name, eye)) in views.iter().enumerate() {
+        let v = &report["views"][k];
+        assert_eq!(
+            v["tiles_loaded"], true,
+            "{name}: not every tile loaded: {v}"
+        );
+        assert!(
+            v["failed"].as_array().unwrap().is_empty(),
+            "{name}: tiles failed: {}",
+            v["failed"]
+        );
+        let drawn = v["visible"].as_array().unwrap();
+        let leaves = drawn
+            .iter()
+            .filter(|s| s.as_str().unwrap().starts_with("buildings"))
+            .count();
+        assert!(!drawn.is_empty(), "{name}: nothing drawn: {v}");
+        if *name == "near" {
+            assert!(leaves > 0, "near: no leaf drawn: {v}");
+        }
+        println!(
+            "jobs {name}: {} tiles loaded, {} drawn ({leaves} building leaves)",
+            v["loaded"].as_array().unwrap().len(),
+            drawn.len()
+        );
+        let mut cam = Camera::looking_at(*eye, centre);
+        cam.aspect = W as f64 / H as f64;
+        cam.far = 20_000.0;
+        let ours = shade(&blocks, &cam, W, H);
+        let theirs = image::open(out.join(format!("jobs_cesium_{name}.png")))
+            .unwrap()
+            .to_rgba8();
+        let agree = sky_agreement(&ours, &theirs);
+        println!("jobs {name}: sky/not-sky agreement with our rendering {agree:.3}");
+        let need = if *name == "far" { 0.9 } else { 0.98 };
+        assert!(agree > need, "jobs {name}: sky agreement {agree}");
     }
 }

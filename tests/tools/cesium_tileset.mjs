@@ -160,7 +160,11 @@ try {
     });
     scene.primitives.add(tileset);
     const group = tileset.root.extras && tileset.root.extras.kind === 'group';
-    const t = (group ? tileset.root.children[0] : tileset.root).computedTransform;
+    // The local frame: the spec's transform when the root has none of its own (a root over
+    // external tilesets, each placed by its own), else the root's (or the group's first child's).
+    const t = spec.local_to_ecef
+      ? C.Matrix4.fromArray(spec.local_to_ecef)
+      : (group ? tileset.root.children[0] : tileset.root).computedTransform;
     const toWorld = (p) => C.Matrix4.multiplyByPoint(t, new C.Cartesian3(p[0], p[1], p[2]), new C.Cartesian3());
     const dirToWorld = (d) => C.Cartesian3.normalize(
       C.Matrix4.multiplyByPointAsVector(t, new C.Cartesian3(d[0], d[1], d[2]), new C.Cartesian3()),
