@@ -36,6 +36,10 @@ use serde_json::{json, Value};
 mod support;
 
 const W: u32 = 480;
+
+/// One headless Chromium at a time: two software-rendered CesiumJS pages side by side on a
+/// small machine would each run into the page's time limits.
+static CHROMIUM: std::sync::Mutex<()> = std::sync::Mutex::new(());
 const H: u32 = 270;
 
 /// Share of pixels on which both images agree about "sky" (the sky colour, ±12 per channel).
@@ -52,6 +56,7 @@ fn sky_agreement(a: &image::RgbaImage, b: &image::RgbaImage) -> f64 {
 
 #[test]
 fn cesium_loads_the_helsinki_tileset_and_refines_it() {
+    let _one = CHROMIUM.lock().unwrap_or_else(|e| e.into_inner());
     let Some((node, chromium)) = support::node::or_skip(
         "cesium_loads_the_helsinki_tileset_and_refines_it",
         support::node::node_with(&["cesium", "puppeteer-core"])
@@ -318,6 +323,7 @@ fn check_report(
 /// rendering.
 #[test]
 fn cesium_loads_a_city_built_in_tiles_through_its_root_tileset() {
+    let _one = CHROMIUM.lock().unwrap_or_else(|e| e.into_inner());
     let Some((node, chromium)) = support::node::or_skip(
         "cesium_loads_a_city_built_in_tiles_through_its_root_tileset",
         support::node::node_with(&["cesium", "puppeteer-core"])

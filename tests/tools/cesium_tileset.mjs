@@ -236,7 +236,7 @@ try {
         selected: stats.selected,
         triangles: stats.numberOfTrianglesSelected,
       };
-    }, { ...view, timeout_ms: view.timeout_ms || 30000 }, spec);
+    }, { ...view, timeout_ms: view.timeout_ms || 60000 }, spec);
     const shot = path.join(spec.out_dir, `${spec.prefix || ''}cesium_${view.name}.png`);
     await tab.screenshot({ path: shot });
     result.screenshot = shot;
