@@ -358,3 +358,47 @@ fn helsinki_city_bridges_option() {
     check_partition(&polygonize, c.buildings.len());
     check_partition(&separated, c.buildings.len());
 }
+
+/// A street layer alone (`build_street_city`, no footprints) gives the faces the city with
+/// buildings gives, in the input's coordinates: the same polygons up to the local projection's
+/// centre (Bubeneč is in Web Mercator, so the metric frames differ) and exactly the same in
+/// Helsinki's metric CRS; no outskirts groups.
+#[test]
+fn street_layer_alone_gives_the_faces_of_the_city() {
+    use blockwalk::blocks::export::polygon_to_input;
+    use blockwalk::importers::{read_layer, Theme};
+    for (fp, st, faces, exact) in [
+        ("bubenec/buildings.shp", "bubenec/streets.shp", 7, false),
+        (
+            "helsinki/buildings.shp",
+            "helsinki/streets_blockclass.shp",
+            70,
+            true,
+        ),
+    ] {
+        let full = city(fp, Some(st), None);
+        let layer = read_layer(&data(st), &Theme::Streets).unwrap();
+        let alone = blockwalk::city::build::build_street_city(&layer, &Default::default()).unwrap();
+        assert!(alone.buildings.is_empty());
+        assert_eq!(alone.streets.len(), full.streets.len());
+        let opts = BlockOptions::default();
+        let a = blockwalk::blocks::detect(&alone, &opts).unwrap();
+        let f = blockwalk::blocks::detect(&full, &opts).unwrap();
+        assert!(a.blocks.iter().all(|b| b.kind == BlockKind::Block));
+        let fa = faces_of(&a);
+        let ff = faces_of(&f);
+        assert_eq!((fa.len(), ff.len()), (faces, faces), "{st}");
+        for (p, q) in fa.iter().zip(&ff) {
+            let p = polygon_to_input(&alone.transform, p);
+            let q = polygon_to_input(&full.transform, q);
+            if exact {
+                assert_eq!(p, q, "{st}");
+            } else {
+                assert_eq!(p.exterior().0.len(), q.exterior().0.len(), "{st}");
+                for (u, v) in p.exterior().0.iter().zip(&q.exterior().0) {
+                    assert!((u.x - v.x).abs() < 1e-6 && (u.y - v.y).abs() < 1e-6, "{st}");
+                }
+            }
+        }
+    }
+}

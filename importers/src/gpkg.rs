@@ -18,7 +18,6 @@
 use crate::crs::Crs;
 use crate::wkb;
 use crate::{AttrValue, Attributes, Feature, ImportError, ImportReport, Layer, Theme};
-use geo_types::{Coord, Geometry};
 use rusqlite::types::ValueRef;
 use rusqlite::{Connection, OpenFlags};
 use std::path::Path;
@@ -194,7 +193,7 @@ pub fn read(path: &Path, theme: &Theme) -> Result<Layer, ImportError> {
                     }
                     match g.geometry {
                         None => Err("empty geometry".to_string()),
-                        Some(g) => check_finite(&g).map(|_| g),
+                        Some(g) => wkb::check_finite(&g).map(|_| g),
                     }
                 }
                 Err(e) => Err(format!("geometry blob cannot be decoded: {e}")),
@@ -241,53 +240,6 @@ pub fn read(path: &Path, theme: &Theme) -> Result<Layer, ImportError> {
         features,
         report,
     })
-}
-
-fn check_finite(g: &Geometry) -> Result<(), String> {
-    let mut bad = None;
-    let mut k = 0usize;
-    visit(g, &mut |c: &Coord| {
-        if bad.is_none() && !(c.x.is_finite() && c.y.is_finite()) {
-            bad = Some(k);
-        }
-        k += 1;
-    });
-    match bad {
-        Some(k) => Err(format!(
-            "non-finite coordinate (NaN or infinity) at vertex {k}"
-        )),
-        None => Ok(()),
-    }
-}
-
-fn visit(g: &Geometry, f: &mut impl FnMut(&Coord)) {
-    match g {
-        Geometry::Point(p) => f(&p.0),
-        Geometry::MultiPoint(m) => m.0.iter().for_each(|p| f(&p.0)),
-        Geometry::LineString(l) => l.0.iter().for_each(f),
-        Geometry::MultiLineString(m) => m.0.iter().flat_map(|l| l.0.iter()).for_each(f),
-        Geometry::Polygon(p) => {
-            p.exterior().0.iter().for_each(&mut *f);
-            p.interiors().iter().flat_map(|r| r.0.iter()).for_each(f)
-        }
-        Geometry::MultiPolygon(m) => m.0.iter().for_each(|p| {
-            p.exterior().0.iter().for_each(&mut *f);
-            p.interiors()
-                .iter()
-                .flat_map(|r| r.0.iter())
-                .for_each(&mut *f)
-        }),
-        Geometry::GeometryCollection(c) => c.0.iter().for_each(|g| visit(g, f)),
-        Geometry::Line(l) => {
-            f(&l.start);
-            f(&l.end)
-        }
-        Geometry::Rect(r) => {
-            f(&r.min());
-            f(&r.max())
-        }
-        Geometry::Triangle(t) => t.to_array().iter().for_each(f),
-    }
 }
 
 fn table_crs(

@@ -33,13 +33,13 @@ pub mod fuzzing;
 pub mod geojson_reader;
 #[cfg(feature = "gpkg")]
 pub mod gpkg;
+pub mod memory;
 #[cfg(feature = "osm")]
 pub mod osm;
 pub mod report;
 mod rings;
 pub mod shp;
-#[cfg(feature = "gpkg")]
-mod wkb;
+pub mod wkb;
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};

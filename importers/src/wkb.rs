@@ -1,6 +1,8 @@
-//! Decoder for GeoPackage geometry blobs: the `GP` header (GeoPackage 1.3 §2.1.3) followed by
-//! standard Well-Known Binary (OGC 06-103r4 §8), both byte orders, ISO (1000/2000/3000 + type)
-//! and EWKB (high-bit flags) Z/M type codes. Z and M values are read and dropped.
+//! Well-Known Binary (OGC 06-103r4 §8): the decoder of GeoPackage geometry blobs (the `GP`
+//! header, GeoPackage 1.3 §2.1.3, followed by WKB) and of plain WKB, both byte orders, ISO
+//! (1000/2000/3000 + type) and EWKB (high-bit flags) Z/M type codes, Z and M values read and
+//! dropped; and the encoder of 2D geometry to little-endian WKB ([`encode_wkb`]), for callers that
+//! hand geometry to other GIS software (Python's shapely reads it with `from_wkb`).
 
 use geo_types::{
     Coord, Geometry, GeometryCollection, LineString, MultiLineString, MultiPoint, MultiPolygon,
@@ -12,7 +14,7 @@ const MAX_DEPTH: usize = 32;
 
 /// A decoded GeoPackage geometry blob.
 #[derive(Debug)]
-pub(crate) struct GpGeometry {
+pub struct GpGeometry {
     /// The `srs_id` in the header.
     pub srs_id: i32,
     /// `None` when the header's empty flag is set or the WKB is an empty geometry.
@@ -20,7 +22,10 @@ pub(crate) struct GpGeometry {
 }
 
 /// Decodes a GeoPackage binary geometry.
-pub(crate) fn decode_gpkg(blob: &[u8]) -> Result<GpGeometry, String> {
+///
+/// # Errors
+/// What is wrong with the blob, in words (never a panic: the decoder is fuzzed).
+pub fn decode_gpkg(blob: &[u8]) -> Result<GpGeometry, String> {
     if blob.len() < 8 || &blob[0..2] != b"GP" {
         return Err("not a GeoPackage geometry blob (no `GP` magic)".into());
     }
@@ -69,7 +74,10 @@ pub(crate) fn decode_gpkg(blob: &[u8]) -> Result<GpGeometry, String> {
 }
 
 /// Decodes plain WKB. `Ok(None)` for an empty geometry.
-pub(crate) fn decode_wkb(bytes: &[u8]) -> Result<Option<Geometry<f64>>, String> {
+///
+/// # Errors
+/// What is wrong with the bytes, in words (never a panic: the decoder is fuzzed).
+pub fn decode_wkb(bytes: &[u8]) -> Result<Option<Geometry<f64>>, String> {
     let mut r = Reader { b: bytes, pos: 0 };
     read_geometry(&mut r, 0)
 }
@@ -270,6 +278,158 @@ fn read_geometry(r: &mut Reader, depth: usize) -> Result<Option<Geometry<f64>>, 
     })
 }
 
+/// `Err` naming the first vertex (counted over the whole geometry) that is NaN or infinite.
+pub(crate) fn check_finite(g: &Geometry<f64>) -> Result<(), String> {
+    let mut bad = None;
+    let mut k = 0usize;
+    visit(g, &mut |c: &Coord<f64>| {
+        if bad.is_none() && !(c.x.is_finite() && c.y.is_finite()) {
+            bad = Some(k);
+        }
+        k += 1;
+    });
+    match bad {
+        Some(k) => Err(format!(
+            "non-finite coordinate (NaN or infinity) at vertex {k}"
+        )),
+        None => Ok(()),
+    }
+}
+
+fn visit(g: &Geometry<f64>, f: &mut impl FnMut(&Coord<f64>)) {
+    match g {
+        Geometry::Point(p) => f(&p.0),
+        Geometry::MultiPoint(m) => m.0.iter().for_each(|p| f(&p.0)),
+        Geometry::LineString(l) => l.0.iter().for_each(f),
+        Geometry::MultiLineString(m) => m.0.iter().flat_map(|l| l.0.iter()).for_each(f),
+        Geometry::Polygon(p) => {
+            p.exterior().0.iter().for_each(&mut *f);
+            p.interiors().iter().flat_map(|r| r.0.iter()).for_each(f)
+        }
+        Geometry::MultiPolygon(m) => m.0.iter().for_each(|p| {
+            p.exterior().0.iter().for_each(&mut *f);
+            p.interiors()
+                .iter()
+                .flat_map(|r| r.0.iter())
+                .for_each(&mut *f)
+        }),
+        Geometry::GeometryCollection(c) => c.0.iter().for_each(|g| visit(g, f)),
+        Geometry::Line(l) => {
+            f(&l.start);
+            f(&l.end)
+        }
+        Geometry::Rect(r) => {
+            f(&r.min());
+            f(&r.max())
+        }
+        Geometry::Triangle(t) => t.to_array().iter().for_each(f),
+    }
+}
+
+/// Encodes a 2D geometry as little-endian WKB (OGC 06-103r4 §8.2). A `Line` is written as a
+/// two-point LineString, a `Rect` and a `Triangle` as their Polygon.
+pub fn encode_wkb(g: &Geometry<f64>) -> Vec<u8> {
+    let mut out = Vec::with_capacity(wkb_size(g));
+    write_geometry(&mut out, g);
+    out
+}
+
+/// The number of bytes [`encode_wkb`] writes for `g`.
+fn wkb_size(g: &Geometry<f64>) -> usize {
+    let ring = |l: &LineString<f64>| 4 + 16 * l.0.len();
+    let poly =
+        |p: &Polygon<f64>| 9 + ring(p.exterior()) + p.interiors().iter().map(ring).sum::<usize>();
+    match g {
+        Geometry::Point(_) => 21,
+        Geometry::Line(_) => 9 + 32,
+        Geometry::LineString(l) => 5 + ring(l),
+        Geometry::Polygon(p) => poly(p),
+        Geometry::MultiPoint(m) => 9 + 21 * m.0.len(),
+        Geometry::MultiLineString(m) => 9 + m.0.iter().map(|l| 5 + ring(l)).sum::<usize>(),
+        Geometry::MultiPolygon(m) => 9 + m.0.iter().map(poly).sum::<usize>(),
+        Geometry::GeometryCollection(c) => 9 + c.0.iter().map(wkb_size).sum::<usize>(),
+        Geometry::Rect(_) => 9 + 4 + 16 * 5,
+        Geometry::Triangle(_) => 9 + 4 + 16 * 4,
+    }
+}
+
+fn put_header(out: &mut Vec<u8>, kind: u32) {
+    out.push(1);
+    out.extend_from_slice(&kind.to_le_bytes());
+}
+
+fn put_count(out: &mut Vec<u8>, n: usize) {
+    // Counts beyond u32 cannot be written in WKB; no geometry held in memory comes near it.
+    out.extend_from_slice(&u32::try_from(n).unwrap_or(u32::MAX).to_le_bytes());
+}
+
+fn put_coords(out: &mut Vec<u8>, cs: &[Coord<f64>]) {
+    put_count(out, cs.len());
+    for c in cs {
+        out.extend_from_slice(&c.x.to_le_bytes());
+        out.extend_from_slice(&c.y.to_le_bytes());
+    }
+}
+
+fn put_polygon(out: &mut Vec<u8>, p: &Polygon<f64>) {
+    put_header(out, 3);
+    put_count(out, 1 + p.interiors().len());
+    put_coords(out, &p.exterior().0);
+    for r in p.interiors() {
+        put_coords(out, &r.0);
+    }
+}
+
+fn write_geometry(out: &mut Vec<u8>, g: &Geometry<f64>) {
+    match g {
+        Geometry::Point(p) => {
+            put_header(out, 1);
+            out.extend_from_slice(&p.0.x.to_le_bytes());
+            out.extend_from_slice(&p.0.y.to_le_bytes());
+        }
+        Geometry::Line(l) => {
+            put_header(out, 2);
+            put_coords(out, &[l.start, l.end]);
+        }
+        Geometry::LineString(l) => {
+            put_header(out, 2);
+            put_coords(out, &l.0);
+        }
+        Geometry::Polygon(p) => put_polygon(out, p),
+        Geometry::MultiPoint(m) => {
+            put_header(out, 4);
+            put_count(out, m.0.len());
+            for p in &m.0 {
+                write_geometry(out, &Geometry::Point(*p));
+            }
+        }
+        Geometry::MultiLineString(m) => {
+            put_header(out, 5);
+            put_count(out, m.0.len());
+            for l in &m.0 {
+                put_header(out, 2);
+                put_coords(out, &l.0);
+            }
+        }
+        Geometry::MultiPolygon(m) => {
+            put_header(out, 6);
+            put_count(out, m.0.len());
+            for p in &m.0 {
+                put_polygon(out, p);
+            }
+        }
+        Geometry::GeometryCollection(c) => {
+            put_header(out, 7);
+            put_count(out, c.0.len());
+            for g in &c.0 {
+                write_geometry(out, g);
+            }
+        }
+        Geometry::Rect(r) => put_polygon(out, &r.to_polygon()),
+        Geometry::Triangle(t) => put_polygon(out, &t.to_polygon()),
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -336,5 +496,43 @@ mod tests {
         // Empty flag.
         let g = decode_gpkg(&[b'G', b'P', 0, 0x11, 0, 0, 0, 0]).unwrap();
         assert!(g.geometry.is_none());
+    }
+
+    #[test]
+    fn encoding_round_trips_every_kind_and_matches_the_size() {
+        use geo_types::{line_string, point, polygon};
+        let sq = polygon![
+            exterior: [(x: 0.0, y: 0.0), (x: 4.0, y: 0.0), (x: 4.0, y: 4.0), (x: 0.0, y: 0.0)],
+            interiors: [[(x: 1.0, y: 1.0), (x: 2.0, y: 1.0), (x: 1.5, y: 2.0), (x: 1.0, y: 1.0)]],
+        ];
+        let ls = line_string![(x: 0.5, y: -1.0), (x: 1e9, y: 3.25)];
+        let cases: Vec<Geometry<f64>> = vec![
+            Geometry::Point(point!(x: -7.5, y: 1e-300)),
+            Geometry::LineString(ls.clone()),
+            Geometry::Polygon(sq.clone()),
+            Geometry::MultiPoint(MultiPoint(vec![
+                point!(x: 1.0, y: 2.0),
+                point!(x: 3.0, y: 4.0),
+            ])),
+            Geometry::MultiLineString(MultiLineString(vec![ls.clone(), ls])),
+            Geometry::MultiPolygon(MultiPolygon(vec![sq.clone(), sq.clone()])),
+            Geometry::GeometryCollection(GeometryCollection(vec![
+                Geometry::Polygon(sq),
+                Geometry::Point(point!(x: 0.0, y: 0.0)),
+            ])),
+        ];
+        for g in cases {
+            let b = encode_wkb(&g);
+            assert_eq!(b.len(), wkb_size(&g), "{g:?}");
+            assert_eq!(decode_wkb(&b).unwrap(), Some(g));
+        }
+        // The shapes geo-types adds are written as the OGC geometry they stand for.
+        let r = geo_types::Rect::new(Coord { x: 0.0, y: 0.0 }, Coord { x: 2.0, y: 1.0 });
+        let b = encode_wkb(&Geometry::Rect(r));
+        assert_eq!(b.len(), wkb_size(&Geometry::Rect(r)));
+        assert_eq!(
+            decode_wkb(&b).unwrap(),
+            Some(Geometry::Polygon(r.to_polygon()))
+        );
     }
 }

@@ -18,6 +18,7 @@ use geo::{Distance, Euclidean};
 use geo_types::{Coord, Polygon};
 use rayon::prelude::*;
 use rstar::{primitives::GeomWithData, primitives::Rectangle, RTree, AABB};
+use std::borrow::Borrow;
 
 /// Default distance (m) within which outskirts buildings join one group.
 pub const DEFAULT_OUTSKIRTS_LINK: f64 = 30.0;
@@ -36,13 +37,13 @@ fn envelope(p: &Polygon<f64>, grow: f64) -> Option<([f64; 2], [f64; 2])> {
 }
 
 /// An R-tree of the polygons' exterior boxes grown by `grow`, each tagged with its index.
-pub(super) fn tree_of(polys: &[Polygon<f64>], grow: f64) -> RTree<Env> {
+pub(super) fn tree_of<P: Borrow<Polygon<f64>>>(polys: &[P], grow: f64) -> RTree<Env> {
     RTree::bulk_load(
         polys
             .iter()
             .enumerate()
             .filter_map(|(i, p)| {
-                envelope(p, grow)
+                envelope(p.borrow(), grow)
                     .map(|(lo, hi)| GeomWithData::new(Rectangle::from_corners(lo, hi), i))
             })
             .collect(),
@@ -277,7 +278,10 @@ impl Blocks<'_> {
 }
 
 /// Assigns every footprint to at most one block: `result[i]` is the block of `buildings[i]`.
-pub fn assign(buildings: &[Polygon<f64>], blocks: &[Polygon<f64>]) -> Vec<Option<usize>> {
+pub fn assign<P: Borrow<Polygon<f64>> + Sync>(
+    buildings: &[P],
+    blocks: &[Polygon<f64>],
+) -> Vec<Option<usize>> {
     let blocks = Blocks {
         polys: blocks,
         prepared: prepare(blocks),
@@ -290,6 +294,7 @@ pub fn assign(buildings: &[Polygon<f64>], blocks: &[Polygon<f64>]) -> Vec<Option
     buildings
         .par_iter()
         .map_init(InteriorPoints::default, |ip, b| {
+            let b = b.borrow();
             let n = b.exterior().0.len().clamp(1, 16);
             ip.reset(b);
             for k in 0..n {
@@ -310,15 +315,35 @@ pub fn assign(buildings: &[Polygon<f64>], blocks: &[Polygon<f64>]) -> Vec<Option
         })
         .collect()
 }
+/// Whether two footprints are at most `link` apart. Cheap bounds decide most pairs: the gap
+/// between their boxes is a lower bound of the distance (farther apart: no), the nearest pair of
+/// exterior vertices an upper bound (that close: yes); the others are measured exactly.
+fn within(a: &Polygon<f64>, b: &Polygon<f64>, link: f64) -> bool {
+    let (Some((alo, ahi)), Some((blo, bhi))) = (envelope(a, 0.0), envelope(b, 0.0)) else {
+        return Euclidean.distance(a, b) <= link;
+    };
+    let gx = (blo[0] - ahi[0]).max(alo[0] - bhi[0]).max(0.0);
+    let gy = (blo[1] - ahi[1]).max(alo[1] - bhi[1]).max(0.0);
+    if gx > link || gy > link || gx * gx + gy * gy > link * link * (1.0 + 1e-9) {
+        return false;
+    }
+    let close = a.exterior().0.iter().any(|p| {
+        b.exterior().0.iter().any(|q| {
+            (p.x - q.x) * (p.x - q.x) + (p.y - q.y) * (p.y - q.y) < link * link * (1.0 - 1e-9)
+        })
+    });
+    close || Euclidean.distance(a, b) <= link
+}
+
 /// Groups the given buildings (indices into `buildings`) into outskirts: buildings within `link`
 /// of each other (footprint to footprint) are in one group. Returns the groups, each with the
 /// convex hull of its footprints, in order of their first building.
-pub fn outskirts_groups(
-    buildings: &[Polygon<f64>],
+pub fn outskirts_groups<P: Borrow<Polygon<f64>>>(
+    buildings: &[P],
     which: &[usize],
     link: f64,
 ) -> Vec<(Polygon<f64>, Vec<usize>)> {
-    let polys: Vec<Polygon<f64>> = which.iter().map(|&i| buildings[i].clone()).collect();
+    let polys: Vec<&Polygon<f64>> = which.iter().map(|&i| buildings[i].borrow()).collect();
     let tree = tree_of(&polys, 0.5 * link);
     let mut parent: Vec<usize> = (0..polys.len()).collect();
     fn find(p: &mut [usize], mut x: usize) -> usize {
@@ -337,7 +362,7 @@ pub fn outskirts_groups(
             if j <= i || find(&mut parent, i) == find(&mut parent, j) {
                 continue;
             }
-            if Euclidean.distance(p, &polys[j]) <= link {
+            if within(p, polys[j], link) {
                 let (ri, rj) = (find(&mut parent, i), find(&mut parent, j));
                 parent[ri.max(rj)] = ri.min(rj);
             }
@@ -358,7 +383,7 @@ pub fn outskirts_groups(
         .map(|g| {
             let pts = g
                 .iter()
-                .flat_map(|&i| buildings[i].exterior().0.iter().copied());
+                .flat_map(|&i| buildings[i].borrow().exterior().0.iter().copied());
             (convex_hull_polygon(pts), g)
         })
         .collect()

@@ -10,6 +10,7 @@ use super::noding::{node_lines, DEFAULT_SNAP_TOLERANCE};
 use super::types::{Block, BlockId, BlockKind, BlockLayout, BlockSource};
 use crate::city::{BuildingId, City};
 use geo_types::{LineString, Polygon};
+use std::borrow::Borrow;
 
 /// Parameters of block detection. Lengths in metres (the city's metric world units).
 #[derive(Clone, Debug, PartialEq)]
@@ -121,7 +122,6 @@ pub fn detect(city: &City, opts: &BlockOptions) -> Result<BlockLayout, BlockErro
         None if !city.parcels.is_empty() => BlockSource::Parcels,
         None => BlockSource::Footprints,
     };
-    let mut lines = Vec::new();
     for s in &city.streets {
         if !finite_line(&s.line) {
             return Err(BlockError::NonFinite {
@@ -129,11 +129,7 @@ pub fn detect(city: &City, opts: &BlockOptions) -> Result<BlockLayout, BlockErro
                 id: s.source_id.clone(),
             });
         }
-        if !(opts.grade_separation && s.grade_separated) {
-            lines.push(s.line.clone());
-        }
     }
-    let mut parcels = Vec::new();
     for p in &city.parcels {
         if !finite_poly(&p.polygon) {
             return Err(BlockError::NonFinite {
@@ -141,11 +137,20 @@ pub fn detect(city: &City, opts: &BlockOptions) -> Result<BlockLayout, BlockErro
                 id: p.source_id.clone(),
             });
         }
-        parcels.push(p.polygon.clone());
     }
-    let footprints: Vec<Polygon<f64>> =
-        city.buildings.iter().map(|b| b.footprint.clone()).collect();
-    detect_geometry(source, &lines, &parcels, &footprints, opts)
+    // The geometry is borrowed, not copied; parcels are only dissolved when they are the source.
+    let lines = city
+        .streets
+        .iter()
+        .filter(|s| !(opts.grade_separation && s.grade_separated))
+        .map(|s| &s.line);
+    let parcels: Vec<Polygon<f64>> = if source == BlockSource::Parcels {
+        city.parcels.iter().map(|p| p.polygon.clone()).collect()
+    } else {
+        Vec::new()
+    };
+    let footprints: Vec<&Polygon<f64>> = city.buildings.iter().map(|b| &b.footprint).collect();
+    detect_parts(source, lines, &parcels, &footprints, opts)
 }
 
 /// [`detect`] on plain geometry in any planar units (lengths in the options are in those units):
@@ -160,6 +165,17 @@ pub fn detect_geometry(
     lines: &[LineString<f64>],
     parcels: &[Polygon<f64>],
     footprints: &[Polygon<f64>],
+    opts: &BlockOptions,
+) -> Result<BlockLayout, BlockError> {
+    detect_parts(source, lines, parcels, footprints, opts)
+}
+
+/// [`detect_geometry`] on borrowed lines and footprints.
+fn detect_parts<'a, P: Borrow<Polygon<f64>> + Sync>(
+    source: BlockSource,
+    lines: impl IntoIterator<Item = &'a LineString<f64>>,
+    parcels: &[Polygon<f64>],
+    footprints: &[P],
     opts: &BlockOptions,
 ) -> Result<BlockLayout, BlockError> {
     let max_snap = super::noding::MAX_SNAP_TOLERANCE;
@@ -202,7 +218,9 @@ pub fn detect_geometry(
             let polys = if source == BlockSource::Parcels {
                 blocks_from_parcels(parcels, tol)
             } else {
-                blocks_from_footprints(footprints, opts.street_width, tol)
+                let owned: Vec<Polygon<f64>> =
+                    footprints.iter().map(|p| p.borrow().clone()).collect();
+                blocks_from_footprints(&owned, opts.street_width, tol)
             };
             let step = 0.5 * opts.street_width.max(1.0);
             let centre = gap_centrelines(&polys, step, 3.0 * opts.street_width.max(1.0));

@@ -132,6 +132,41 @@ pub fn summary(layout: &BlockLayout, transform: &MetricTransform) -> LayoutSumma
     s
 }
 
+/// The block of every footprint feature that gave at least one building, by the feature's id
+/// ([`crate::city::build::source_fid`] of its buildings' source ids): for a feature that gave
+/// several buildings (a MultiPolygon, a polygon split by repair) whose parts lie in different
+/// blocks, the block of its largest part by ground area (the first such part on a tie). Features
+/// that were refused have no entry (the city's report lists them).
+pub fn feature_blocks(
+    city: &crate::city::City,
+    layout: &BlockLayout,
+) -> std::collections::BTreeMap<u64, super::types::BlockId> {
+    let mut block_of = vec![None; city.buildings.len()];
+    for b in &layout.blocks {
+        for i in &b.buildings {
+            if let Some(slot) = block_of.get_mut(i.0 as usize) {
+                *slot = Some(b.id);
+            }
+        }
+    }
+    let mut best: std::collections::BTreeMap<u64, (f64, super::types::BlockId)> =
+        std::collections::BTreeMap::new();
+    for (b, block) in city.buildings.iter().zip(block_of) {
+        let (Some(fid), Some(block)) = (crate::city::build::source_fid(&b.source_id), block) else {
+            continue;
+        };
+        let area = polygon_area(&b.footprint).abs();
+        best.entry(fid)
+            .and_modify(|e| {
+                if area > e.0 {
+                    *e = (area, block);
+                }
+            })
+            .or_insert((area, block));
+    }
+    best.into_iter().map(|(f, (_, b))| (f, b)).collect()
+}
+
 fn ring_json(ls: &LineString<f64>) -> Value {
     Value::Array(ls.0.iter().map(|c| json!([c.x, c.y])).collect())
 }
@@ -358,5 +393,87 @@ pub fn write_map(
         _ => Err(ExportError::Format {
             file: path.to_path_buf(),
         }),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::importers::{Attributes, Crs, Feature, ImportReport, Layer};
+    use geo_types::{line_string, polygon, Geometry, MultiPolygon};
+
+    fn layer(name: &str, geoms: Vec<Geometry<f64>>) -> Layer {
+        let n = geoms.len();
+        Layer {
+            name: name.into(),
+            source: name.into(),
+            crs: Crs::Unknown,
+            features: geoms
+                .into_iter()
+                .enumerate()
+                .map(|(i, geometry)| Feature {
+                    fid: i as u64,
+                    geometry,
+                    attributes: Attributes::new(),
+                })
+                .collect(),
+            report: ImportReport {
+                read: n,
+                imported: n,
+                ..Default::default()
+            },
+        }
+    }
+
+    #[test]
+    fn a_feature_in_several_blocks_goes_where_its_largest_part_is() {
+        let sq = |x: f64, y: f64, s: f64| polygon![(x: x, y: y), (x: x + s, y: y), (x: x + s, y: y + s), (x: x, y: y + s), (x: x, y: y)];
+        // Two street cells side by side: [0, 100] and [100, 200] × [0, 100].
+        let streets = layer(
+            "streets",
+            vec![
+                Geometry::LineString(line_string![(x: -10.0, y: 0.0), (x: 210.0, y: 0.0)]),
+                Geometry::LineString(line_string![(x: -10.0, y: 100.0), (x: 210.0, y: 100.0)]),
+                Geometry::LineString(line_string![(x: 0.0, y: -10.0), (x: 0.0, y: 110.0)]),
+                Geometry::LineString(line_string![(x: 100.0, y: -10.0), (x: 100.0, y: 110.0)]),
+                Geometry::LineString(line_string![(x: 200.0, y: -10.0), (x: 200.0, y: 110.0)]),
+            ],
+        );
+        let buildings = layer(
+            "buildings",
+            vec![
+                // A small part in the left cell, a large one in the right cell.
+                Geometry::MultiPolygon(MultiPolygon(vec![
+                    sq(10.0, 10.0, 10.0),
+                    sq(120.0, 20.0, 30.0),
+                ])),
+                Geometry::Polygon(sq(40.0, 40.0, 20.0)),
+            ],
+        );
+        let city =
+            crate::city::build::build_city(&buildings, Some(&streets), None, &Default::default())
+                .unwrap();
+        let layout = crate::blocks::detect(&city, &Default::default()).unwrap();
+        let block_at = |x: f64| {
+            layout
+                .blocks
+                .iter()
+                .find(|b| {
+                    b.kind == BlockKind::Block
+                        && crate::geom::predicates::polygon_area(&b.polygon) > 9000.0
+                        && b.polygon
+                            .exterior()
+                            .0
+                            .iter()
+                            .all(|c| c.x >= x - 1e-6 && c.x <= x + 100.0 + 1e-6)
+                })
+                .map(|b| b.id)
+                .unwrap()
+        };
+        let m = feature_blocks(&city, &layout);
+        assert_eq!(m.len(), 2);
+        assert_eq!(m[&0], block_at(100.0));
+        assert_eq!(m[&1], block_at(0.0));
+        assert_ne!(block_at(0.0), block_at(100.0));
     }
 }

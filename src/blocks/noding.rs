@@ -5,9 +5,11 @@
 //! comes within the snap tolerance of it (so junctions that miss by a millimetre join); points
 //! closer than the tolerance are merged into one node; duplicate and collinear overlapping pieces
 //! become one edge; zero-length pieces are dropped. Candidate pairs come from an R-tree of the
-//! segments' envelopes (O(n log n) for street networks), the crossing tests use exact orientation.
-//! Split points are snapped as they are found and kept once per segment and node, so memory grows
-//! with the nodes on each segment, not with the segments crossing it; the pairs themselves are
+//! segments' envelopes (O(n log n) for street networks), the crossing tests use exact orientation
+//! and run in parallel; the points found are snapped in the order of a sequential scan, so the
+//! graph does not depend on the number of threads. Split points are snapped as they are found
+//! and kept once per segment and node, so memory grows with the nodes on each segment, not with
+//! the segments crossing it; the pairs themselves are
 //! still all tested, so `n` lines through one point (every pair crossing there) cost `n²` tests
 //! (10,000 such lines: 16 s, 10 MB in the test profile; `cargo bench -p blockwalk --bench blocks`).
 //! That term stays: the `n(n − 1)/2` crossing pairs are the output-sensitive `k` of any pairwise
@@ -23,6 +25,7 @@ use crate::geom::predicates::{orient2d, segments_intersect, Orientation, Segment
 use crate::geom::segment::point_segment_distance;
 use crate::geom::tolerance::STREET_SNAP_M;
 use geo_types::{Coord, LineString};
+use rayon::prelude::*;
 use rstar::{primitives::GeomWithData, primitives::Rectangle, RTree, AABB};
 use std::collections::HashMap;
 use std::hash::{BuildHasherDefault, Hasher};
@@ -182,33 +185,155 @@ impl Snapper {
     }
 }
 
+/// A point where a segment is to be split: the segment, the point's parameter along it, the
+/// point.
+struct Split {
+    seg: u32,
+    t: f64,
+    p: Coord<f64>,
+}
+
+type SegEnv = GeomWithData<Rectangle<[f64; 2]>, usize>;
+
+/// The split points that segment `i` and the later segments near it give, appended to `out` in
+/// the order of the candidates from `tree`: proper crossings, and ends on or within `tol` of
+/// the other segment (T-junctions, overlaps, near misses).
+fn splits_of(
+    segs: &[[Coord<f64>; 2]],
+    tree: &RTree<SegEnv>,
+    i: usize,
+    tol: f64,
+    out: &mut Vec<Split>,
+) {
+    let mut record = |seg: usize, t: f64, p: Coord<f64>| {
+        out.push(Split {
+            seg: seg as u32,
+            t,
+            p,
+        })
+    };
+    let s = &segs[i];
+    let env = AABB::from_corners(
+        [s[0].x.min(s[1].x) - tol, s[0].y.min(s[1].y) - tol],
+        [s[0].x.max(s[1].x) + tol, s[0].y.max(s[1].y) + tol],
+    );
+    for cand in tree.locate_in_envelope_intersecting(&env) {
+        let j = cand.data;
+        if j <= i {
+            continue;
+        }
+        let [a, b] = *s;
+        let [c, d] = segs[j];
+        // Segments sharing an end (pieces of one line, edges at a node) cannot cross
+        // properly, and the shared end lies on both: only the other two ends need a look.
+        let shared = [a == c || a == d, b == c || b == d];
+        if shared[0] || shared[1] {
+            let (pi, pj) = if shared[0] {
+                (b, if a == c { d } else { c })
+            } else {
+                (a, if b == c { d } else { c })
+            };
+            for (p, target, other) in [(pj, i, [a, b]), (pi, j, [c, d])] {
+                let (dist, t) = point_segment_distance(p, other[0], other[1]);
+                if (dist <= tol || orient2d(other[0], other[1], p) == Orientation::Collinear)
+                    && t > 0.0
+                    && t < 1.0
+                {
+                    record(target, t, p);
+                }
+            }
+            continue;
+        }
+        if segments_intersect(a, b, c, d) == SegmentIntersection::Proper {
+            // Proper crossing: the point, computed relative to `a` for precision, with the
+            // three vectors scaled by one power of two (exactly) so that the products
+            // neither underflow nor overflow (their ratio `t` is unchanged).
+            let (r, q, w) = (b - a, d - c, c - a);
+            let m = [r.x, r.y, q.x, q.y, w.x, w.y]
+                .iter()
+                .fold(0.0f64, |m, v| m.max(v.abs()));
+            let k = 2f64.powi(-(m.log2().floor() as i32));
+            let (rs, qs, ws) = (r * k, q * k, w * k);
+            let den = rs.x * qs.y - rs.y * qs.x;
+            let t = ((ws.x * qs.y - ws.y * qs.x) / den).clamp(0.0, 1.0);
+            let t = if t.is_finite() { t } else { 0.5 };
+            let p = Coord {
+                x: a.x + t * r.x,
+                y: a.y + t * r.y,
+            };
+            let (_, u) = point_segment_distance(p, c, d);
+            record(i, t, p);
+            record(j, u, p);
+        }
+        // Ends touching or near the other segment (T-junctions, overlaps, near misses).
+        // An exactly collinear end counts as distance 0 whatever the rounding of the distance.
+        for (p, target, other) in [
+            (c, i, [a, b]),
+            (d, i, [a, b]),
+            (a, j, [c, d]),
+            (b, j, [c, d]),
+        ] {
+            let (dist, t) = point_segment_distance(p, other[0], other[1]);
+            if (dist <= tol || orient2d(other[0], other[1], p) == Orientation::Collinear)
+                && t > 0.0
+                && t < 1.0
+            {
+                record(target, t, p);
+            }
+        }
+    }
+}
+
 /// One noding pass over segments; returns the graph and whether any segment was split at a point
 /// that is not one of its own end nodes.
 fn node_once(segs: &[[Coord<f64>; 2]], tol: f64) -> (PlanarGraph, bool) {
-    type Env = GeomWithData<Rectangle<[f64; 2]>, usize>;
-    let envs: Vec<Env> = segs
-        .iter()
-        .enumerate()
-        .map(|(i, s)| {
-            let lo = [s[0].x.min(s[1].x) - tol, s[0].y.min(s[1].y) - tol];
-            let hi = [s[0].x.max(s[1].x) + tol, s[0].y.max(s[1].y) + tol];
-            GeomWithData::new(Rectangle::from_corners(lo, hi), i)
-        })
-        .collect();
-    let tree = RTree::bulk_load(envs);
-    // Line vertices become nodes first, so a computed point near a vertex joins the vertex.
-    let mut snap = Snapper::new(tol);
-    let ends: Vec<[u32; 2]> = segs
-        .iter()
-        .map(|s| [snap.node(s[0]), snap.node(s[1])])
-        .collect();
     // Split nodes per segment: (parameter, node). A point is snapped to its node as it is found,
     // and a node equal to the one last recorded on the same segment is not recorded again: when
     // many segments cross one segment at one point (lines through a common centre) the segment
     // keeps one entry, not one per crossing segment.
     let mut splits: Vec<Vec<(f64, u32)>> = vec![Vec::new(); segs.len()];
     let mut changed = false;
-    let mut record = |snap: &mut Snapper, seg: usize, t: f64, p: Coord<f64>| {
+    // The pairs are tested in parallel, each segment's split points listed in the order the
+    // sequential scan would find them (segments in order, candidates in the tree's order); the
+    // points are then snapped one after the other in that order, so the nodes (and their
+    // numbering) are those of a sequential pass.
+    // Line vertices become nodes first (meanwhile: the tree and the tests need no node), so a
+    // computed point near a vertex joins the vertex.
+    let ((mut snap, ends), found) = rayon::join(
+        || {
+            let mut snap = Snapper::new(tol);
+            let ends: Vec<[u32; 2]> = segs
+                .iter()
+                .map(|s| [snap.node(s[0]), snap.node(s[1])])
+                .collect();
+            (snap, ends)
+        },
+        || {
+            let envs: Vec<SegEnv> = segs
+                .iter()
+                .enumerate()
+                .map(|(i, s)| {
+                    let lo = [s[0].x.min(s[1].x) - tol, s[0].y.min(s[1].y) - tol];
+                    let hi = [s[0].x.max(s[1].x) + tol, s[0].y.max(s[1].y) + tol];
+                    GeomWithData::new(Rectangle::from_corners(lo, hi), i)
+                })
+                .collect();
+            let tree = RTree::bulk_load(envs);
+            (0..segs.len())
+                .into_par_iter()
+                .with_min_len(1024)
+                .fold(Vec::new, |mut out, i| {
+                    splits_of(segs, &tree, i, tol, &mut out);
+                    out
+                })
+                .reduce(Vec::new, |mut a: Vec<Split>, mut b| {
+                    a.append(&mut b);
+                    a
+                })
+        },
+    );
+    for Split { seg, t, p } in found {
+        let seg = seg as usize;
         let n = snap.node_near(p, splits[seg].last().map(|&(_, n)| n));
         if n != ends[seg][0] && n != ends[seg][1] {
             changed = true;
@@ -216,77 +341,6 @@ fn node_once(segs: &[[Coord<f64>; 2]], tol: f64) -> (PlanarGraph, bool) {
         let list = &mut splits[seg];
         if list.last().is_none_or(|&(_, last)| last != n) {
             list.push((t, n));
-        }
-    };
-    for (i, s) in segs.iter().enumerate() {
-        let env = AABB::from_corners(
-            [s[0].x.min(s[1].x) - tol, s[0].y.min(s[1].y) - tol],
-            [s[0].x.max(s[1].x) + tol, s[0].y.max(s[1].y) + tol],
-        );
-        for cand in tree.locate_in_envelope_intersecting(&env) {
-            let j = cand.data;
-            if j <= i {
-                continue;
-            }
-            let [a, b] = *s;
-            let [c, d] = segs[j];
-            // Segments sharing an end (pieces of one line, edges at a node) cannot cross
-            // properly, and the shared end lies on both: only the other two ends need a look.
-            let shared = [a == c || a == d, b == c || b == d];
-            if shared[0] || shared[1] {
-                let (pi, pj) = if shared[0] {
-                    (b, if a == c { d } else { c })
-                } else {
-                    (a, if b == c { d } else { c })
-                };
-                for (p, target, other) in [(pj, i, [a, b]), (pi, j, [c, d])] {
-                    let (dist, t) = point_segment_distance(p, other[0], other[1]);
-                    if (dist <= tol || orient2d(other[0], other[1], p) == Orientation::Collinear)
-                        && t > 0.0
-                        && t < 1.0
-                    {
-                        record(&mut snap, target, t, p);
-                    }
-                }
-                continue;
-            }
-            if segments_intersect(a, b, c, d) == SegmentIntersection::Proper {
-                // Proper crossing: the point, computed relative to `a` for precision, with the
-                // three vectors scaled by one power of two (exactly) so that the products
-                // neither underflow nor overflow (their ratio `t` is unchanged).
-                let (r, q, w) = (b - a, d - c, c - a);
-                let m = [r.x, r.y, q.x, q.y, w.x, w.y]
-                    .iter()
-                    .fold(0.0f64, |m, v| m.max(v.abs()));
-                let k = 2f64.powi(-(m.log2().floor() as i32));
-                let (rs, qs, ws) = (r * k, q * k, w * k);
-                let den = rs.x * qs.y - rs.y * qs.x;
-                let t = ((ws.x * qs.y - ws.y * qs.x) / den).clamp(0.0, 1.0);
-                let t = if t.is_finite() { t } else { 0.5 };
-                let p = Coord {
-                    x: a.x + t * r.x,
-                    y: a.y + t * r.y,
-                };
-                let (_, u) = point_segment_distance(p, c, d);
-                record(&mut snap, i, t, p);
-                record(&mut snap, j, u, p);
-            }
-            // Ends touching or near the other segment (T-junctions, overlaps, near misses).
-            // An exactly collinear end counts as distance 0 whatever the rounding of the distance.
-            for (p, target, other) in [
-                (c, i, [a, b]),
-                (d, i, [a, b]),
-                (a, j, [c, d]),
-                (b, j, [c, d]),
-            ] {
-                let (dist, t) = point_segment_distance(p, other[0], other[1]);
-                if (dist <= tol || orient2d(other[0], other[1], p) == Orientation::Collinear)
-                    && t > 0.0
-                    && t < 1.0
-                {
-                    record(&mut snap, target, t, p);
-                }
-            }
         }
     }
     let mut edges: Vec<[u32; 2]> = Vec::with_capacity(segs.len());
@@ -327,9 +381,12 @@ fn node_once(segs: &[[Coord<f64>; 2]], tol: f64) -> (PlanarGraph, bool) {
 /// again, pass after pass), passes at tolerance 0 follow (at most [`SNAP_PASSES`] more), which
 /// split the crossings that remain at their computed points. Unused nodes are removed.
 /// Non-finite coordinates must be filtered by the caller.
-pub fn node_lines(lines: &[LineString<f64>], tol: f64) -> PlanarGraph {
+pub fn node_lines<'a>(
+    lines: impl IntoIterator<Item = &'a LineString<f64>>,
+    tol: f64,
+) -> PlanarGraph {
     let mut segs: Vec<[Coord<f64>; 2]> = lines
-        .iter()
+        .into_iter()
         .flat_map(|l| l.0.windows(2).map(|w| [w[0], w[1]]))
         .filter(|s| s[0] != s[1])
         .collect();

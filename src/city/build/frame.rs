@@ -18,7 +18,7 @@ use geo_types::Polygon;
 use glam::DVec3;
 use serde::Serialize;
 
-use super::geometry::polygons_of;
+use super::geometry::{lines_of, polygons_of};
 use super::BuildError;
 use crate::city::model::{Building, LocalFrame};
 use crate::geom::Rect;
@@ -103,6 +103,25 @@ pub fn layer_centre(layer: &Layer) -> Option<[f64; 2]> {
         .iter()
         .filter_map(|f| polygons_of(&f.geometry))
         .flat_map(|ps| ps.into_iter().filter_map(|p| bbox_centre(&p)))
+        .collect();
+    median_centre(&centres)
+}
+
+/// The median of the line features' bounding-box centres, in the layer's own coordinates: the
+/// centre of a street layer's metric transform when there are no footprints.
+pub fn line_layer_centre(layer: &Layer) -> Option<[f64; 2]> {
+    let centres: Vec<[f64; 2]> = layer
+        .features
+        .iter()
+        .filter_map(|f| lines_of(&f.geometry))
+        .flat_map(|ls| {
+            ls.into_iter().filter_map(|l| {
+                l.0.iter()
+                    .filter(|c| c.x.is_finite() && c.y.is_finite())
+                    .fold(None, |b, c| Some(Rect::grow(b, Rect::point([c.x, c.y]))))
+                    .map(|r| r.centre())
+            })
+        })
         .collect();
     median_centre(&centres)
 }

@@ -24,11 +24,13 @@ pub(crate) fn polygons_of(g: &Geometry<f64>) -> Option<Vec<Cow<'_, Polygon<f64>>
     }
 }
 
-pub(crate) fn lines_of(g: &Geometry<f64>) -> Option<Vec<LineString<f64>>> {
+/// The lines of a geometry (borrowed where the geometry holds them); `None` for a kind that is
+/// not a line.
+pub(crate) fn lines_of(g: &Geometry<f64>) -> Option<Vec<Cow<'_, LineString<f64>>>> {
     match g {
-        Geometry::LineString(l) => Some(vec![l.clone()]),
-        Geometry::MultiLineString(m) => Some(m.0.clone()),
-        Geometry::Line(l) => Some(vec![LineString::from(vec![l.start, l.end])]),
+        Geometry::LineString(l) => Some(vec![Cow::Borrowed(l)]),
+        Geometry::MultiLineString(m) => Some(m.0.iter().map(Cow::Borrowed).collect()),
+        Geometry::Line(l) => Some(vec![Cow::Owned(LineString::from(vec![l.start, l.end]))]),
         _ => None,
     }
 }
@@ -153,6 +155,11 @@ impl<'a> BoxCheck<'a> {
     }
 }
 
+/// The box of a line when every coordinate is finite.
+pub(crate) fn line_box(l: &LineString<f64>) -> Option<[f64; 4]> {
+    finite_box(std::iter::once(l))
+}
+
 /// The box of a polygon's rings when every coordinate is finite.
 pub(crate) fn polygon_box(p: &Polygon<f64>) -> Option<[f64; 4]> {
     finite_box(std::iter::once(p.exterior()).chain(p.interiors()))
@@ -205,7 +212,16 @@ pub(crate) fn to_metric_line(
     l: &LineString<f64>,
     t: &MetricTransform,
 ) -> Result<Vec<Coord<f64>>, String> {
-    if let Some(mut r) = to_metric_rings_by_box(std::iter::once(l), t, None) {
+    to_metric_line_checked(l, t, None)
+}
+
+/// [`to_metric_line`] with the box checked through `check` when given.
+pub(crate) fn to_metric_line_checked(
+    l: &LineString<f64>,
+    t: &MetricTransform,
+    check: Option<&BoxCheck<'_>>,
+) -> Result<Vec<Coord<f64>>, String> {
+    if let Some(mut r) = to_metric_rings_by_box(std::iter::once(l), t, check) {
         return Ok(r.pop().expect("one line"));
     }
     l.0.iter()

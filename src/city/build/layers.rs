@@ -2,14 +2,31 @@
 //! every refusal accounted for and a layer that yields nothing said to be unusable (and why).
 
 use blockwalk_importers::{format_groups, group_reasons, Layer, MetricTransform};
-use geo_types::{Coord, LineString};
+use geo_types::LineString;
+use rayon::prelude::*;
 
 use super::geometry::{
-    geometry_kind, has_tag, lines_of, polygons_of, to_metric_line, to_metric_polygon, truthy,
+    geometry_kind, has_tag, line_box, lines_of, polygons_of, to_metric_line_checked,
+    to_metric_polygon, truthy, BoxCheck,
 };
 use super::BuildOptions;
 use crate::city::model::{CityReport, Parcel, RefusalNote, Street};
 use crate::geom::repair::repair_polygon;
+
+/// The attributes that make a street a bridge or a tunnel ([`Street::grade_separated`]) when
+/// their value is true (`1`, `yes`, `true`, …).
+pub const GRADE_SEPARATION_KEYS: [&str; 4] = ["bridge", "tunnel", "BRIDGE", "TUNNEL"];
+
+/// The street attributes a city is built from with `opts`: [`GRADE_SEPARATION_KEYS`] and the
+/// keys of [`BuildOptions::exclude_street_tags`]. Reading only these gives the same streets.
+pub fn street_columns(opts: &BuildOptions) -> blockwalk_importers::Columns {
+    blockwalk_importers::Columns::only(
+        GRADE_SEPARATION_KEYS
+            .iter()
+            .map(|k| k.to_string())
+            .chain(opts.exclude_street_tags.iter().map(|(k, _)| k.clone())),
+    )
+}
 
 /// Why a layer that was given yields nothing, or `None` when it yields something.
 fn unusable(
@@ -64,6 +81,17 @@ fn summary_note(
     )
 }
 
+/// What one street feature gives: excluded by tag, not a line (its kind), or its lines in
+/// metres (each, or why it was refused).
+enum StreetOutcome {
+    Excluded,
+    NotLine(&'static str),
+    Lines {
+        grade_separated: bool,
+        parts: Vec<Result<LineString<f64>, String>>,
+    },
+}
+
 pub(crate) fn build_streets(
     layer: &Layer,
     t: &MetricTransform,
@@ -74,48 +102,82 @@ pub(crate) fn build_streets(
     let mut out = Vec::new();
     let mut excluded = 0usize;
     let mut refused = importer_refusals(layer);
-    for f in &layer.features {
+    // The lines' transform and checks in parallel, the accounting in order; the CRS check of
+    // the lines' boxes block by block of a grid, as for footprints.
+    let check = BoxCheck::new(
+        t,
+        layer
+            .features
+            .iter()
+            .filter_map(|f| lines_of(&f.geometry))
+            .flat_map(|ls| ls.into_iter().filter_map(|l| line_box(&l))),
+    );
+    let outcomes: Vec<StreetOutcome> = layer
+        .features
+        .par_iter()
+        .map(|f| {
+            if opts
+                .exclude_street_tags
+                .iter()
+                .any(|(k, v)| has_tag(&f.attributes, k, v))
+            {
+                return StreetOutcome::Excluded;
+            }
+            let Some(lines) = lines_of(&f.geometry) else {
+                return StreetOutcome::NotLine(geometry_kind(&f.geometry));
+            };
+            let grade_separated = GRADE_SEPARATION_KEYS
+                .iter()
+                .any(|k| f.attributes.get(*k).map(truthy).unwrap_or(false));
+            let parts = lines
+                .iter()
+                .map(|l| {
+                    let mut pts = to_metric_line_checked(l, t, Some(&check))?;
+                    pts.dedup();
+                    if pts.len() < 2 {
+                        return Err("fewer than 2 distinct points".to_string());
+                    }
+                    Ok(LineString::from(pts))
+                })
+                .collect();
+            StreetOutcome::Lines {
+                grade_separated,
+                parts,
+            }
+        })
+        .collect();
+    for (f, outcome) in layer.features.iter().zip(outcomes) {
         let id = format!("{name}:{}", f.fid);
-        if opts
-            .exclude_street_tags
-            .iter()
-            .any(|(k, v)| has_tag(&f.attributes, k, v))
-        {
-            excluded += 1;
-            continue;
-        }
-        let Some(lines) = lines_of(&f.geometry) else {
-            refused.push((id, format!("{} is not a line", geometry_kind(&f.geometry))));
-            continue;
+        let (grade_separated, parts) = match outcome {
+            StreetOutcome::Excluded => {
+                excluded += 1;
+                continue;
+            }
+            StreetOutcome::NotLine(kind) => {
+                refused.push((id, format!("{kind} is not a line")));
+                continue;
+            }
+            StreetOutcome::Lines {
+                grade_separated,
+                parts,
+            } => (grade_separated, parts),
         };
-        let grade_separated = ["bridge", "tunnel", "BRIDGE", "TUNNEL"]
-            .iter()
-            .any(|k| f.attributes.get(*k).map(truthy).unwrap_or(false));
-        let n = lines.len();
-        for (k, l) in lines.iter().enumerate() {
+        let n = parts.len();
+        for (k, line) in parts.into_iter().enumerate() {
             let part = if n == 1 {
                 id.clone()
             } else {
                 format!("{id}.{k}")
             };
-            let mut pts: Vec<Coord<f64>> = match to_metric_line(l, t) {
-                Ok(p) => p,
-                Err(e) => {
-                    refused.push((part, e));
-                    continue;
-                }
-            };
-            pts.dedup();
-            if pts.len() < 2 {
-                refused.push((part, "fewer than 2 distinct points".into()));
-                continue;
+            match line {
+                Ok(line) => out.push(Street {
+                    source_id: part,
+                    line,
+                    grade_separated,
+                    attributes: f.attributes.clone(),
+                }),
+                Err(e) => refused.push((part, e)),
             }
-            out.push(Street {
-                source_id: part,
-                line: LineString::from(pts),
-                grade_separated,
-                attributes: f.attributes.clone(),
-            });
         }
     }
     let read = layer.report.read.max(layer.features.len());

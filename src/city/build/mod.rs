@@ -51,6 +51,7 @@ pub use frame::{robust_origin, FrameReport};
 pub use geometry::{has_tag, truthy};
 pub use ground::{GroundOptions, GroundReport, GroundSetupError};
 pub use heights::{heights_from_attributes, source_name, HeightFields, Heights, ImplausibleHeight};
+pub use repair_report::source_fid;
 
 /// Options of [`build_city`].
 #[derive(Clone, Debug, Default, PartialEq)]
@@ -246,6 +247,49 @@ pub fn build_city(
         .name
         .clone()
         .unwrap_or_else(|| city_name(&footprints.source, &footprints.name));
+    Ok(city)
+}
+
+/// A city of a street layer alone, without buildings: what the faces of a street graph
+/// ([`crate::blocks::detect`]) need when no footprints are given. Ground metres are centred on
+/// the lines ([`frame::line_layer_centre`]), as [`build_city`] centres them on the footprints,
+/// and the local origin is there. [`BuildOptions::crs`] states the layer's CRS.
+///
+/// # Errors
+/// [`BuildError::Crs`] when the layer's CRS cannot be set up.
+pub fn build_street_city(streets: &Layer, opts: &BuildOptions) -> Result<City, BuildError> {
+    let crs = opts.crs.clone().unwrap_or_else(|| streets.crs.clone());
+    let centre = frame::line_layer_centre(streets).unwrap_or([0.0, 0.0]);
+    let transform = crs
+        .try_metric_transform(centre)
+        .map_err(|source| BuildError::Crs {
+            layer: streets.source.display().to_string(),
+            source,
+        })?;
+    let [ox, oy] = transform.to_metric(centre);
+    let local = LocalFrame {
+        origin: glam::DVec3::new(ox, oy, 0.0),
+    };
+    // No footprints: an empty layer in the streets' CRS stands for them.
+    let none = Layer {
+        name: streets.name.clone(),
+        source: streets.source.clone(),
+        crs,
+        features: Vec::new(),
+        report: Default::default(),
+    };
+    let stated;
+    let streets = if streets.crs == none.crs {
+        streets
+    } else {
+        stated = Layer {
+            crs: none.crs.clone(),
+            ..streets.clone()
+        };
+        &stated
+    };
+    let mut city = build_city_in_frame(&none, Some(streets), None, opts, transform, local)?;
+    city.name = opts.name.clone().unwrap_or_else(|| streets.name.clone());
     Ok(city)
 }
 

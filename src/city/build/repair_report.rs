@@ -21,6 +21,14 @@ fn repair_outcome(r: &Repaired) -> String {
         .join("; ")
 }
 
+/// The feature id in a building's source id: `layer:fid` for a feature that gave one building,
+/// `layer:fid.k` for its part `k` when it gave several (a MultiPolygon, a polygon that repair
+/// split). `None` for an id of another form.
+pub fn source_fid(source_id: &str) -> Option<u64> {
+    let (_, tail) = source_id.rsplit_once(':')?;
+    tail.split('.').next()?.parse().ok()
+}
+
 /// One footprint feature's polygons, transformed and repaired (or why not), and its heights.
 type Outcome = (Vec<Result<Repaired, String>>, Heights);
 
@@ -199,4 +207,47 @@ pub(crate) fn build_footprints(
             .map(|r| (r.id.clone(), r.reason.as_str())),
     );
     buildings
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::importers::{Attributes, Crs, Feature, ImportReport};
+    use geo_types::{polygon, Geometry, MultiPolygon};
+
+    #[test]
+    fn every_building_names_the_feature_it_came_from() {
+        let sq = |x: f64| polygon![(x: x, y: 0.0), (x: x + 10.0, y: 0.0), (x: x + 10.0, y: 10.0), (x: x, y: 10.0), (x: x, y: 0.0)];
+        let features = vec![
+            Feature {
+                fid: 7,
+                geometry: Geometry::Polygon(sq(0.0)),
+                attributes: Attributes::new(),
+            },
+            Feature {
+                fid: 12,
+                geometry: Geometry::MultiPolygon(MultiPolygon(vec![sq(50.0), sq(100.0)])),
+                attributes: Attributes::new(),
+            },
+        ];
+        let layer = Layer {
+            name: "a:b".into(),
+            source: "x".into(),
+            crs: Crs::Unknown,
+            features,
+            report: ImportReport {
+                read: 2,
+                imported: 2,
+                ..Default::default()
+            },
+        };
+        let city = crate::city::build::build_city(&layer, None, None, &Default::default()).unwrap();
+        let fids: Vec<Option<u64>> = city
+            .buildings
+            .iter()
+            .map(|b| source_fid(&b.source_id))
+            .collect();
+        assert_eq!(fids, [Some(7), Some(12), Some(12)]);
+        assert_eq!(source_fid("no id"), None);
+    }
 }
