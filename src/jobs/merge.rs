@@ -215,6 +215,10 @@ pub fn merge(dir: &Path) -> Result<(TileIndex, PathBuf), JobsError> {
     Ok((index, ipath))
 }
 
+/// A tile of the root tileset as it is made: its JSON, its box in the local frame and its
+/// geometric error.
+type Part = (serde_json::Value, crate::geom::Aabb3, f64);
+
 /// A node of the root tileset's tree: a plan tile's tileset, or a quadtree node grouping others.
 struct Group {
     /// The plan tile whose key this is, if any.
@@ -232,7 +236,7 @@ fn root_tileset(
 ) -> Result<Option<String>, JobsError> {
     use crate::geom::Aabb3;
     use glam::{DMat4, DVec3};
-    use serde_json::{json, Value};
+    use serde_json::json;
     use std::collections::BTreeMap;
 
     let with: Vec<&IndexTile> = tiles.iter().filter(|t| t.tileset.is_some()).collect();
@@ -315,11 +319,11 @@ fn root_tileset(
         key: u64,
         nodes: &BTreeMap<u64, Group>,
         with: &[&IndexTile],
-        leaf: &dyn Fn(&IndexTile) -> (Value, Aabb3, f64),
-        group: &dyn Fn(Vec<(Value, Aabb3, f64)>) -> (Value, Aabb3, f64),
-    ) -> (Value, Aabb3, f64) {
+        leaf: &dyn Fn(&IndexTile) -> Part,
+        group: &dyn Fn(Vec<Part>) -> Part,
+    ) -> Part {
         let g = &nodes[&key];
-        let mut parts: Vec<(Value, Aabb3, f64)> = Vec::new();
+        let mut parts: Vec<Part> = Vec::new();
         if let Some(i) = g.tile {
             parts.push(leaf(with[i]));
         }
@@ -345,7 +349,7 @@ fn root_tileset(
             s.geometric_error,
         )
     };
-    let group = |parts: Vec<(Value, Aabb3, f64)>| {
+    let group = |parts: Vec<Part>| {
         let a = parts.iter().fold(Aabb3::EMPTY, |a, p| a.union(p.1));
         let ge = parts
             .iter()

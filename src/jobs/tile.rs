@@ -184,7 +184,8 @@ fn clear_tile(dir: &Path, tile: usize) -> Result<(), JobsError> {
         };
         r.map_err(io(&p))?;
     }
-    let owned: [(String, fn(&std::ffi::OsStr) -> bool); 2] = [
+    type Owns = fn(&std::ffi::OsStr) -> bool;
+    let owned: [(String, Owns); 2] = [
         (
             format!("tile_{tile:05}_maps"),
             crate::blockmap::is_maps_entry,
