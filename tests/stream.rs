@@ -77,7 +77,7 @@ fn fixture() -> &'static Fixture {
                 &plan_path,
                 t,
                 &TileOptions {
-                    maps: Some(maps.clone()),
+                    maps: Some(maps),
                     ..TileOptions::default()
                 },
             )
