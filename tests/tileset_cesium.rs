@@ -54,6 +54,95 @@ fn sky_agreement(a: &image::RgbaImage, b: &image::RgbaImage) -> f64 {
     same as f64 / (a.width() * a.height()) as f64
 }
 
+/// Views over the middle of a city: from 3 km away (the root's map alone is fine enough) and
+/// from 80 m up, 220 m from the middle (leaves needed nearby); and the point they look at.
+fn views_of(scene: &Scene) -> ([(&'static str, DVec3); 2], DVec3) {
+    let c = scene.city_bounds().center();
+    let centre = DVec3::new(c.x, c.y, 0.0);
+    (
+        [
+            ("far", centre + DVec3::new(0.0, -2600.0, 1500.0)),
+            ("near", centre + DVec3::new(0.0, -220.0, 80.0)),
+        ],
+        centre,
+    )
+}
+
+/// Our own rendering of each view (the scene's block meshes, lit as CesiumJS is asked to),
+/// saved as `{prefix}ours_{view}.png`.
+fn our_images(
+    scene: &Scene,
+    views: &[(&str, DVec3)],
+    centre: DVec3,
+    out: &Path,
+    prefix: &str,
+) -> Vec<image::RgbaImage> {
+    let blocks: Vec<_> = scene
+        .block_meshes()
+        .iter()
+        .map(|(id, m)| (*id, m))
+        .collect();
+    views
+        .iter()
+        .map(|(name, eye)| {
+            let mut cam = Camera::looking_at(*eye, centre);
+            cam.aspect = W as f64 / H as f64;
+            cam.far = 20_000.0;
+            let img = shade(&blocks, &cam, W, H);
+            img.save(out.join(format!("{prefix}ours_{name}.png")))
+                .unwrap();
+            img
+        })
+        .collect()
+}
+
+/// What one CesiumJS page loads: the tileset's folder (served by the page's own server) or a
+/// URL, the local frame's transform when the root has none, and the file prefix of its outputs.
+struct Page<'a> {
+    dir: &'a Path,
+    url: Option<String>,
+    local_to_ecef: Option<[f64; 16]>,
+    prefix: &'a str,
+}
+
+/// Runs `tests/tools/cesium_tileset.mjs` on one page and returns its report (also saved as
+/// `{prefix}cesium_report.json` in `out`).
+fn run_page(
+    (node, chromium): (&str, &str),
+    page: &Page<'_>,
+    views: &[(&str, DVec3)],
+    centre: DVec3,
+    work: &Path,
+    out: &Path,
+) -> Value {
+    let spec = json!({
+        "chromium": chromium,
+        "tileset_dir": page.dir,
+        "tileset_url": page.url,
+        "local_to_ecef": page.local_to_ecef,
+        "prefix": page.prefix,
+        "out_dir": out,
+        "width": W,
+        "height": H,
+        "maximum_screen_space_error": 16,
+        "sky": appearance::SKY,
+        "ground": appearance::GROUND,
+        "sun_local": appearance::sun_direction().to_array(),
+        "views": views.iter().map(|(name, eye)| json!({
+            "name": name, "eye": eye.to_array(), "target": centre.to_array(), "fov_y_deg": 60.0,
+        })).collect::<Vec<_>>(),
+    });
+    let spec_path = work.join(format!("spec{}.json", page.prefix));
+    std::fs::write(&spec_path, serde_json::to_vec_pretty(&spec).unwrap()).unwrap();
+    let report = support::node::run_json(node, "cesium_tileset.mjs", &spec_path);
+    std::fs::write(
+        out.join(format!("{}cesium_report.json", page.prefix)),
+        serde_json::to_vec_pretty(&report).unwrap(),
+    )
+    .unwrap();
+    report
+}
+
 #[test]
 fn cesium_loads_the_helsinki_tileset_and_refines_it() {
     let _one = CHROMIUM.lock().unwrap_or_else(|e| e.into_inner());
@@ -117,32 +206,9 @@ fn cesium_loads_the_helsinki_tileset_and_refines_it() {
     assert!(archive.is_file());
     let server = blockwalk::stream::serve::Server::start(&archive, "127.0.0.1:0", 4).unwrap();
 
-    // Views over the middle of the city: from 3 km away (the root's map alone is fine enough)
-    // and from 80 m up, 220 m from the middle (leaves needed nearby).
-    let c = scene.city_bounds().center();
-    let centre = DVec3::new(c.x, c.y, 0.0);
-    let views = [
-        ("far", centre + DVec3::new(0.0, -2600.0, 1500.0)),
-        ("near", centre + DVec3::new(0.0, -220.0, 80.0)),
-    ];
+    let (views, centre) = views_of(&scene);
     let out = support::node::screenshot_dir("tileset-cesium");
-    // Our own rendering of each camera, once.
-    let ours: Vec<image::RgbaImage> = views
-        .iter()
-        .map(|(name, eye)| {
-            let mut cam = Camera::looking_at(*eye, centre);
-            cam.aspect = W as f64 / H as f64;
-            cam.far = 20_000.0;
-            let blocks: Vec<_> = scene
-                .block_meshes()
-                .iter()
-                .map(|(id, m)| (*id, m))
-                .collect();
-            let img = shade(&blocks, &cam, W, H);
-            img.save(out.join(format!("ours_{name}.png"))).unwrap();
-            img
-        })
-        .collect();
+    let ours = our_images(&scene, &views, centre, &out, "");
     let forms = [
         ("explicit", "", explicit_dir.clone(), None),
         ("implicit", "implicit_", implicit_dir, None),
@@ -154,30 +220,13 @@ fn cesium_loads_the_helsinki_tileset_and_refines_it() {
         ),
     ];
     for (form, prefix, dir, url) in forms {
-        let spec = json!({
-            "chromium": chromium,
-            "tileset_dir": dir,
-            "tileset_url": url,
-            "prefix": prefix,
-            "out_dir": out,
-            "width": W,
-            "height": H,
-            "maximum_screen_space_error": 16,
-            "sky": appearance::SKY,
-            "ground": appearance::GROUND,
-            "sun_local": appearance::sun_direction().to_array(),
-            "views": views.iter().map(|(name, eye)| json!({
-                "name": name, "eye": eye.to_array(), "target": centre.to_array(), "fov_y_deg": 60.0,
-            })).collect::<Vec<_>>(),
-        });
-        let spec_path = work.path().join(format!("spec{prefix}.json"));
-        std::fs::write(&spec_path, serde_json::to_vec_pretty(&spec).unwrap()).unwrap();
-        let report = support::node::run_json(&node, "cesium_tileset.mjs", &spec_path);
-        std::fs::write(
-            out.join(format!("{prefix}cesium_report.json")),
-            serde_json::to_vec_pretty(&report).unwrap(),
-        )
-        .unwrap();
+        let page = Page {
+            dir: &dir,
+            url,
+            local_to_ecef: None,
+            prefix,
+        };
+        let report = run_page((&node, &chromium), &page, &views, centre, work.path(), &out);
         check_report(form, prefix, &report, &g, &views, &ours, &out);
     }
     // The archive's entries were all served through its index.
@@ -374,43 +423,16 @@ fn cesium_loads_a_city_built_in_tiles_through_its_root_tileset() {
         &mut |_| {},
     )
     .unwrap();
-    let c = scene.city_bounds().center();
-    let centre = DVec3::new(c.x, c.y, 0.0);
-    let views = [
-        ("far", centre + DVec3::new(0.0, -2600.0, 1500.0)),
-        ("near", centre + DVec3::new(0.0, -220.0, 80.0)),
-    ];
+    let (views, centre) = views_of(&scene);
     let out = support::node::screenshot_dir("tileset-cesium");
-    let blocks: Vec<_> = scene
-        .block_meshes()
-        .iter()
-        .map(|(id, m)| (*id, m))
-        .collect();
-    let spec = json!({
-        "chromium": chromium,
-        "tileset_dir": jobs,
-        "tileset_url": null,
-        "local_to_ecef": transform,
-        "prefix": "jobs_",
-        "out_dir": out,
-        "width": W,
-        "height": H,
-        "maximum_screen_space_error": 16,
-        "sky": appearance::SKY,
-        "ground": appearance::GROUND,
-        "sun_local": appearance::sun_direction().to_array(),
-        "views": views.iter().map(|(name, eye)| json!({
-            "name": name, "eye": eye.to_array(), "target": centre.to_array(), "fov_y_deg": 60.0,
-        })).collect::<Vec<_>>(),
-    });
-    let spec_path = work.path().join("spec_jobs.json");
-    std::fs::write(&spec_path, serde_json::to_vec_pretty(&spec).unwrap()).unwrap();
-    let report = support::node::run_json(&node, "cesium_tileset.mjs", &spec_path);
-    std::fs::write(
-        out.join("jobs_cesium_report.json"),
-        serde_json::to_vec_pretty(&report).unwrap(),
-    )
-    .unwrap();
+    let ours = our_images(&scene, &views, centre, &out, "jobs_");
+    let page = Page {
+        dir: &jobs,
+        url: None,
+        local_to_ecef: Some(transform),
+        prefix: "jobs_",
+    };
+    let report = run_page((&node, &chromium), &page, &views, centre, work.path(), &out);
     let errors = report["page_errors"].as_array().unwrap();
     assert!(errors.is_empty(), "page errors: {errors:#?}");
     let files: Vec<&str> = report["requests"]["tileset_files"]
@@ -442,7 +464,7 @@ fn cesium_loads_a_city_built_in_tiles_through_its_root_tileset() {
             .all(|m| !files.contains(&m.as_str().unwrap())),
         "tileset files missing: {missing:?}"
     );
-    for (k, (name, eye)) in views.iter().enumerate() {
+    for (k, (name, _)) in views.iter().enumerate() {
         let v = &report["views"][k];
         assert_eq!(
             v["tiles_loaded"], true,
@@ -467,14 +489,10 @@ fn cesium_loads_a_city_built_in_tiles_through_its_root_tileset() {
             v["loaded"].as_array().unwrap().len(),
             drawn.len()
         );
-        let mut cam = Camera::looking_at(*eye, centre);
-        cam.aspect = W as f64 / H as f64;
-        cam.far = 20_000.0;
-        let ours = shade(&blocks, &cam, W, H);
         let theirs = image::open(out.join(format!("jobs_cesium_{name}.png")))
             .unwrap()
             .to_rgba8();
-        let agree = sky_agreement(&ours, &theirs);
+        let agree = sky_agreement(&ours[k], &theirs);
         println!("jobs {name}: sky/not-sky agreement with our rendering {agree:.3}");
         let need = if *name == "far" { 0.9 } else { 0.98 };
         assert!(agree > need, "jobs {name}: sky agreement {agree}");

@@ -338,10 +338,13 @@ def tileset(
     levels: Optional[int] = None,
     height: Union[str, float, None] = None,
     crs: Any = None,
+    implicit: bool = False,
+    plain: bool = False,
 ) -> dict:
     """Writes the city as a 3D Tiles 1.1 tileset in the folder ``out`` (``tileset.json`` and
-    ``tiles/``): BlockMap height fields as inner tiles, building meshes at the leaves, as
-    ``blockwalk tileset``.
+    ``tiles/``), or as one ``.3tz`` archive when ``out`` ends in ``.3tz``: BlockMap height
+    fields as inner tiles, building meshes at the leaves, as ``blockwalk tileset``. Contents
+    are compact (``KHR_mesh_quantization`` and ``EXT_meshopt_compression``) unless ``plain``.
 
     Args:
         buildings: footprints; streets: centre lines (the blocks; without them blocks come from
@@ -352,6 +355,10 @@ def tileset(
             where it costs fewer bytes than the meshes.
         height: as in :func:`extrude`.
         crs: the CRS of inputs that do not carry one.
+        implicit: write a 3D Tiles 1.1 implicit quadtree (subtree files) instead of an
+            explicit ``tileset.json`` tree.
+        plain: plain glTF contents (f32, uncompressed) for viewers without
+            ``EXT_meshopt_compression``.
 
     Returns:
         A dict: ``summary`` (tiles, depth, bytes, ``tileset_json``, …) and ``report``.
@@ -365,6 +372,8 @@ def tileset(
         os.fspath(out),
         k=int(k),
         levels=None if levels is None else int(levels),
+        implicit=bool(implicit),
+        plain=bool(plain),
         **_heights(height),
     )
     return {"summary": _report(r["summary"]), "report": _report(r["report"])}

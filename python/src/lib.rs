@@ -635,7 +635,7 @@ fn extrude<'py>(
 /// A 3D Tiles 1.1 tileset of the city in `out` (`blockwalk::tiles::build_tileset`). Returns a
 /// dict: `summary` and `report` (JSON text).
 #[pyfunction]
-#[pyo3(signature = (buildings, streets, out, *, k, levels=None, height_field=None, height_m=None))]
+#[pyo3(signature = (buildings, streets, out, *, k, levels=None, height_field=None, height_m=None, implicit=false, plain=false))]
 #[allow(clippy::too_many_arguments)]
 fn tileset<'py>(
     py: Python<'py>,
@@ -646,10 +646,12 @@ fn tileset<'py>(
     levels: Option<u32>,
     height_field: Option<String>,
     height_m: Option<f64>,
+    implicit: bool,
+    plain: bool,
 ) -> PyResult<Bound<'py, PyDict>> {
     use blockwalk::blockmap::Stop;
     use blockwalk::scene::{LoadedCity, Scene, SceneOptions};
-    use blockwalk::tiles::{build_tileset, TilesetOptions};
+    use blockwalk::tiles::{build_tileset, ContentEncoding, TilesetOptions};
     if levels == Some(0) {
         return Err(InputError::new_err(
             "levels 0: give at least 1, or None for a map where it costs fewer bytes than the meshes",
@@ -688,6 +690,16 @@ fn tileset<'py>(
         let topts = TilesetOptions {
             k,
             stop: levels.map_or(Stop::Competitive, Stop::Levels),
+            implicit,
+            // A `.3tz` name asks for the one-file archive, as on the command line.
+            archive: out
+                .extension()
+                .is_some_and(|e| e.eq_ignore_ascii_case("3tz")),
+            content: if plain {
+                ContentEncoding::Plain
+            } else {
+                ContentEncoding::Compact
+            },
             ..TilesetOptions::default()
         };
         let (_, summary) = build_tileset(

@@ -138,3 +138,29 @@ def test_tileset(tmp_path, bubenec):
     assert s["buildings"] == 144 and s["tiles"] >= 2
     with pytest.raises(blockwalk.InputError):
         blockwalk.tileset(buildings, streets, out=out, k=48)
+
+
+def test_tileset_forms(tmp_path, bubenec):
+    """Compact by default, plain on request, implicit subtrees, and one `.3tz` file; the same
+    tiles in every form."""
+    buildings, streets = bubenec
+    compact = blockwalk.tileset(buildings, streets, out=tmp_path / "c", k=32)["summary"]
+    plain = blockwalk.tileset(buildings, streets, out=tmp_path / "p", k=32, plain=True)["summary"]
+    assert compact["content"] == "compact" and plain["content"] == "plain"
+    assert compact["tiles"] == plain["tiles"] and compact["buildings"] == plain["buildings"] == 144
+    assert compact["bytes"] < plain["bytes"]
+    assert 0 < compact["position_error_m"] < 1e-3
+    glb = next((tmp_path / "c" / "tiles").glob("leaf_*.glb")).read_bytes()
+    assert b"EXT_meshopt_compression" in glb
+    glb = next((tmp_path / "p" / "tiles").glob("leaf_*.glb")).read_bytes()
+    assert b"EXT_meshopt_compression" not in glb
+    imp = blockwalk.tileset(buildings, streets, out=tmp_path / "i", k=32, implicit=True)["summary"]
+    assert imp["implicit"] and imp["tiles"] == compact["tiles"]
+    assert "implicitTiling" in (tmp_path / "i" / "tileset.json").read_text()
+    one = blockwalk.tileset(buildings, streets, out=tmp_path / "city.3tz", k=32)["summary"]
+    assert one["archive"] and (tmp_path / "city.3tz").is_file()
+    import zipfile
+
+    with zipfile.ZipFile(tmp_path / "city.3tz") as z:
+        names = z.namelist()
+    assert "tileset.json" in names and names[-1] == "@3dtilesIndex1@"
