@@ -317,7 +317,7 @@ fn a_small_budget_is_never_exceeded() {
 #[test]
 fn real_time_over_throttled_http_never_waits_and_converges() {
     let f = fixture();
-    let server = Server::start(&f.jobs, "127.0.0.1:0", 4).unwrap();
+    let server = Server::start(&f.jobs, "127.0.0.1:0", 16).unwrap();
     let url = format!("{}index.json", server.url());
     let city = StreamCity::open(&url).unwrap();
     assert!(city.startup.source.starts_with("HTTP"));

@@ -204,7 +204,7 @@ fn cesium_loads_the_helsinki_tileset_and_refines_it() {
     let (implicit_dir, _) = build("implicit", true, false);
     let (archive, _) = build("tileset.3tz", true, true);
     assert!(archive.is_file());
-    let server = blockwalk::stream::serve::Server::start(&archive, "127.0.0.1:0", 4).unwrap();
+    let server = blockwalk::stream::serve::Server::start(&archive, "127.0.0.1:0", 16).unwrap();
 
     let (views, centre) = views_of(&scene);
     let out = support::node::screenshot_dir("tileset-cesium");

@@ -15,13 +15,14 @@ pub struct Args {
     /// Address to listen on (`0.0.0.0:8080` for every interface; port 0 picks a free one).
     #[arg(long, default_value = "127.0.0.1:8080")]
     pub addr: String,
-    /// Threads answering requests.
-    #[arg(long, default_value_t = 8)]
-    pub threads: usize,
+    /// Connections served at once, each on a thread of its own (more wait to be accepted; a
+    /// connection idle for 2 s is closed).
+    #[arg(long, alias = "threads", default_value_t = 64)]
+    pub connections: usize,
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
-    let server = blockwalk::stream::serve::Server::start(&args.dir, &args.addr, args.threads)
+    let server = blockwalk::stream::serve::Server::start(&args.dir, &args.addr, args.connections)
         .map_err(anyhow::Error::msg)?;
     let index = if args.dir.join("index.json").is_file() {
         "index.json"

@@ -111,9 +111,15 @@ try {
   // Responses of another server (the tileset_url's): recorded as the local server records its own.
   const remoteBase = spec.tileset_url ? new URL('.', spec.tileset_url).href : null;
   if (remoteBase) {
+    // Requests issued and not finished (their URLs), for a report of a view that never loads.
+    requests.pending = {};
     tab.on('request', (r) => {
-      if (r.url().startsWith(remoteBase)) requests.issued = (requests.issued || 0) + 1;
+      if (r.url().startsWith(remoteBase)) {
+        requests.issued = (requests.issued || 0) + 1;
+        requests.pending[r.url()] = true;
+      }
     });
+    tab.on('requestfinished', (r) => delete requests.pending[r.url()]);
     tab.on('requestfailed', (r) => {
       if (r.url().startsWith(remoteBase)) {
         (requests.failed = requests.failed || []).push(`${r.url()}: ${r.failure() && r.failure().errorText}`);
@@ -235,6 +241,9 @@ try {
         failed: window.bw.failed.slice(),
         selected: stats.selected,
         triangles: stats.numberOfTrianglesSelected,
+        pending_requests: stats.numberOfPendingRequests,
+        processing: stats.numberOfTilesProcessing,
+        attempted: stats.numberOfAttemptedRequests,
       };
     }, { ...view, timeout_ms: view.timeout_ms || 60000 }, spec);
     const shot = path.join(spec.out_dir, `${spec.prefix || ''}cesium_${view.name}.png`);
