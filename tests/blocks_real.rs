@@ -106,7 +106,7 @@ fn bubenec_streets_match_momepy_enclosures() {
         "bubenec IoU min {:.6}",
         ious.iter().cloned().fold(1.0, f64::min)
     );
-    // As quoted in the README: IoU 1.000000 each, i.e. at least 0.9999995 (six decimals).
+    // As quoted in docs/blocks.md: IoU 1.000000 each, i.e. at least 0.9999995 (six decimals).
     assert!(ious.iter().all(|&v| v >= 0.999_999_5), "{ious:?}");
     let inside: usize = l
         .blocks
@@ -143,7 +143,7 @@ fn helsinki_streets_match_polygonize_reference() {
     );
     assert_eq!(faces.len(), 70);
     assert!((total - 893_374.0).abs() / 893_374.0 < 1e-3, "area {total}");
-    // As quoted in the README: IoU 1.00000 each, i.e. at least 0.999995 (five decimals).
+    // As quoted in docs/blocks.md: IoU 1.00000 each, i.e. at least 0.999995 (five decimals).
     assert!(ious.iter().all(|&v| v >= 0.999_995), "{ious:?}");
     check_partition(&l, buildings.len());
 }
