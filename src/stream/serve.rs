@@ -381,6 +381,11 @@ impl Server {
             Store::Dir(root.to_path_buf())
         } else if root.is_file() {
             Store::Archive(Archive::open(root).map_err(|e| e.to_string())?)
+        } else if !root.exists() {
+            return Err(format!(
+                "{}: no such folder or .3tz archive",
+                root.display()
+            ));
         } else {
             return Err(format!(
                 "{}: neither a folder nor a .3tz archive",
@@ -533,6 +538,21 @@ mod tests {
         assert!(e.contains("200 bytes asked for, 100 came"), "{e}");
         assert_eq!(s.counts().ranges.load(Ordering::Relaxed), 2);
         assert_eq!(s.counts().missing.load(Ordering::Relaxed), 1);
+    }
+
+    #[test]
+    fn a_root_that_cannot_be_served_is_named_with_its_problem() {
+        let dir = tempfile::tempdir().unwrap();
+        let missing = dir.path().join("city.3tz");
+        let e = Server::start(&missing, "127.0.0.1:0", 4).err().unwrap();
+        assert!(
+            e.contains("city.3tz") && e.contains("no such folder"),
+            "{e}"
+        );
+        let not_zip = dir.path().join("bad.3tz");
+        std::fs::write(&not_zip, b"not a zip").unwrap();
+        let e = Server::start(&not_zip, "127.0.0.1:0", 4).err().unwrap();
+        assert!(e.contains("bad.3tz"), "{e}");
     }
 
     /// Everything the server sends on a connection after `request` until it closes it (or
